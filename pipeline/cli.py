@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 import pkgutil
 
 import click
@@ -48,3 +49,196 @@ def main() -> None:
 @main.group(cls=_BenchGroup)
 def bench() -> None:
     """Accuracy and speed benchmarks against public data and reference libraries."""
+
+
+# ---- shared options -------------------------------------------------------------------------
+
+def _warehouse_option(f):
+    return click.option("--warehouse", "warehouse_dir", type=click.Path(file_okay=False, path_type=Path),
+                        default=None, help="Warehouse directory [default: $STRIDELAB_HOME/warehouse].")(f)
+
+
+def _wh(path: Path | None) -> Path:
+    from pipeline.config import default_warehouse
+    return Path(path) if path else default_warehouse()
+
+
+def _print_summary(summary, as_json: bool) -> None:
+    from pipeline.console import emit_json, err_console
+    if as_json:
+        emit_json(summary.as_dict())
+        return
+    d = summary.as_dict()
+    err_console.print(f"run {d['run_id']}: {d['ingested']} ingested, {d['duplicates']} unchanged, "
+                      f"{len(d['quarantined'])} quarantined, {d['stage_runs']} stage runs, {d['fresh']} up to date, "
+                      f"{len(d['failed'])} failed, {d['seconds']} s")
+    for q in d["quarantined"]:
+        err_console.print(f"  quarantined: {q}", markup=False)
+    for f in d["failed"]:
+        err_console.print(f"  failed: {f}", markup=False)
+
+
+def _run_with_progress(**kw):
+    """Run the pipeline with a spinner that shows the latest committed step."""
+    from pipeline import runner
+    from pipeline.console import err_console, UserError
+    from warehouse.lock import WarehouseBusy
+    try:
+        with err_console.status("starting…") as status:
+            def on_progress(msg: str) -> None:
+                status.update(msg)
+                if not err_console.is_terminal:
+                    err_console.print(msg, markup=False, highlight=False)
+            return runner.run(on_progress=on_progress, **kw)
+    except WarehouseBusy as e:
+        raise UserError(str(e)) from None
+    except RuntimeError as e:
+        if "cannot open the warehouse" in str(e):
+            raise UserError(str(e)) from None
+        raise
+
+
+# ---- commands -------------------------------------------------------------------------------
+
+@main.command()
+@click.argument("directory", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--manifest", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Study manifest (TOML) [default: studies/demo/study.toml].")
+@click.option("--seed", type=int, default=None, help="Override the manifest's random seed.")
+@click.option("--participants", type=click.IntRange(1, 10000), default=None,
+              help="Override the number of participants.")
+@click.option("--hours", type=click.FloatRange(0.01, 48), default=None,
+              help="Override the free-living recording length in hours (default from the manifest: 24).")
+@click.option("--json", "as_json", is_flag=True, help="Print the files written as JSON.")
+def simulate(directory: Path, manifest, seed, participants, hours, as_json) -> None:
+    """Write a synthetic study (MCAP recordings with reference) into DIRECTORY.
+
+    \b
+    Examples:
+      stridelab simulate stridelab-home/inbox
+      stridelab simulate /tmp/inbox --participants 2 --hours 1 --seed 7
+    """
+    from pipeline.console import emit_json, err_console
+    from pipeline.simulate import simulate_to_dir
+    files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
+                            on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
+    if as_json:
+        emit_json({"files": [str(f) for f in files]})
+    else:
+        err_console.print(f"{len(files)} recordings in {directory}")
+
+
+@main.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
+@_warehouse_option
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes.")
+@click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
+def ingest(paths, warehouse_dir, jobs, as_json) -> None:
+    """Load MCAP recordings (files or directories) into the warehouse; idempotent by content.
+
+    Bad files are quarantined with a one-line reason and do not stop the others.
+
+    \b
+    Examples:
+      stridelab ingest stridelab-home/inbox
+      stridelab ingest session1.mcap session2.mcap --warehouse /data/wh
+    """
+    files = []
+    for p in paths:
+        files += sorted(x for x in p.rglob("*.mcap") if not x.name.startswith(".")) if p.is_dir() else [p]
+    summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
+                                 command="ingest")
+    _print_summary(summary, as_json)
+    if summary.quarantined:
+        raise SystemExit(1)
+
+
+@main.command()
+@click.option("--inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Inbox directory scanned for *.mcap [default: $STRIDELAB_HOME/inbox].")
+@_warehouse_option
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
+              help="Worker processes [default: number of cores].")
+@click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
+def run(inbox, warehouse_dir, jobs, as_json) -> None:
+    """Nightly run: ingest what is new, recompute what is stale, record a ledger.
+
+    A second run started while one is active refuses with a clear message. Failures of one session
+    are recorded in the ledger and do not block the others (exit code 1 if any failed).
+
+    \b
+    Examples:
+      stridelab run
+      stridelab run --inbox /data/inbox --warehouse /data/wh --jobs 2 --json
+    """
+    import os
+    from pipeline.config import default_inbox
+    summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
+                                 jobs=jobs or os.cpu_count() or 1, command="run")
+    _print_summary(summary, as_json)
+    if summary.failed:
+        raise SystemExit(1)
+
+
+@main.command()
+@click.option("--no-serve", is_flag=True, help="Stop after the pipeline instead of starting the dashboard.")
+@click.option("--home", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the demo study lives [default: $STRIDELAB_HOME].")
+@click.option("--port", type=int, default=8501, show_default=True)
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None, help="Worker processes [default: cores].")
+def demo(no_serve, home, port, jobs) -> None:
+    """Simulate the demo study, run the nightly pipeline on it, then serve the dashboard.
+
+    \b
+    Examples:
+      stridelab demo               # then open http://localhost:8501
+      stridelab demo --no-serve    # pipeline only
+    """
+    import os
+    from pipeline.console import err_console
+    from pipeline.simulate import simulate_to_dir
+    h = Path(home) if home else None
+    if h is not None:
+        os.environ["STRIDELAB_HOME"] = str(h.resolve())
+    from pipeline.config import default_inbox, default_warehouse
+    inbox, wh = default_inbox(), default_warehouse()
+    existing = sorted(inbox.glob("*.mcap")) if inbox.is_dir() else []
+    if existing:
+        err_console.print(f"using the {len(existing)} recordings already in {inbox}")
+    else:
+        err_console.print(f"simulating the demo study into {inbox} …")
+        simulate_to_dir(inbox, on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
+    summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo")
+    _print_summary(summary, False)
+    if no_serve:
+        err_console.print(f"warehouse: {wh}")
+        return
+    _serve(wh, port)
+
+
+def _serve(wh: Path, port: int, address: str = "localhost") -> None:
+    import subprocess
+    import sys
+    from pipeline.console import err_console
+    app = Path(__file__).resolve().parent.parent / "dashboard" / "app.py"
+    err_console.print(f"dashboard on http://{address}:{port}  (Ctrl+C to stop)")
+    cmd = [sys.executable, "-m", "streamlit", "run", str(app), "--server.port", str(port),
+           "--server.address", address, "--server.headless", "true", "--browser.gatherUsageStats", "false",
+           "--", "--warehouse", str(wh)]
+    raise SystemExit(subprocess.call(cmd))
+
+
+@main.command()
+@_warehouse_option
+@click.option("--port", type=int, default=8501, show_default=True)
+@click.option("--address", default="localhost", show_default=True,
+              help="Listen address; keep localhost unless behind an authenticating proxy.")
+def dashboard(warehouse_dir, port, address) -> None:
+    """Serve the Streamlit dashboard on the warehouse's newest snapshot (read-only).
+
+    \b
+    Examples:
+      stridelab dashboard
+      stridelab dashboard --warehouse /data/wh --port 8600
+    """
+    _serve(_wh(warehouse_dir), port, address)

@@ -1,0 +1,55 @@
+"""Where things live and which parameters a study's stages use.
+
+``STRIDELAB_HOME`` (default ``./stridelab-home``) holds ``inbox/``, ``warehouse/`` and ``reports/``.
+Per-study stage parameters come from ``[stages.<name>]`` of the study manifest
+(``studies/<study>/study.toml`` in the package, or ``$STRIDELAB_STUDIES/<study>/study.toml``) and
+override the stage defaults key by key.
+"""
+from __future__ import annotations
+
+import os
+import tomllib
+from functools import lru_cache
+from pathlib import Path
+
+PACKAGE_STUDIES = Path(__file__).resolve().parent.parent / "studies"
+
+
+def home() -> Path:
+    return Path(os.environ.get("STRIDELAB_HOME", "stridelab-home")).resolve()
+
+
+def default_inbox() -> Path:
+    return home() / "inbox"
+
+
+def default_warehouse() -> Path:
+    return home() / "warehouse"
+
+
+def default_reports() -> Path:
+    return home() / "reports"
+
+
+@lru_cache(maxsize=64)
+def study_manifest(study: str) -> dict:
+    """The study's manifest as a dict ({} when the study has none)."""
+    dirs = [Path(d) for d in os.environ.get("STRIDELAB_STUDIES", "").split(os.pathsep) if d] + [PACKAGE_STUDIES]
+    for d in dirs:
+        for p in (d / study / "study.toml", d / study.lower() / "study.toml"):
+            if p.is_file():
+                try:
+                    return tomllib.loads(p.read_text())
+                except tomllib.TOMLDecodeError as e:
+                    raise ValueError(f"{p}: invalid TOML ({e})") from None
+    return {}
+
+
+def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
+    """Stage defaults overridden by the study manifest's ``[stages.<stage_name>]`` table."""
+    over = study_manifest(study).get("stages", {}).get(stage_name, {})
+    unknown = set(over) - set(defaults)
+    if unknown:
+        raise ValueError(f"study {study}: unknown parameter(s) {sorted(unknown)} for stage {stage_name}; "
+                         f"known: {sorted(defaults)}")
+    return {**defaults, **over}

@@ -1,0 +1,249 @@
+"""Vectorised MCAP writer for the StrideLab recording format (DESIGN.md "Recording format").
+
+The file is standard MCAP (zstd chunks, message indexes, chunk indexes, statistics, summary
+offsets) readable by Foxglove, the ``mcap`` CLI and ROS 2. Message records of one channel have a
+fixed size, so a chunk is assembled as NumPy structured arrays instead of one Python call per
+message (the ``mcap`` library's writer manages about 20,000 messages/s; a 24 h, 100 Hz recording
+has 8.6 million).
+"""
+from __future__ import annotations
+
+import json
+import os
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema,
+                          Statistics, SummaryOffset)
+
+from estimators.recording import Recording
+from pipeline.formats import ros2_cdr
+
+MAGIC = b"\x89MCAP0\r\n"
+EVENTS_SCHEMA = {
+    "type": "object", "title": "stridelab/Annotation",
+    "properties": {"t_ns": {"type": "integer"}, "type": {"type": "string"}, "end_ns": {"type": "integer"},
+                   "side": {"type": "string"}, "placement": {"type": "string"}, "label": {"type": "string"}},
+    "required": ["t_ns", "type"],
+}
+_MSG_HEAD = 1 + 8 + 2 + 4 + 8 + 8   # opcode, length, channel_id, sequence, log_time, publish_time
+
+
+@dataclass
+class ChannelData:
+    """All messages of one channel: ``payload`` (N, L) uint8 for fixed-size messages or a list of bytes."""
+    topic: str
+    schema_name: str
+    schema_encoding: str        # "ros2msg" | "jsonschema"
+    schema_data: bytes
+    message_encoding: str       # "cdr" | "json"
+    log_time: np.ndarray        # (N,) int64 ns
+    payload: np.ndarray | list
+
+
+def recording_channels(rec: Recording) -> list[ChannelData]:
+    """Encode every stream of a Recording into channels of the recording format."""
+    chans: list[ChannelData] = []
+
+    def ros(topic, schema, t, payload):
+        chans.append(ChannelData(topic, schema, "ros2msg", ros2_cdr.SCHEMAS[schema].encode(), "cdr",
+                                 np.asarray(t, dtype=np.int64), payload))
+
+    for pl, imu in rec.imu.items():
+        ros(f"/imu/{pl}", "sensor_msgs/msg/Imu", imu.t_ns, ros2_cdr.encode_imu(imu.t_ns, imu.acc, imu.gyr, pl))
+        if imu.mag is not None:
+            ros(f"/mag/{pl}", "sensor_msgs/msg/MagneticField", imu.t_ns, ros2_cdr.encode_mag(imu.t_ns, imu.mag, pl))
+    for key, r in rec.ranges.items():
+        ros(f"/range/{key}", "sensor_msgs/msg/Range", r.t_ns,
+            ros2_cdr.encode_range(r.t_ns, r.range_m, r.min_range_m, r.max_range_m, key.replace("/", "_")))
+    for pl, pose in rec.reference_poses.items():
+        ros(f"/reference/pose/{pl}", "geometry_msgs/msg/PoseStamped", pose.t_ns,
+            ros2_cdr.encode_pose(pose.t_ns, pose.pos, pose.quat, pl))
+    if rec.events:
+        ev = sorted(rec.events, key=lambda e: int(e["t_ns"]))
+        chans.append(ChannelData("/reference/events", "stridelab/Annotation", "jsonschema",
+                                 json.dumps(EVENTS_SCHEMA).encode(), "json",
+                                 np.array([int(e["t_ns"]) for e in ev], dtype=np.int64),
+                                 [json.dumps(e, sort_keys=True).encode() for e in ev]))
+    return chans
+
+
+def _message_records(channel_id: int, log_time: np.ndarray, seq0: int, payload) -> bytes:
+    """Bytes of consecutive Message records (vectorised when the payload is a fixed-size array)."""
+    n = len(log_time)
+    if isinstance(payload, np.ndarray):
+        L = payload.shape[1]
+        dt = np.dtype({"names": ["op", "len", "ch", "seq", "log", "pub", "data"],
+                       "formats": ["u1", "<u8", "<u2", "<u4", "<u8", "<u8", f"({L},)u1"],
+                       "offsets": [0, 1, 9, 11, 15, 23, 31], "itemsize": _MSG_HEAD + L})
+        rec = np.empty(n, dtype=dt)
+        rec["op"] = int(Opcode.MESSAGE)
+        rec["len"] = _MSG_HEAD - 9 + L
+        rec["ch"] = channel_id
+        rec["seq"] = np.arange(seq0, seq0 + n, dtype=np.uint64).astype(np.uint32)
+        rec["log"] = log_time
+        rec["pub"] = log_time
+        rec["data"] = payload
+        return rec.tobytes(), np.full(n, _MSG_HEAD + L, dtype=np.int64)
+    parts, sizes = [], np.empty(n, dtype=np.int64)
+    for i, (t, data) in enumerate(zip(log_time.tolist(), payload)):
+        head = np.zeros(1, dtype=np.dtype({"names": ["op", "len", "ch", "seq", "log", "pub"],
+                                           "formats": ["u1", "<u8", "<u2", "<u4", "<u8", "<u8"],
+                                           "offsets": [0, 1, 9, 11, 15, 23], "itemsize": _MSG_HEAD}))
+        head["op"], head["len"], head["ch"], head["seq"], head["log"], head["pub"] = (
+            int(Opcode.MESSAGE), _MSG_HEAD - 9 + len(data), channel_id, (seq0 + i) % 2**32, t, t)
+        parts.append(head.tobytes() + data)
+        sizes[i] = _MSG_HEAD + len(data)
+    return b"".join(parts), sizes
+
+
+def _message_index(channel_id: int, log_time: np.ndarray, offsets: np.ndarray) -> bytes:
+    n = len(log_time)
+    head = np.zeros(1, dtype=np.dtype({"names": ["op", "len", "ch", "blen"], "formats": ["u1", "<u8", "<u2", "<u4"],
+                                       "offsets": [0, 1, 9, 11], "itemsize": 15}))
+    head["op"], head["len"], head["ch"], head["blen"] = int(Opcode.MESSAGE_INDEX), 2 + 4 + 16 * n, channel_id, 16 * n
+    entries = np.empty((n, 2), dtype="<u8")
+    entries[:, 0] = log_time
+    entries[:, 1] = offsets
+    return head.tobytes() + entries.tobytes()
+
+
+def _record(rec) -> bytes:
+    b = RecordBuilder()
+    rec.write(b)
+    return b.end()
+
+
+def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: dict[str, dict[str, str]],
+               *, chunk_bytes: int = 8 << 20, zstd_level: int = 1) -> Path:
+    """Write channels and metadata records to ``path`` atomically (temporary file + rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    comp = zstandard.ZstdCompressor(level=zstd_level)
+    schemas: dict[str, int] = {}
+    schema_recs, channel_recs = [], []
+    for ch_id, ch in enumerate(channels, start=1):
+        if ch.schema_name not in schemas:
+            schemas[ch.schema_name] = len(schemas) + 1
+            schema_recs.append(Schema(id=schemas[ch.schema_name], name=ch.schema_name,
+                                      encoding=ch.schema_encoding, data=ch.schema_data))
+        channel_recs.append(Channel(id=ch_id, schema_id=schemas[ch.schema_name], topic=ch.topic,
+                                    message_encoding=ch.message_encoding, metadata={}))
+    all_t = [c.log_time for c in channels if len(c.log_time)]
+    t_min = int(min(t.min() for t in all_t)) if all_t else 0
+    t_max = int(max(t.max() for t in all_t)) if all_t else 0
+    # time windows holding about chunk_bytes of uncompressed messages
+    total_bytes = sum((c.payload.shape[1] if isinstance(c.payload, np.ndarray) else 200) * len(c.log_time)
+                      + _MSG_HEAD * len(c.log_time) for c in channels)
+    n_windows = max(1, int(np.ceil(total_bytes / chunk_bytes)))
+    edges = np.linspace(t_min, t_max + 1, n_windows + 1).astype(np.int64)
+
+    crc = 0
+    pos = 0
+    chunk_indexes: list[ChunkIndex] = []
+    counts = {i: 0 for i in range(1, len(channels) + 1)}
+    with open(tmp, "wb") as f:
+        def out(b: bytes) -> None:
+            nonlocal crc, pos
+            f.write(b)
+            crc = zlib.crc32(b, crc)
+            pos += len(b)
+
+        out(MAGIC)
+        out(_record(Header(profile="ros2", library="stridelab")))
+        for r in schema_recs + channel_recs:
+            out(_record(r))
+        for w in range(n_windows):
+            parts, index_parts, offset = [], [], 0
+            c_start, c_end = None, None
+            for ch_id, ch in enumerate(channels, start=1):
+                a, b = np.searchsorted(ch.log_time, [edges[w], edges[w + 1]])
+                if b <= a:
+                    continue
+                t = ch.log_time[a:b]
+                pay = ch.payload[a:b]
+                data, sizes = _message_records(ch_id, t, a, pay)
+                offs = offset + np.concatenate([[0], np.cumsum(sizes)[:-1]])
+                parts.append(data)
+                index_parts.append((ch_id, t, offs))
+                offset += len(data)
+                counts[ch_id] += b - a
+                c_start = int(t.min()) if c_start is None else min(c_start, int(t.min()))
+                c_end = int(t.max()) if c_end is None else max(c_end, int(t.max()))
+            if not parts:
+                continue
+            raw = b"".join(parts)
+            compressed = comp.compress(raw)
+            chunk_start = pos
+            head = RecordBuilder()
+            head.start_record(Opcode.CHUNK)
+            for v in (c_start, c_end, len(raw)):
+                head.write8(v)
+            head.write4(zlib.crc32(raw))
+            head.write_prefixed_string("zstd")
+            head.write8(len(compressed))
+            head.finish_record()
+            # finish_record computed the length without the data: patch it in
+            hb = bytearray(head.end())
+            hb[1:9] = (len(hb) - 9 + len(compressed)).to_bytes(8, "little")
+            out(bytes(hb))
+            out(compressed)
+            chunk_len = pos - chunk_start
+            mi_offsets, mi_start = {}, pos
+            for ch_id, t, offs in index_parts:
+                mi_offsets[ch_id] = pos
+                out(_message_index(ch_id, t, offs))
+            chunk_indexes.append(ChunkIndex(
+                message_start_time=c_start, message_end_time=c_end, chunk_start_offset=chunk_start,
+                chunk_length=chunk_len, message_index_offsets=mi_offsets, message_index_length=pos - mi_start,
+                compression="zstd", compressed_size=len(compressed), uncompressed_size=len(raw)))
+        meta_indexes = []
+        for name, md in metadata.items():
+            start = pos
+            out(_record(Metadata(name=name, metadata={k: str(v) for k, v in md.items()})))
+            meta_indexes.append(MetadataIndex(offset=start, length=pos - start, name=name))
+        out(_record(DataEnd(data_section_crc=crc)))
+
+        summary_start = pos
+        groups = [(Opcode.SCHEMA, schema_recs), (Opcode.CHANNEL, channel_recs),
+                  (Opcode.STATISTICS, [Statistics(
+                      message_count=sum(counts.values()), schema_count=len(schema_recs),
+                      channel_count=len(channel_recs), attachment_count=0, metadata_count=len(metadata),
+                      chunk_count=len(chunk_indexes), message_start_time=t_min, message_end_time=t_max,
+                      channel_message_counts=counts)]),
+                  (Opcode.CHUNK_INDEX, chunk_indexes), (Opcode.METADATA_INDEX, meta_indexes)]
+        summary = bytearray()
+        offsets = []
+        for opcode, recs in groups:
+            if not recs:
+                continue
+            g0 = len(summary)
+            for r in recs:
+                summary += _record(r)
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
+                                         group_length=len(summary) - g0))
+        summary_offset_start = summary_start + len(summary)
+        for so in offsets:
+            summary += _record(so)
+        f.write(summary)
+        # the footer CRC covers the summary section and the footer's fields before the CRC
+        foot_head = bytes([int(Opcode.FOOTER)]) + (20).to_bytes(8, "little") + \
+            summary_start.to_bytes(8, "little") + summary_offset_start.to_bytes(8, "little")
+        summary_crc = zlib.crc32(foot_head, zlib.crc32(bytes(summary)))
+        f.write(_record(Footer(summary_start=summary_start, summary_offset_start=summary_offset_start,
+                               summary_crc=summary_crc)))
+        f.write(MAGIC)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    return path
+
+
+def write_recording(rec: Recording, path: str | os.PathLike, **kw) -> Path:
+    """Write a Recording as an MCAP file in the StrideLab recording format."""
+    return write_mcap(path, recording_channels(rec), {"session": dict(rec.metadata)}, **kw)

@@ -1,0 +1,281 @@
+"""The nightly runner: ingest what is new, recompute what is stale, keep a ledger, never lose data.
+
+One process writes (the coordinator, holding the run lock); ``--jobs N`` worker processes decode
+files and compute stage outputs, writing immutable Parquet files and handing catalog rows back.
+Every committed step (a file, or one stage of one session) is one transaction followed by a
+published snapshot, so ``kill -9`` at any moment leaves a consistent warehouse and a rerun
+finishes the work with exactly the result of an uninterrupted run (outputs are deterministic and
+their file names derive from their inputs).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing as mp
+import os
+import socket
+import time
+import traceback
+import uuid
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from importlib.metadata import version as pkg_version
+from pathlib import Path
+from typing import Callable, Iterable
+
+from pipeline import ingest as ingest_mod
+from pipeline.config import stage_params
+from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
+from warehouse.catalog import first, Warehouse
+from warehouse.lock import RunLock
+
+
+@dataclass
+class RunSummary:
+    run_id: str
+    ingested: list[str] = field(default_factory=list)
+    duplicates: list[str] = field(default_factory=list)
+    quarantined: list[str] = field(default_factory=list)
+    stage_runs: int = 0
+    skipped_fresh: int = 0
+    failed: list[str] = field(default_factory=list)
+    messages: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {"run_id": self.run_id, "ingested": len(self.ingested), "duplicates": len(self.duplicates),
+                "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
+                "failed": self.failed, "seconds": round(self.seconds, 2)}
+
+
+def _now() -> datetime:
+    return datetime.now(timezone.utc).replace(tzinfo=None)
+
+
+def _version() -> str:
+    try:
+        return pkg_version("stridelab")
+    except Exception:  # noqa: BLE001
+        return "dev"
+
+
+class _Executor:
+    """A process pool for jobs > 1, or in-process execution (same code path, easier debugging)."""
+
+    def __init__(self, jobs: int):
+        self.jobs = max(1, jobs)
+        self.pool = (ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"))
+                     if self.jobs > 1 else None)
+
+    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
+        """Call ``fn(*item)`` for each item and ``on_done(item, result_or_exception)`` in the coordinator."""
+        if self.pool is None:
+            for it in items:
+                try:
+                    r = fn(*it)
+                except Exception as e:  # noqa: BLE001 - reported per item by on_done
+                    r = e
+                on_done(it, r)
+            return
+        pending: dict[Future, tuple] = {}
+        queue = list(items)
+        while queue or pending:
+            while queue and len(pending) < 2 * self.jobs:
+                it = queue.pop(0)
+                pending[self.pool.submit(fn, *it)] = it
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                it = pending.pop(fut)
+                try:
+                    r = fut.result()
+                except Exception as e:  # noqa: BLE001
+                    r = e
+                on_done(it, r)
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+# ---- worker-side functions (top level so they pickle) -------------------------------------
+
+def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float]:
+    stage = {s.name: s for s in registry()}[stage_name]
+    t0 = time.perf_counter()
+    try:
+        out = stage.compute(inp, params)
+    except Exception as e:
+        tb = traceback.extract_tb(e.__traceback__)
+        where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
+        raise RuntimeError(f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}{where}") from None
+    return out, time.perf_counter() - t0
+
+
+# ---- coordinator ---------------------------------------------------------------------------
+
+def ingest_files(wh: Warehouse, files: Iterable[Path], ex: _Executor, summary: RunSummary,
+                 on_progress: Callable[[str], None] = lambda m: None) -> None:
+    todo = []
+    for f in files:
+        f = Path(f)
+        if not f.is_file():
+            summary.quarantined.append(f"{f}: not a file")
+            continue
+        h = ingest_mod.known_hash(wh, f)
+        if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
+            summary.duplicates.append(f.name)
+            on_progress(f"{f.name}: unchanged since last ingest")
+            continue
+        todo.append((str(f), str(wh.root)))
+
+    def done(item, res):
+        if isinstance(res, Exception):
+            res = ingest_mod.Prepared(source_path=item[0], file_name=Path(item[0]).name, size_bytes=0, mtime_ns=0,
+                                      content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
+                                      reason=f"internal error while reading: {res}")
+        r = ingest_mod.commit(wh, res)
+        {"ingested": summary.ingested, "duplicate": summary.duplicates,
+         "quarantined": summary.quarantined}[r.status].append(r.message if r.status == "quarantined" else res.file_name)
+        summary.messages.append(r.message)
+        wh.publish_snapshot()
+        on_progress(r.message)
+
+    ex.run_all(ingest_mod.prepare, todo, done)
+
+
+def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInput:
+    con = wh.con
+    cols = [d[0] for d in con.execute("SELECT * FROM sessions LIMIT 0").description]
+    session = dict(zip(cols, first(con.execute("SELECT * FROM sessions WHERE session_id = ?", [session_id]))))
+    recs = []
+    for h, trial, start, end in con.execute(
+            "SELECT content_hash, trial, start_ns, end_ns FROM recordings WHERE session_id = ? AND status = 'ingested' "
+            "ORDER BY start_ns, content_hash", [session_id]).fetchall():
+        sensors: dict = {}
+        for pl, kind, path, rate, n in con.execute(
+                "SELECT placement, kind, series_path, sampling_rate_hz, n_samples FROM sensors WHERE content_hash = ? "
+                "ORDER BY topic", [h]).fetchall():
+            sensors.setdefault(pl, {})[kind if kind != "range" else f"range:{path}"] = {
+                "series_path": path, "sampling_rate_hz": rate, "n_samples": n}
+        recs.append({"content_hash": h, "trial": trial, "start_ns": start, "end_ns": end, "sensors": sensors})
+    upstream = {}
+    stages = {s.name: s for s in registry()}
+    for need in stage.needs:
+        for t in stages[need].tables:
+            q = con.execute(f'SELECT * FROM "{t}" WHERE session_id = ?', [session_id])
+            names = [d[0] for d in q.description]
+            upstream[t] = [dict(zip(names, r)) for r in q.fetchall()]
+    q = con.execute("SELECT t_ns, end_ns, type, side, placement, label FROM reference_events WHERE session_id = ? "
+                    "ORDER BY t_ns", [session_id])
+    names = [d[0] for d in q.description]
+    events = [dict(zip(names, r)) for r in q.fetchall()]
+    return SessionInput(root=str(wh.root), session=session, recordings=recs, upstream=upstream, events=events)
+
+
+def _input_hash(wh: Warehouse, session_id: str, stage: Stage) -> str:
+    hashes = [r[0] for r in wh.con.execute(
+        "SELECT content_hash FROM recordings WHERE session_id = ? AND status = 'ingested' ORDER BY 1",
+        [session_id]).fetchall()]
+    ups = [r for r in wh.con.execute(
+        "SELECT stage, stamp FROM stage_state WHERE session_id = ? ORDER BY stage", [session_id]).fetchall()
+        if r[0] in stage.needs]
+    return hashlib.sha256(canonical_json({"recordings": hashes, "upstream": ups}).encode()).hexdigest()
+
+
+def run_stages(wh: Warehouse, run_id: str, ex: _Executor, summary: RunSummary,
+               on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None) -> None:
+    sessions = wh.con.execute("SELECT session_id, study, kind FROM sessions ORDER BY session_id").fetchall()
+    if only_sessions is not None:
+        sessions = [s for s in sessions if s[0] in only_sessions]
+    failed_sessions: dict[str, str] = {}
+    for stage in registry():
+        items = []
+        for session_id, study, kind in sessions:
+            if kind not in stage.session_kinds:
+                continue
+            if session_id in failed_sessions and stage.needs:
+                continue
+            params = stage_params(study, stage.name, stage.default_params())
+            st = stamp(stage, params, _input_hash(wh, session_id, stage))
+            cur = first(wh.con.execute("SELECT stamp FROM stage_state WHERE session_id = ? AND stage = ?",
+                                 [session_id, stage.name]))
+            if cur is not None and cur[0] == st:
+                summary.skipped_fresh += 1
+                continue
+            items.append((stage.name, _session_inputs(wh, session_id, stage), params, st))
+
+        def done(item, res, stage=stage):
+            _, inp, params, st = item
+            sid = inp.session["session_id"]
+            started = _now()
+            ph = params_hash(params)
+            if isinstance(res, Exception):
+                failed_sessions[sid] = str(res)
+                summary.failed.append(f"{stage.name} {sid}: {res}")
+                with wh.transaction():
+                    wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
+                                              "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                              "status": "failed", "started_at": started, "duration_s": None,
+                                              "error": str(res)}])
+                on_progress(f"{stage.name} {sid}: FAILED: {res}")
+            else:
+                out, secs = res
+                with wh.transaction() as con:
+                    for t in stage.tables:
+                        con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
+                        wh.insert(t, out.rows.get(t, []))
+                    con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
+                    wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
+                                              "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                              "status": "ok", "started_at": started, "duration_s": secs,
+                                              "note": out.note or None}])
+                summary.stage_runs += 1
+                on_progress(f"{stage.name} {sid}: ok in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
+            wh.publish_snapshot()
+
+        ex.run_all(_stage_task_4, items, done)
+
+
+def _stage_task_4(stage_name, inp, params, st):
+    return _stage_task(stage_name, inp, params)
+
+
+def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | None = None, stages: bool = True,
+        command: str = "run", on_progress: Callable[[str], None] = lambda m: None) -> RunSummary:
+    """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout."""
+    t0 = time.perf_counter()
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    with RunLock(root, command):
+        with Warehouse.open(root) as wh:
+            run_id = f"{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
+            summary = RunSummary(run_id)
+            with wh.transaction() as con:
+                con.execute("UPDATE pipeline_runs SET status = 'interrupted' WHERE status = 'running'")
+                wh.insert("pipeline_runs", [{"run_id": run_id, "command": command, "started_at": _now(),
+                                             "status": "running", "jobs": jobs, "version": _version(),
+                                             "host": socket.gethostname(), "pid": os.getpid()}])
+            wh.gc()
+            ex = _Executor(jobs)
+            try:
+                todo = list(files or [])
+                if inbox is not None and Path(inbox).is_dir():
+                    todo += sorted(p for p in Path(inbox).rglob("*.mcap") if not p.name.startswith("."))
+                ingest_files(wh, todo, ex, summary, on_progress)
+                if stages:
+                    run_stages(wh, run_id, ex, summary, on_progress)
+                status = "failed" if summary.failed else "ok"
+            except BaseException:
+                status = "failed"
+                raise
+            finally:
+                ex.close()
+                summary.seconds = time.perf_counter() - t0
+                with wh.transaction() as con:
+                    con.execute("UPDATE pipeline_runs SET finished_at = ?, status = ?, n_ingested = ?, "
+                                "n_quarantined = ?, n_stage_runs = ?, n_failed = ? WHERE run_id = ?",
+                                [_now(), status, len(summary.ingested), len(summary.quarantined),
+                                 summary.stage_runs, len(summary.failed), run_id])
+                wh.publish_snapshot()
+    return summary

@@ -1,0 +1,77 @@
+"""Pipeline stages: thin adapters (warehouse -> estimators -> warehouse), registered in DAG order.
+
+A stage declares what it needs, which catalog tables it owns (rows keyed by ``session_id``) and a
+``compute`` function that runs in a worker process on one session: it reads series files, calls
+estimators, writes immutable Parquet files and returns catalog rows. The runner commits those rows
+in one transaction with the stage stamp (stage name + version + parameters + input hashes) and
+reruns a stage only when the stamp changes (STYLE.md §4).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+
+@dataclass(frozen=True)
+class SessionInput:
+    """Everything a stage's compute function may read for one session (plain data, picklable).
+
+    ``recordings``: list of dicts (content_hash, trial, start_ns, end_ns, sensors: {placement: {kind:
+    {"series_path", "sampling_rate_hz", "n_samples"}}}). ``upstream``: table name -> rows of this
+    session in the tables of the stages it needs. ``events``: reference annotations of the session.
+    """
+    root: str
+    session: dict
+    recordings: list[dict]
+    upstream: dict[str, list[dict]] = field(default_factory=dict)
+    events: list[dict] = field(default_factory=list)
+
+
+@dataclass
+class StageOutput:
+    rows: dict[str, list[dict]] = field(default_factory=dict)
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    version: str
+    needs: tuple[str, ...]
+    tables: tuple[str, ...]
+    session_kinds: tuple[str, ...]
+    compute: Callable[[SessionInput, dict], StageOutput]
+    default_params: Callable[[], dict]
+
+
+def canonical_json(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def params_hash(params: dict) -> str:
+    return hashlib.sha256(canonical_json(params).encode()).hexdigest()
+
+
+def stamp(stage: Stage, params: dict, input_hash: str) -> str:
+    return hashlib.sha256(canonical_json({"stage": stage.name, "version": stage.version,
+                                          "params": params_hash(params), "input": input_hash}).encode()).hexdigest()
+
+
+def registry() -> list[Stage]:
+    """All stages in topological order."""
+    from pipeline.stages import orientation
+    stages = [orientation.STAGE]
+    names = set()
+    for s in stages:
+        missing = [n for n in s.needs if n not in names]
+        if missing:
+            raise RuntimeError(f"stage {s.name} needs {missing}, registered later or not at all")
+        names.add(s.name)
+    return stages
+
+
+def resolve_root(inp: SessionInput) -> Path:
+    return Path(inp.root)

@@ -1,0 +1,55 @@
+"""Orientation for every IMU of every session: warehouse -> estimators.orientation -> warehouse."""
+from __future__ import annotations
+
+import numpy as np
+import pyarrow as pa
+
+from estimators.timebase import contiguous_segments
+from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
+from warehouse.read import read_imu_files
+from warehouse.store import series_relpath, write_table
+
+
+def default_params() -> dict:
+    from estimators.orientation import DEFAULT_OFFLINE
+    return {"estimator": DEFAULT_OFFLINE, "use_magnetometer": True}
+
+
+def compute(inp: SessionInput, params: dict) -> StageOutput:
+    from estimators.orientation import ESTIMATORS
+    name = params["estimator"]
+    if name not in ESTIMATORS:
+        raise ValueError(f"unknown orientation estimator '{name}'; choose one of {', '.join(sorted(ESTIMATORS))}")
+    estimate = ESTIMATORS[name]
+    s = inp.session
+    rows, notes = [], []
+    for rec in inp.recordings:
+        for placement, kinds in sorted(rec["sensors"].items()):
+            if "imu" not in kinds:
+                continue
+            imu = kinds["imu"]
+            mag = kinds.get("mag") if params.get("use_magnetometer", True) else None
+            data = read_imu_files(inp.root, imu["series_path"], mag["series_path"] if mag else None,
+                                  imu["sampling_rate_hz"])
+            quat = np.full((len(data.t_ns), 4), np.nan)
+            for a, b in contiguous_segments(data.t_ns):
+                if b - a < 2:
+                    continue
+                res = estimate(data.gyr[a:b], data.acc[a:b], None if data.mag is None else data.mag[a:b],
+                               sampling_rate_hz=data.sampling_rate_hz)
+                quat[a:b] = res.quat
+            key = f"orientation-{rec['content_hash'][:12]}-{params_hash(params)[:12]}"
+            rel = series_relpath(s["study"], s["participant_id"], s["session_id"], placement, key)
+            write_table(inp.root, rel, pa.table({"t_ns": data.t_ns, "qw": quat[:, 0], "qx": quat[:, 1],
+                                                 "qy": quat[:, 2], "qz": quat[:, 3]}))
+            rows.append({"session_id": s["session_id"], "content_hash": rec["content_hash"], "placement": placement,
+                         "estimator": name, "estimator_version": STAGE.version, "params": canonical_json(params),
+                         "n_samples": len(data.t_ns), "sampling_rate_hz": data.sampling_rate_hz,
+                         "mag_used": data.mag is not None, "series_path": rel})
+            if np.isnan(quat[:, 0]).any():
+                notes.append(f"{placement}: {int(np.isnan(quat[:, 0]).sum())} samples without orientation")
+    return StageOutput(rows={"orientation": rows}, note="; ".join(notes))
+
+
+STAGE = Stage(name="orientation", version="1", needs=(), tables=("orientation",),
+              session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params)

@@ -1,0 +1,91 @@
+"""Read API over the newest published snapshot (never blocks, never blocked by a run)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import duckdb
+import numpy as np
+
+from warehouse.catalog import first, LATEST, SNAPSHOT_DIR
+from warehouse.store import read_table
+
+
+def latest_snapshot(root: str | Path) -> Path | None:
+    """Path of the newest published catalog snapshot, or None if the warehouse has none yet."""
+    root = Path(root)
+    pointer = root / SNAPSHOT_DIR / LATEST
+    try:
+        name = pointer.read_text().strip()
+    except FileNotFoundError:
+        return None
+    path = root / SNAPSHOT_DIR / name
+    if path.exists():
+        return path
+    # the pointer moved on between our read and now: take the newest file on disk
+    snaps = sorted((root / SNAPSHOT_DIR).glob("catalog-*.duckdb"))
+    return snaps[-1] if snaps else None
+
+
+def connect_snapshot(root: str | Path) -> duckdb.DuckDBPyConnection | None:
+    """Read-only connection to the newest snapshot (None when nothing was published yet)."""
+    for _ in range(3):   # the newest file may be pruned between lookup and open
+        snap = latest_snapshot(root)
+        if snap is None:
+            return None
+        try:
+            return duckdb.connect(str(snap), read_only=True)
+        except duckdb.IOException:
+            continue
+    return None
+
+
+@dataclass(frozen=True)
+class ImuSeries:
+    """Samples of one IMU of one recording: t_ns (N,), acc (N,3) m/s², gyr (N,3) rad/s,
+    mag (N,3) µT or None, sampling_rate_hz."""
+    t_ns: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray
+    mag: np.ndarray | None
+    sampling_rate_hz: float
+
+
+def read_imu_files(root: str | Path, imu_path: str, mag_path: str | None, sampling_rate_hz: float) -> ImuSeries:
+    """Load an IMU series (and its magnetometer, resampled onto the IMU stamps if they differ)."""
+    t = read_table(root, imu_path)
+    t_ns = t.column("t_ns").to_numpy()
+    acc = np.column_stack([t.column(c).to_numpy() for c in ("acc_x", "acc_y", "acc_z")])
+    gyr = np.column_stack([t.column(c).to_numpy() for c in ("gyr_x", "gyr_y", "gyr_z")])
+    mag = None
+    if mag_path:
+        m = read_table(root, mag_path)
+        mt = m.column("t_ns").to_numpy()
+        mv = np.column_stack([m.column(c).to_numpy() for c in ("mag_x", "mag_y", "mag_z")])
+        if len(mt) == len(t_ns) and np.array_equal(mt, t_ns):
+            mag = mv
+        elif len(mt) >= 2:
+            mag = np.column_stack([np.interp(t_ns, mt, mv[:, k]) for k in range(3)])
+    return ImuSeries(t_ns, acc, gyr, mag, sampling_rate_hz)
+
+
+def read_imu(con: duckdb.DuckDBPyConnection, root: str | Path, content_hash: str, placement: str) -> ImuSeries | None:
+    """IMU samples of one recording and placement, or None if that sensor is absent."""
+    rows = dict(con.execute(
+        "SELECT kind, series_path FROM sensors WHERE content_hash = ? AND placement = ? AND kind IN ('imu', 'mag')",
+        [content_hash, placement]).fetchall())
+    if "imu" not in rows:
+        return None
+    rate = first(con.execute("SELECT sampling_rate_hz FROM sensors WHERE content_hash = ? AND placement = ? AND kind = 'imu'",
+                       [content_hash, placement]))[0]
+    return read_imu_files(root, rows["imu"], rows.get("mag"), rate)
+
+
+def read_orientation(con: duckdb.DuckDBPyConnection, root: str | Path, content_hash: str, placement: str):
+    """(t_ns (N,), quat (N,4) [w x y z] sensor->ENU) or None."""
+    r = first(con.execute("SELECT series_path FROM orientation WHERE content_hash = ? AND placement = ?",
+                    [content_hash, placement]))
+    if r is None:
+        return None
+    t = read_table(root, r[0])
+    return t.column("t_ns").to_numpy(), np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")])

@@ -1,0 +1,88 @@
+"""Immutable Parquet store for bulk time series.
+
+Files live under ``<root>/series/study=…/participant=…/session=…/placement=…/`` and are written
+to a temporary name and renamed into place, so a reader (or a crash) never sees half a file. A
+file is never modified after the rename; a recomputation writes a new file (its name carries the
+content stamp) and the old one is garbage-collected once no catalog or snapshot refers to it.
+"""
+from __future__ import annotations
+
+import os
+import re
+import uuid
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+_SAFE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
+TMP_PREFIX = ".tmp-"
+
+
+def check_identifier(value: str, what: str) -> str:
+    """Identifiers that become path parts: letters, digits, ``. _ -``; never ``..`` or ``/``."""
+    if not isinstance(value, str) or not _SAFE.match(value) or ".." in value:
+        raise ValueError(f"{what} {value!r} is not a safe identifier (use letters, digits, '.', '_', '-'; "
+                         f"at most 128 characters)")
+    return value
+
+
+def series_relpath(study: str, participant: str, session: str, placement: str, name: str) -> str:
+    """Relative path of a series file; every part is checked to be a safe identifier."""
+    parts = [f"study={check_identifier(study, 'study')}",
+             f"participant={check_identifier(participant, 'participant')}",
+             f"session={check_identifier(session, 'session')}",
+             f"placement={check_identifier(placement, 'placement')}",
+             f"{check_identifier(name, 'series name')}.parquet"]
+    return "series/" + "/".join(parts)
+
+
+class SeriesWriter:
+    """Stream record batches into a Parquet file that appears atomically on :meth:`commit`."""
+
+    def __init__(self, root: Path, relpath: str, schema: pa.Schema):
+        self.root = Path(root)
+        self.relpath = relpath
+        self.final = self.root / relpath
+        self.final.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = self.final.with_name(f"{TMP_PREFIX}{uuid.uuid4().hex}-{self.final.name}")
+        self._w = pq.ParquetWriter(self.tmp, schema, compression="zstd", compression_level=1,
+                                   write_statistics=["t_ns"] if "t_ns" in schema.names else True)
+        self.n_rows = 0
+
+    def write(self, table: pa.Table) -> None:
+        self._w.write_table(table, row_group_size=1 << 20)
+        self.n_rows += table.num_rows
+
+    def commit(self, relpath: str | None = None) -> str:
+        """Close and move into place, at ``relpath`` if given (e.g. a name known only at the end)."""
+        self._w.close()
+        if relpath is not None:
+            self.relpath, self.final = relpath, self.root / relpath
+            self.final.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(self.tmp, self.final)
+        return self.relpath
+
+    def abort(self) -> None:
+        try:
+            self._w.close()
+        finally:
+            self.tmp.unlink(missing_ok=True)
+
+
+def write_table(root: Path, relpath: str, table: pa.Table) -> str:
+    """Write a whole table atomically; returns ``relpath``."""
+    w = SeriesWriter(root, relpath, table.schema)
+    try:
+        w.write(table)
+    except BaseException:
+        w.abort()
+        raise
+    return w.commit()
+
+
+def read_table(root: Path, relpath: str, columns: list[str] | None = None) -> pa.Table:
+    """Read a series file (relative to the warehouse root)."""
+    return pq.read_table(Path(root) / relpath, columns=columns)
