@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import uuid
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import pyarrow as pa
@@ -38,7 +39,11 @@ def series_relpath(study: str, participant: str, session: str, placement: str, n
 
 
 class SeriesWriter:
-    """Stream record batches into a Parquet file that appears atomically on :meth:`commit`."""
+    """Stream record batches into a Parquet file that appears atomically on :meth:`commit`.
+
+    Writes run on a background thread (Arrow releases the GIL while encoding and compressing), so
+    the caller decodes the next block meanwhile; at most two blocks are in flight.
+    """
 
     def __init__(self, root: Path, relpath: str, schema: pa.Schema):
         self.root = Path(root)
@@ -49,13 +54,26 @@ class SeriesWriter:
         self._w = pq.ParquetWriter(self.tmp, schema, compression="zstd", compression_level=1,
                                    write_statistics=["t_ns"] if "t_ns" in schema.names else True)
         self.n_rows = 0
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="parquet")
+        self._pending: list[Future] = []
 
     def write(self, table: pa.Table) -> None:
-        self._w.write_table(table, row_group_size=1 << 20)
+        while len(self._pending) >= 2:
+            self._pending.pop(0).result()
+        self._pending.append(self._pool.submit(self._w.write_table, table, row_group_size=1 << 20))
         self.n_rows += table.num_rows
+
+    def _drain(self) -> None:
+        try:
+            for f in self._pending:
+                f.result()
+        finally:
+            self._pending = []
+            self._pool.shutdown(wait=True)
 
     def commit(self, relpath: str | None = None) -> str:
         """Close and move into place, at ``relpath`` if given (e.g. a name known only at the end)."""
+        self._drain()
         self._w.close()
         if relpath is not None:
             self.relpath, self.final = relpath, self.root / relpath
@@ -67,7 +85,10 @@ class SeriesWriter:
 
     def abort(self) -> None:
         try:
-            self._w.close()
+            try:
+                self._drain()
+            finally:
+                self._w.close()
         finally:
             self.tmp.unlink(missing_ok=True)
 

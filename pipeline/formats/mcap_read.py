@@ -8,7 +8,9 @@ computed on the same pass. Errors are raised as :class:`McapFormatError` with a 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
+import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,9 +19,10 @@ from typing import Iterator
 import lz4.frame
 import numpy as np
 import zstandard
-from mcap.exceptions import EndOfFile, McapError
-from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, Metadata, Schema
 from numba import njit
 
 from pipeline.formats import ros2_cdr
@@ -27,6 +30,10 @@ from pipeline.formats import ros2_cdr
 #: schema expected on each topic family of the recording format
 TOPIC_SCHEMAS = {"/imu/": "sensor_msgs/msg/Imu", "/mag/": "sensor_msgs/msg/MagneticField",
                  "/range/": "sensor_msgs/msg/Range", "/reference/pose/": "geometry_msgs/msg/PoseStamped"}
+
+
+MAGIC = b"\x89MCAP0\r\n"
+_WANTED = {Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK, Opcode.MESSAGE, Opcode.METADATA}
 
 
 class McapFormatError(ValueError):
@@ -175,13 +182,14 @@ def iter_blocks(path: str | Path, result: ReadResult) -> Iterator[Block]:
     schemas: dict[int, Schema] = {}
     with open(path, "rb") as raw:
         f = _HashingReader(raw)
-        reader = StreamReader(f, emit_chunks=True, record_size_limit=2 << 30)
         try:
-            for rec in reader.records:
-                if isinstance(rec, Schema):
+            for op, body in _records(f):
+                if op == Opcode.SCHEMA:
+                    rec = Schema.read(ReadDataStream(io.BytesIO(body)))
                     schemas[rec.id] = rec
-                elif isinstance(rec, Channel):
-                    if rec.id in result.topics:
+                elif op == Opcode.CHANNEL:
+                    rec = Channel.read(ReadDataStream(io.BytesIO(body)))
+                    if rec.id in result.topics or rec.topic in result.ignored_topics:
                         continue
                     sch = schemas.get(rec.schema_id)
                     name = sch.name if sch else ""
@@ -193,7 +201,8 @@ def iter_blocks(path: str | Path, result: ReadResult) -> Iterator[Block]:
                         raise McapFormatError(f"topic {rec.topic} uses message encoding "
                                               f"'{rec.message_encoding}', expected cdr")
                     result.topics[rec.id] = TopicInfo(rec.topic, name, rec.message_encoding, kind)
-                elif isinstance(rec, Chunk):
+                elif op == Opcode.CHUNK:
+                    rec = Chunk.read(ReadDataStream(io.BytesIO(body)))
                     data = _decompress(rec)
                     if len(data) != rec.uncompressed_size:
                         raise McapFormatError("chunk size does not match its header (corrupt chunk)")
@@ -201,31 +210,43 @@ def iter_blocks(path: str | Path, result: ReadResult) -> Iterator[Block]:
                         raise McapFormatError(f"chunk CRC mismatch at chunk starting "
                                               f"{rec.message_start_time} ns (corrupt file)")
                     yield from _blocks_from_records(np.frombuffer(data, dtype=np.uint8), result)
-                elif isinstance(rec, Message):
-                    ti = result.topics.get(rec.channel_id)
-                    if ti is not None:
-                        buf = np.frombuffer(rec.data, dtype=np.uint8)
-                        yield _decode(ti, buf, np.array([0]), np.array([len(buf)]),
-                                      np.array([rec.log_time], dtype=np.int64))
-                elif isinstance(rec, Metadata):
+                elif op == Opcode.MESSAGE:
+                    buf = np.frombuffer(b"\x05" + len(body).to_bytes(8, "little") + body, dtype=np.uint8)
+                    yield from _blocks_from_records(buf, result)
+                elif op == Opcode.METADATA:
+                    rec = Metadata.read(ReadDataStream(io.BytesIO(body)))
                     result.metadata[rec.name] = dict(rec.metadata)
-                elif isinstance(rec, (DataEnd, Footer)):
-                    pass
         except McapFormatError:
             raise
-        except (EOFError, EndOfFile):
-            raise McapFormatError("truncated MCAP: the file ends before its footer "
-                                  "(copy interrupted? try `mcap recover`)") from None
-        except (McapError, ValueError, KeyError, UnicodeDecodeError) as e:
+        except (McapError, ValueError, KeyError, UnicodeDecodeError, struct.error, zstandard.ZstdError) as e:
             msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-            if "magic" in msg.lower():
-                raise McapFormatError(f"not an MCAP file or truncated ({msg})") from None
             raise McapFormatError(f"corrupt MCAP: {msg}") from None
-        # drain anything after the footer (nothing in a valid file) so the hash covers all bytes
-        while f.read(1 << 20):
-            pass
     result.sha256 = f.h.hexdigest()
     result.n_bytes = f.n
+
+
+def _records(f) -> Iterator[tuple[int, bytes]]:
+    """(opcode, body) of every record up to the footer; index records are read (for the hash) but skipped."""
+    if f.read(8) != MAGIC:
+        raise McapFormatError("not an MCAP file (bad magic bytes at the start)")
+    while True:
+        head = f.read(9)
+        if len(head) < 9:
+            raise McapFormatError("truncated MCAP: the file ends before its footer "
+                                  "(copy interrupted? try `mcap recover`)")
+        op, length = struct.unpack("<BQ", head)
+        if length > (4 << 30):
+            raise McapFormatError(f"corrupt MCAP: record of {length} bytes")
+        body = f.read(length)
+        if len(body) < length:
+            raise McapFormatError("truncated MCAP: the file ends inside a record "
+                                  "(copy interrupted? try `mcap recover`)")
+        if op == Opcode.FOOTER:
+            if f.read(8) != MAGIC:
+                raise McapFormatError("truncated MCAP: no closing magic after the footer")
+            return
+        if op in _WANTED:
+            yield op, body
 
 
 def _blocks_from_records(buf: np.ndarray, result: ReadResult) -> Iterator[Block]:

@@ -13,6 +13,7 @@ import os
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import zstandard
@@ -36,34 +37,48 @@ _MSG_HEAD = 1 + 8 + 2 + 4 + 8 + 8   # opcode, length, channel_id, sequence, log_
 
 @dataclass
 class ChannelData:
-    """All messages of one channel: ``payload`` (N, L) uint8 for fixed-size messages or a list of bytes."""
+    """All messages of one channel.
+
+    ``payload`` is a function ``(a, b) -> (b - a, L) uint8`` encoding messages ``a..b`` on demand
+    (so a 24 h channel is never encoded whole), an ``(N, L)`` uint8 array, or a list of bytes.
+    """
     topic: str
     schema_name: str
     schema_encoding: str        # "ros2msg" | "jsonschema"
     schema_data: bytes
     message_encoding: str       # "cdr" | "json"
     log_time: np.ndarray        # (N,) int64 ns
-    payload: np.ndarray | list
+    payload: "np.ndarray | list | Callable[[int, int], np.ndarray]"
+    msg_size: int = 200          # bytes per message, for chunk sizing
+
+    def encoded(self, a: int, b: int):
+        if callable(self.payload):
+            return self.payload(a, b)
+        return self.payload[a:b]
 
 
 def recording_channels(rec: Recording) -> list[ChannelData]:
     """Encode every stream of a Recording into channels of the recording format."""
     chans: list[ChannelData] = []
 
-    def ros(topic, schema, t, payload):
+    def ros(topic, schema, t, fn):
+        size = fn(0, 1).shape[1] if len(t) else 0
         chans.append(ChannelData(topic, schema, "ros2msg", ros2_cdr.SCHEMAS[schema].encode(), "cdr",
-                                 np.asarray(t, dtype=np.int64), payload))
+                                 np.asarray(t, dtype=np.int64), fn, size))
 
     for pl, imu in rec.imu.items():
-        ros(f"/imu/{pl}", "sensor_msgs/msg/Imu", imu.t_ns, ros2_cdr.encode_imu(imu.t_ns, imu.acc, imu.gyr, pl))
+        ros(f"/imu/{pl}", "sensor_msgs/msg/Imu", imu.t_ns,
+            lambda a, b, x=imu, pl=pl: ros2_cdr.encode_imu(x.t_ns[a:b], x.acc[a:b], x.gyr[a:b], pl))
         if imu.mag is not None:
-            ros(f"/mag/{pl}", "sensor_msgs/msg/MagneticField", imu.t_ns, ros2_cdr.encode_mag(imu.t_ns, imu.mag, pl))
+            ros(f"/mag/{pl}", "sensor_msgs/msg/MagneticField", imu.t_ns,
+                lambda a, b, x=imu, pl=pl: ros2_cdr.encode_mag(x.t_ns[a:b], x.mag[a:b], pl))
     for key, r in rec.ranges.items():
         ros(f"/range/{key}", "sensor_msgs/msg/Range", r.t_ns,
-            ros2_cdr.encode_range(r.t_ns, r.range_m, r.min_range_m, r.max_range_m, key.replace("/", "_")))
+            lambda a, b, r=r, key=key: ros2_cdr.encode_range(r.t_ns[a:b], r.range_m[a:b], r.min_range_m,
+                                                             r.max_range_m, key.replace("/", "_")))
     for pl, pose in rec.reference_poses.items():
         ros(f"/reference/pose/{pl}", "geometry_msgs/msg/PoseStamped", pose.t_ns,
-            ros2_cdr.encode_pose(pose.t_ns, pose.pos, pose.quat, pl))
+            lambda a, b, x=pose, pl=pl: ros2_cdr.encode_pose(x.t_ns[a:b], x.pos[a:b], x.quat[a:b], pl))
     if rec.events:
         ev = sorted(rec.events, key=lambda e: int(e["t_ns"]))
         chans.append(ChannelData("/reference/events", "stridelab/Annotation", "jsonschema",
@@ -138,7 +153,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
     t_min = int(min(t.min() for t in all_t)) if all_t else 0
     t_max = int(max(t.max() for t in all_t)) if all_t else 0
     # time windows holding about chunk_bytes of uncompressed messages
-    total_bytes = sum((c.payload.shape[1] if isinstance(c.payload, np.ndarray) else 200) * len(c.log_time)
+    total_bytes = sum((c.payload.shape[1] if isinstance(c.payload, np.ndarray) else c.msg_size) * len(c.log_time)
                       + _MSG_HEAD * len(c.log_time) for c in channels)
     n_windows = max(1, int(np.ceil(total_bytes / chunk_bytes)))
     edges = np.linspace(t_min, t_max + 1, n_windows + 1).astype(np.int64)
@@ -166,7 +181,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
                 if b <= a:
                     continue
                 t = ch.log_time[a:b]
-                pay = ch.payload[a:b]
+                pay = ch.encoded(a, b)
                 data, sizes = _message_records(ch_id, t, a, pay)
                 offs = offset + np.concatenate([[0], np.cumsum(sizes)[:-1]])
                 parts.append(data)
