@@ -159,8 +159,12 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
 @_warehouse_option
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
               help="Worker processes [default: number of cores].")
+@click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True,
+              help="local: process pool on this machine; dask: Dask distributed (LocalCluster or --scheduler).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Dask scheduler address (tcp://host:8786); workers must see the warehouse directory.")
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
-def run(inbox, warehouse_dir, jobs, as_json) -> None:
+def run(inbox, warehouse_dir, jobs, engine, scheduler, as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
     A second run started while one is active refuses with a clear message. Failures of one session
@@ -170,11 +174,16 @@ def run(inbox, warehouse_dir, jobs, as_json) -> None:
     Examples:
       stridelab run
       stridelab run --inbox /data/inbox --warehouse /data/wh --jobs 2 --json
+      stridelab run --engine dask --scheduler tcp://10.0.0.5:8786
     """
     import os
     from pipeline.config import default_inbox
+    if scheduler and engine != "dask":
+        from pipeline.console import UserError
+        raise UserError("--scheduler needs --engine dask")
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
-                                 jobs=jobs or os.cpu_count() or 1, command="run")
+                                 jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
+                                 scheduler=scheduler)
     _print_summary(summary, as_json)
     if summary.failed:
         raise SystemExit(1)

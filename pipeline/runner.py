@@ -11,13 +11,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing as mp
 import os
 import socket
 import time
 import traceback
 import uuid
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from importlib.metadata import version as pkg_version
@@ -25,6 +23,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 from pipeline import ingest as ingest_mod
+from pipeline.engines import make_engine
 from pipeline.config import stage_params
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
 from warehouse.catalog import first, Warehouse
@@ -60,47 +59,23 @@ def _version() -> str:
         return "dev"
 
 
-class _Executor:
-    """A process pool for jobs > 1, or in-process execution (same code path, easier debugging)."""
-
-    def __init__(self, jobs: int):
-        self.jobs = max(1, jobs)
-        self.pool = (ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"))
-                     if self.jobs > 1 else None)
-
-    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
-        """Call ``fn(*item)`` for each item and ``on_done(item, result_or_exception)`` in the coordinator."""
-        if self.pool is None:
-            for it in items:
-                try:
-                    r = fn(*it)
-                except Exception as e:  # noqa: BLE001 - reported per item by on_done
-                    r = e
-                on_done(it, r)
-            return
-        pending: dict[Future, tuple] = {}
-        queue = list(items)
-        while queue or pending:
-            while queue and len(pending) < 2 * self.jobs:
-                it = queue.pop(0)
-                pending[self.pool.submit(fn, *it)] = it
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                it = pending.pop(fut)
-                try:
-                    r = fut.result()
-                except Exception as e:  # noqa: BLE001
-                    r = e
-                on_done(it, r)
-
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-
-
 # ---- worker-side functions (top level so they pickle) -------------------------------------
 
+def _fault_injection() -> None:
+    """Test hook: ``STRIDELAB_TEST_KILL_WORKER_ONCE=<marker file>`` makes the first task that finds no
+    marker create it and SIGKILL its own worker process (used by the fault-tolerance tests)."""
+    marker = os.environ.get("STRIDELAB_TEST_KILL_WORKER_ONCE")
+    if marker:
+        try:
+            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            return
+        os.close(fd)
+        os.kill(os.getpid(), 9)
+
+
 def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float]:
+    _fault_injection()
     stage = {s.name: s for s in registry()}[stage_name]
     t0 = time.perf_counter()
     try:
@@ -114,7 +89,7 @@ def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[Stage
 
 # ---- coordinator ---------------------------------------------------------------------------
 
-def ingest_files(wh: Warehouse, files: Iterable[Path], ex: _Executor, summary: RunSummary,
+def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
                  on_progress: Callable[[str], None] = lambda m: None) -> None:
     todo = []
     for f in files:
@@ -183,7 +158,7 @@ def _input_hash(wh: Warehouse, session_id: str, stage: Stage) -> str:
     return hashlib.sha256(canonical_json({"recordings": hashes, "upstream": ups}).encode()).hexdigest()
 
 
-def run_stages(wh: Warehouse, run_id: str, ex: _Executor, summary: RunSummary,
+def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None) -> None:
     sessions = wh.con.execute("SELECT session_id, study, kind FROM sessions ORDER BY session_id").fetchall()
     if only_sessions is not None:
@@ -242,7 +217,8 @@ def _stage_task_4(stage_name, inp, params, st):
 
 
 def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | None = None, stages: bool = True,
-        command: str = "run", on_progress: Callable[[str], None] = lambda m: None) -> RunSummary:
+        command: str = "run", engine: str = "local", scheduler: str | None = None,
+        on_progress: Callable[[str], None] = lambda m: None) -> RunSummary:
     """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout."""
     t0 = time.perf_counter()
     root = Path(root)
@@ -257,7 +233,7 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                                              "status": "running", "jobs": jobs, "version": _version(),
                                              "host": socket.gethostname(), "pid": os.getpid()}])
             wh.gc()
-            ex = _Executor(jobs)
+            ex = make_engine(engine, jobs, scheduler)
             try:
                 todo = list(files or [])
                 if inbox is not None and Path(inbox).is_dir():

@@ -33,7 +33,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                                   imu["sampling_rate_hz"])
             quat = np.full((len(data.t_ns), 4), np.nan)
             for a, b in contiguous_segments(data.t_ns):
-                if b - a < 2:
+                if b - a < data.sampling_rate_hz:      # < 1 s between gaps: too short to converge
                     continue
                 res = estimate(data.gyr[a:b], data.acc[a:b], None if data.mag is None else data.mag[a:b],
                                sampling_rate_hz=data.sampling_rate_hz)

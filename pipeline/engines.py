@@ -1,0 +1,140 @@
+"""Execution engines for the runner: where per-file and per-session tasks run.
+
+The coordinator (the process holding the run lock) submits tasks and commits their results one at
+a time as they complete. Tasks are pure with respect to the catalog: they read series files, write
+immutable Parquet files and return rows, so a task that dies can simply be run again.
+
+- ``local``: in-process for one job, else a process pool; a worker that dies (OOM killer, kill -9)
+  breaks the pool, which is rebuilt and the unfinished tasks resubmitted (at most ``max_attempts``).
+- ``dask``: the same tasks on Dask distributed, a LocalCluster by default or ``--scheduler
+  ADDRESS``; the warehouse directory must be on a filesystem shared with the workers.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Callable
+
+
+class TaskLost(RuntimeError):
+    """A task whose worker died more than the allowed number of times."""
+
+
+class LocalEngine:
+    name = "local"
+
+    def __init__(self, jobs: int, max_attempts: int = 3):
+        self.jobs = max(1, int(jobs))
+        self.max_attempts = max_attempts
+        self.pool: ProcessPoolExecutor | None = None
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"))
+
+    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
+        """Call ``fn(*item)`` for each item; ``on_done(item, result_or_exception)`` runs in the coordinator."""
+        if self.jobs == 1:
+            for it in items:
+                try:
+                    r = fn(*it)
+                except Exception as e:  # noqa: BLE001 - reported per item
+                    r = e
+                on_done(it, r)
+            return
+        if self.pool is None:
+            self.pool = self._new_pool()
+        attempts = [0] * len(items)
+        queue = list(range(len(items)))
+        pending: dict[Future, int] = {}
+        while queue or pending:
+            while queue and len(pending) < 2 * self.jobs:
+                i = queue.pop(0)
+                attempts[i] += 1
+                try:
+                    pending[self.pool.submit(fn, *items[i])] = i
+                except BrokenProcessPool:
+                    queue.insert(0, i)
+                    attempts[i] -= 1
+                    self._rebuild(pending, queue)
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            broken = False
+            for fut in done:
+                i = pending.pop(fut)
+                try:
+                    r = fut.result()
+                except BrokenProcessPool:
+                    broken = True
+                    if attempts[i] < self.max_attempts:
+                        queue.insert(0, i)
+                        continue
+                    r = TaskLost(f"worker process died {attempts[i]} times while running this task")
+                except Exception as e:  # noqa: BLE001
+                    r = e
+                on_done(items[i], r)
+            if broken:
+                self._rebuild(pending, queue)
+
+    def _rebuild(self, pending: dict, queue: list) -> None:
+        """A dead worker poisons the whole pool: requeue everything in flight on a fresh pool."""
+        for fut, i in list(pending.items()):
+            queue.insert(0, i)
+        pending.clear()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.pool = self._new_pool()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
+
+
+class DaskEngine:
+    name = "dask"
+
+    def __init__(self, jobs: int, scheduler: str | None = None, max_attempts: int = 3):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:  # pragma: no cover - dask is a dependency
+            raise RuntimeError("--engine dask needs dask[distributed]: pip install 'dask[distributed]'") from None
+        import dask
+        dask.config.set({"distributed.scheduler.allowed-failures": max_attempts - 1,
+                         "distributed.worker.daemon": False})
+        self.cluster = None
+        if scheduler:
+            self.client = Client(scheduler, timeout="30s")
+        else:
+            self.cluster = LocalCluster(n_workers=max(1, jobs), threads_per_worker=1, processes=True,
+                                        dashboard_address=None, silence_logs=40)
+            self.client = Client(self.cluster)
+        self.max_attempts = max_attempts
+
+    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
+        from dask.distributed import as_completed
+        if not items:
+            return
+        futs = {self.client.submit(fn, *it, pure=False, retries=self.max_attempts - 1): k
+                for k, it in enumerate(items)}
+        for fut in as_completed(list(futs)):
+            k = futs[fut]
+            try:
+                r = fut.result()
+            except Exception as e:  # noqa: BLE001 - KilledWorker or the task's own error
+                r = TaskLost(f"worker died repeatedly ({e})") if type(e).__name__ == "KilledWorker" else e
+            on_done(items[k], r)
+            fut.release()
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def make_engine(name: str, jobs: int, scheduler: str | None = None):
+    if name == "local":
+        if scheduler:
+            raise ValueError("--scheduler needs --engine dask")
+        return LocalEngine(jobs)
+    if name == "dask":
+        return DaskEngine(jobs, scheduler)
+    raise ValueError(f"unknown engine '{name}' (local or dask)")

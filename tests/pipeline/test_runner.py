@@ -1,0 +1,153 @@
+"""The nightly runner end to end through the real CLI: staleness, kill -9, snapshots, lock, isolation."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import duckdb
+import pytest
+
+from pipeline.formats.mcap_write import write_recording
+from tests.corpus import small_recording
+from warehouse.catalog import Warehouse, first, fingerprint
+from warehouse.lock import RunLock
+from warehouse.read import connect_snapshot, latest_snapshot
+
+STRIDELAB = [sys.executable, "-m", "pipeline"]
+
+
+def cli(*args, env=None, **kw):
+    return subprocess.run([*STRIDELAB, *map(str, args)], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, timeout=600, **kw)
+
+
+def make_inbox(d: Path, n_sessions: int = 3, seconds: float = 30.0, study: str = "testing") -> list[Path]:
+    d.mkdir(parents=True, exist_ok=True)
+    files = []
+    for i in range(n_sessions):
+        for trial in ("walk-1", "walk-2"):
+            rec = small_recording(seconds=seconds, seed=10 * i + len(trial), session=f"S{i:02d}",
+                                  participant=f"P{i % 2:03d}", trial=trial, study=study,
+                                  placements=("foot_left", "foot_right", "shank_left", "pelvis"))
+            files.append(write_recording(rec, d / f"{study}_S{i:02d}_{trial}.mcap"))
+    return files
+
+
+def snapshot_fingerprint(root: Path) -> dict:
+    con = connect_snapshot(root)
+    try:
+        return fingerprint(con, root)
+    finally:
+        con.close()
+
+
+def test_run_computes_orientation_for_every_imu_then_is_fresh(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json")
+    assert r.returncode == 0, r.stderr
+    con = connect_snapshot(tmp_path / "wh")
+    n_imu = first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'imu'"))[0]
+    assert n_imu == 16
+    assert first(con.execute("SELECT count(*) FROM orientation"))[0] == n_imu
+    assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0] == 2
+    con.close()
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json")
+    assert r.returncode == 0, r.stderr
+    assert '"stage_runs": 0' in r.stdout and '"fresh": 2' in r.stdout and '"ingested": 0' in r.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kill_at_snapshot", [2, 9])     # during ingest, during the orientation stage
+def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapshot):
+    files = make_inbox(tmp_path / "inbox", n_sessions=3, seconds=60)
+    clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "--jobs", "2")
+    assert clean.returncode == 0, clean.stderr
+    expected = snapshot_fingerprint(tmp_path / "clean")
+
+    wh = tmp_path / "killed"
+    p = subprocess.Popen([*STRIDELAB, "run", "--inbox", str(tmp_path / "inbox"), "--warehouse", str(wh), "--jobs", "2"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        snap = latest_snapshot(wh)
+        if snap is not None and int(snap.stem.split("-")[1]) >= kill_at_snapshot:
+            break
+        if p.poll() is not None:
+            break
+        time.sleep(0.005)
+    os.killpg(p.pid, signal.SIGKILL)                  # the coordinator and its workers
+    p.wait()
+    assert p.returncode == -signal.SIGKILL
+    con = connect_snapshot(wh)
+    done = first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0]
+    con.close()
+    assert done < len(files) // 2, "the run finished before it was killed: the test proved nothing"
+
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", wh, "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    assert snapshot_fingerprint(wh) == expected
+    con = connect_snapshot(wh)
+    statuses = [s for (s,) in con.execute("SELECT status FROM pipeline_runs ORDER BY started_at").fetchall()]
+    assert statuses == ["interrupted", "ok"]
+    assert not list(wh.rglob(".tmp-*"))
+
+
+def test_a_reader_holding_a_snapshot_neither_blocks_nor_is_blocked(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=1, seconds=10)
+    assert cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1").returncode == 0
+    reader = connect_snapshot(tmp_path / "wh")
+    before = first(reader.execute("SELECT count(*) FROM recordings"))[0]
+    make_inbox(tmp_path / "inbox2", n_sessions=2, seconds=10, study="more")
+    t0 = time.time()
+    r = cli("run", "--inbox", tmp_path / "inbox2", "--warehouse", tmp_path / "wh", "-j", "1")
+    assert r.returncode == 0, r.stderr
+    assert time.time() - t0 < 120
+    # the old snapshot still answers, unchanged; a new reader sees the new data
+    assert first(reader.execute("SELECT count(*) FROM recordings"))[0] == before
+    reader.close()
+    fresh = connect_snapshot(tmp_path / "wh")
+    assert first(fresh.execute("SELECT count(*) FROM recordings"))[0] == before + 4
+
+
+def test_second_concurrent_run_refuses_with_a_clear_message(tmp_path):
+    (tmp_path / "wh").mkdir()
+    with RunLock(tmp_path / "wh", "stridelab run (test holder)"):
+        r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh")
+    assert r.returncode == 2
+    line = r.stderr.strip().splitlines()[-1]
+    assert line.startswith("error: another stridelab process") and "test holder" in line
+
+
+def test_a_failing_session_is_recorded_and_does_not_block_the_others(tmp_path):
+    studies = tmp_path / "studies" / "broken"
+    studies.mkdir(parents=True)
+    (studies / "study.toml").write_text('[stages.orientation]\nestimator = "no-such-filter"\n')
+    make_inbox(tmp_path / "inbox", n_sessions=1, seconds=10, study="broken")
+    make_inbox(tmp_path / "inbox", n_sessions=1, seconds=10, study="fine")
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1",
+            env={"STRIDELAB_STUDIES": str(tmp_path / "studies")})
+    assert r.returncode == 1
+    assert "unknown orientation estimator 'no-such-filter'" in r.stderr
+    con = connect_snapshot(tmp_path / "wh")
+    rows = con.execute("SELECT s.study, r.status FROM stage_runs r JOIN sessions s USING (session_id)").fetchall()
+    assert sorted(rows) == [("broken", "failed"), ("fine", "ok")]
+    assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 8
+
+
+def test_an_older_warehouse_is_upgraded_in_place(tmp_path):
+    f = write_recording(small_recording(seconds=5), tmp_path / "a.mcap")
+    with Warehouse.open(tmp_path / "wh", migrate_upto=1) as wh:
+        assert first(wh.con.execute("SELECT max(version) FROM schema_migrations"))[0] == 1
+        assert not wh.con.execute("SELECT * FROM information_schema.tables WHERE table_name = 'orientation'").fetchall()
+    from pipeline import ingest
+    with Warehouse.open(tmp_path / "wh", migrate_upto=1) as wh:
+        ingest.commit(wh, ingest.prepare(f, wh.root))
+    r = cli("run", "--inbox", tmp_path / "none", "--warehouse", tmp_path / "wh", "-j", "1")
+    assert r.returncode == 0, r.stderr
+    con = connect_snapshot(tmp_path / "wh")
+    assert [v for (v,) in con.execute("SELECT version FROM schema_migrations ORDER BY 1").fetchall()][:2] == [1, 2]
+    assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 2
