@@ -251,3 +251,26 @@ def dashboard(warehouse_dir, port, address) -> None:
       stridelab dashboard --warehouse /data/wh --port 8600
     """
     _serve(_wh(warehouse_dir), port, address)
+
+
+@main.command("pseudonym-key")
+@click.option("--path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Where to create the key [default: $STRIDELAB_PSEUDONYM_KEY or ~/.config/stridelab/pseudonym.key].")
+def pseudonym_key(path) -> None:
+    """Create the secret key that turns site identifiers into pseudonyms at ingest.
+
+    Keep it outside the warehouse and back it up: without it, new recordings of a participant get
+    no longer linked to the same pseudonym.
+
+    \b
+    Examples:
+      stridelab pseudonym-key
+      STRIDELAB_PSEUDONYM_KEY=/secure/key stridelab pseudonym-key
+    """
+    from pipeline.console import UserError, err_console
+    from pipeline.pseudonym import create_key
+    try:
+        p = create_key(path)
+    except FileExistsError:
+        raise UserError(f"a key already exists at {path or 'the default location'}; never replace a key in use") from None
+    err_console.print(f"created {p} (mode 600); back it up, keep it out of the warehouse", markup=False)

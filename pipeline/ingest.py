@@ -19,6 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from pipeline.pseudonym import SITE_KEYS, pseudonymise
 from pipeline.formats.mcap_read import Block, McapFormatError, ReadResult, iter_blocks, read_metadata
 from warehouse.catalog import first, Warehouse
 from warehouse.store import SeriesWriter, check_identifier, series_relpath
@@ -66,12 +67,20 @@ class Prepared:
     ignored_topics: list[str] = field(default_factory=list)
 
 
-def check_session_metadata(meta: dict[str, dict[str, str]]) -> dict[str, str]:
-    """Validate the ``session`` metadata record; returns it (raises IngestRejected)."""
+def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None) -> dict[str, str]:
+    """Validate the ``session`` metadata record and pseudonymise site identifiers (raises IngestRejected)."""
     if "session" not in meta:
         raise IngestRejected("no 'session' metadata record (study, participant, session, kind): "
                              "add it when exporting (DESIGN.md 'Recording format')")
     s = dict(meta["session"])
+    if any(s.get(k) for k in SITE_KEYS):
+        if not s.get("study"):
+            raise IngestRejected("'session' metadata lacks study")
+        s.setdefault("participant", "pending")
+        try:
+            s = pseudonymise(s, warehouse_root)
+        except ValueError as e:
+            raise IngestRejected(str(e)) from None
     missing = [k for k in SESSION_KEYS_REQUIRED if not s.get(k)]
     if missing:
         raise IngestRejected(f"'session' metadata lacks {', '.join(missing)}")
@@ -200,7 +209,7 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike) -> Prepared:
     try:
         meta = read_metadata(path) if st.st_size else {}
         if meta:
-            session = check_session_metadata(meta)
+            session = check_session_metadata(meta, root)
         for b in iter_blocks(path, res):
             if b.kind == "events":
                 out.events += [dict(v) for v in b.values]
@@ -213,7 +222,7 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike) -> Prepared:
                 _flush(s, root, session, res, path)
         out.content_hash = res.sha256
         if session is None:
-            session = check_session_metadata(res.metadata)
+            session = check_session_metadata(res.metadata, root)
         out.metadata = session
         if not any(s.kind == "imu" for s in states.values()):
             raise IngestRejected("no /imu/<placement> topic with samples")

@@ -1,0 +1,57 @@
+"""Participant data protection at ingest: keyed pseudonyms, refused personal data, no path tricks."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from pipeline import runner
+from pipeline.formats.mcap_write import write_recording
+from pipeline.pseudonym import create_key
+from tests.corpus import small_recording
+from warehouse.catalog import first
+from warehouse.read import connect_snapshot
+
+
+def test_site_identifier_becomes_a_keyed_pseudonym(tmp_path, monkeypatch):
+    key = tmp_path / "secret" / "pseudonym.key"
+    monkeypatch.setenv("STRIDELAB_PSEUDONYM_KEY", str(key))
+    create_key(key)
+    recs = []
+    for i, trial in enumerate(("walk-1", "walk-2")):
+        r = small_recording(seconds=3, seed=i, trial=trial, session=f"S{i}")
+        meta = {k: v for k, v in r.metadata.items() if k != "participant"}
+        recs.append(write_recording(replace(r, metadata=dict(meta, site_id="HOSP-12345")), tmp_path / f"{trial}.mcap"))
+    s = runner.run(tmp_path / "wh", None, files=recs, stages=False)
+    assert len(s.ingested) == 2
+    con = connect_snapshot(tmp_path / "wh")
+    pids = {p for (p,) in con.execute("SELECT participant_id FROM sessions").fetchall()}
+    assert len(pids) == 1 and next(iter(pids)).startswith("PS-")
+    # the site identifier is stored nowhere in the catalog
+    for (t,) in con.execute("SELECT table_name FROM information_schema.tables").fetchall():
+        rows = con.execute(f'SELECT * FROM "{t}"').fetchall()
+        assert "HOSP-12345" not in repr(rows), t
+
+
+def test_site_identifier_without_key_is_quarantined(tmp_path, monkeypatch):
+    monkeypatch.setenv("STRIDELAB_PSEUDONYM_KEY", str(tmp_path / "missing.key"))
+    r = small_recording(seconds=3)
+    f = write_recording(replace(r, metadata=dict(r.metadata, site_id="HOSP-1")), tmp_path / "a.mcap")
+    s = runner.run(tmp_path / "wh", None, files=[f], stages=False)
+    assert len(s.quarantined) == 1 and "no pseudonymisation key" in s.quarantined[0]
+
+
+@pytest.mark.parametrize("field,value,needle", [
+    ("participant_name", "Jane Doe", "personal data"),
+    ("contact", "jane.doe@example.org", "personal data"),
+    ("session", "../../../etc/passwd", "not a safe identifier"),
+    ("study", "x'; DROP TABLE recordings; --", "not a safe identifier"),
+])
+def test_personal_data_and_path_or_sql_tricks_in_metadata_are_refused(tmp_path, field, value, needle):
+    r = small_recording(seconds=3)
+    f = write_recording(replace(r, metadata=dict(r.metadata, **{field: value})), tmp_path / "a.mcap")
+    s = runner.run(tmp_path / "wh", None, files=[f], stages=False)
+    assert len(s.quarantined) == 1 and needle in s.quarantined[0]
+    con = connect_snapshot(tmp_path / "wh")
+    assert first(con.execute("SELECT count(*) FROM recordings"))[0] == 1    # the table survived
+    assert not (tmp_path / "etc").exists() and not list(tmp_path.rglob("passwd*"))
