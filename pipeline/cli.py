@@ -80,8 +80,10 @@ def _print_summary(summary, as_json: bool) -> None:
 
 def _run_with_progress(**kw):
     """Run the pipeline with a spinner that shows the latest committed step."""
+    import duckdb
     from pipeline import runner
     from pipeline.console import err_console, UserError
+    from pipeline.runner import StorageError
     from warehouse.lock import WarehouseBusy
     try:
         with err_console.status("starting…") as status:
@@ -92,6 +94,10 @@ def _run_with_progress(**kw):
             return runner.run(on_progress=on_progress, **kw)
     except WarehouseBusy as e:
         raise UserError(str(e)) from None
+    except (StorageError, OSError, duckdb.Error) as e:
+        first_line = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise UserError(f"the run stopped: {first_line}; the previous snapshot is still readable; "
+                        f"free disk space or fix the warehouse permissions, then rerun") from None
     except RuntimeError as e:
         if "cannot open the warehouse" in str(e):
             raise UserError(str(e)) from None

@@ -9,6 +9,7 @@ their file names derive from their inputs).
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -28,6 +29,20 @@ from pipeline.config import stage_params
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
 from warehouse.catalog import first, Warehouse
 from warehouse.lock import RunLock
+
+
+STORAGE_ERRNOS = {errno.ENOSPC, errno.EROFS, errno.EDQUOT, errno.EACCES, errno.EPERM}
+
+
+class StorageError(RuntimeError):
+    """The warehouse cannot be written (disk full, read-only, permissions): the run stops."""
+
+
+def _storage_problem(e: BaseException) -> bool:
+    if isinstance(e, OSError) and e.errno in STORAGE_ERRNOS:
+        return True
+    text = str(e)
+    return any(m in text for m in ("No space left on device", "Read-only file system", "Disk quota exceeded"))
 
 
 @dataclass
@@ -81,6 +96,8 @@ def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[Stage
     try:
         out = stage.compute(inp, params)
     except Exception as e:
+        if _storage_problem(e):
+            raise StorageError(f"cannot write the warehouse: {e}") from None
         tb = traceback.extract_tb(e.__traceback__)
         where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
         raise RuntimeError(f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}{where}") from None
@@ -105,6 +122,8 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
         todo.append((str(f), str(wh.root)))
 
     def done(item, res):
+        if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
+            raise StorageError(f"cannot write the warehouse while ingesting {Path(item[0]).name}: {res}")
         if isinstance(res, Exception):
             res = ingest_mod.Prepared(source_path=item[0], file_name=Path(item[0]).name, size_bytes=0, mtime_ns=0,
                                       content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
@@ -185,6 +204,8 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
             sid = inp.session["session_id"]
             started = _now()
             ph = params_hash(params)
+            if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
+                raise StorageError(f"cannot write the warehouse ({stage.name} {sid}): {res}")
             if isinstance(res, Exception):
                 failed_sessions[sid] = str(res)
                 summary.failed.append(f"{stage.name} {sid}: {res}")
@@ -248,10 +269,14 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
             finally:
                 ex.close()
                 summary.seconds = time.perf_counter() - t0
-                with wh.transaction() as con:
-                    con.execute("UPDATE pipeline_runs SET finished_at = ?, status = ?, n_ingested = ?, "
-                                "n_quarantined = ?, n_stage_runs = ?, n_failed = ? WHERE run_id = ?",
-                                [_now(), status, len(summary.ingested), len(summary.quarantined),
-                                 summary.stage_runs, len(summary.failed), run_id])
-                wh.publish_snapshot()
+                try:
+                    with wh.transaction() as con:
+                        con.execute("UPDATE pipeline_runs SET finished_at = ?, status = ?, n_ingested = ?, "
+                                    "n_quarantined = ?, n_stage_runs = ?, n_failed = ? WHERE run_id = ?",
+                                    [_now(), status, len(summary.ingested), len(summary.quarantined),
+                                     summary.stage_runs, len(summary.failed), run_id])
+                    wh.publish_snapshot()
+                except Exception:  # noqa: BLE001 - the original error (e.g. disk full) matters more
+                    if status == "ok":
+                        raise
     return summary

@@ -122,10 +122,14 @@ class Warehouse:
         seq = int(existing[-1].stem.split("-")[1]) + 1 if existing else 1
         final = snap_dir / f"catalog-{seq:08d}.duckdb"
         tmp = snap_dir / f"{TMP_PREFIX}{final.name}"
-        shutil.copyfile(self.root / CATALOG, tmp)
-        with open(tmp, "rb") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, final)
+        try:
+            shutil.copyfile(self.root / CATALOG, tmp)
+            with open(tmp, "rb") as f:
+                os.fsync(f.fileno())
+            os.replace(tmp, final)
+        except BaseException:
+            tmp.unlink(missing_ok=True)    # the previous snapshot stays the newest
+            raise
         latest_tmp = snap_dir / f"{TMP_PREFIX}{LATEST}"
         latest_tmp.write_text(final.name)
         os.replace(latest_tmp, snap_dir / LATEST)

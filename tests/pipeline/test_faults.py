@@ -1,0 +1,130 @@
+"""Injected faults: disk full, read-only warehouse, a worker killed mid-task, Dask = local engine."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pipeline import runner
+from tests.corpus import small_recording
+from pipeline.formats.mcap_write import write_recording
+from tests.pipeline.test_runner import cli, make_inbox, snapshot_fingerprint
+from warehouse.catalog import first
+from warehouse.read import connect_snapshot
+
+
+def _namespace_available() -> bool:
+    if shutil.which("unshare") is None:
+        return False
+    cmd = ["unshare", "-m", "true"] if os.geteuid() == 0 else ["unshare", "-rm", "true"]
+    return subprocess.run(cmd, capture_output=True).returncode == 0
+
+
+needs_mount = pytest.mark.skipif(not _namespace_available(),
+                                 reason="needs a private mount namespace (unshare -m) to mount a small tmpfs")
+
+
+def _in_namespace(script: str) -> subprocess.CompletedProcess:
+    pre = ["unshare", "-m", "--propagation", "private"] if os.geteuid() == 0 else ["unshare", "-rm"]
+    return subprocess.run([*pre, "bash", "-c", script], capture_output=True, text=True, timeout=300)
+
+
+READ_COUNT = f"{sys.executable} -c \"import sys; from warehouse.read import connect_snapshot; " \
+             f"c = connect_snapshot(sys.argv[1]); print('RECORDINGS', c.execute('SELECT count(*) FROM recordings').fetchall()[0][0])\""
+
+
+def _base_warehouse(tmp_path: Path) -> Path:
+    f = write_recording(small_recording(seconds=5), tmp_path / "first.mcap")
+    runner.run(tmp_path / "wh", None, files=[f], stages=False)
+    return tmp_path / "wh"
+
+
+@needs_mount
+def test_disk_full_stops_the_run_with_a_clear_error_and_keeps_the_snapshot(tmp_path):
+    wh = _base_warehouse(tmp_path)
+    new = write_recording(small_recording(seconds=120, session="S2", trial="long", seed=3), tmp_path / "new.mcap")
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    r = _in_namespace(textwrap.dedent(f"""
+        set -e
+        mount -t tmpfs -o size=48m tmpfs {mnt}
+        cp -a {wh} {mnt}/wh
+        # leave about 20 kB free: the new recording's series cannot be written
+        avail=$(df --output=avail -B1 {mnt} | tail -1)
+        fallocate -l $((avail - 20000)) {mnt}/filler
+        set +e
+        cd {os.getcwd()} && {sys.executable} -m pipeline ingest {new} --warehouse {mnt}/wh
+        echo "EXIT $?"
+        {READ_COUNT} {mnt}/wh
+    """))
+    out = r.stdout + r.stderr
+    assert "EXIT 2" in out, out
+    err = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert err and "No space left on device" in err[0] and "previous snapshot is still readable" in err[0], out
+    assert "RECORDINGS 1" in out, out
+
+
+@needs_mount
+def test_read_only_warehouse_stops_with_a_clear_error_and_stays_readable(tmp_path):
+    wh = _base_warehouse(tmp_path)
+    new = write_recording(small_recording(seconds=5, session="S2", trial="x", seed=3), tmp_path / "new.mcap")
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    r = _in_namespace(textwrap.dedent(f"""
+        set -e
+        mount -t tmpfs -o size=64m tmpfs {mnt}
+        cp -a {wh} {mnt}/wh
+        mount -o remount,ro {mnt}
+        set +e
+        cd {os.getcwd()} && {sys.executable} -m pipeline ingest {new} --warehouse {mnt}/wh
+        echo "EXIT $?"
+        {READ_COUNT} {mnt}/wh
+    """))
+    out = r.stdout + r.stderr
+    assert "EXIT 2" in out, out
+    err = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert err and "Read-only file system" in err[0], out
+    assert "RECORDINGS 1" in out, out
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_task_is_retried_and_nothing_is_lost(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
+    clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "-j", "2")
+    assert clean.returncode == 0, clean.stderr
+    marker = tmp_path / "killed-once"
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "2",
+            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker)})
+    assert r.returncode == 0, r.stderr
+    assert marker.exists(), "the fault was not injected"
+    assert snapshot_fingerprint(tmp_path / "wh") == snapshot_fingerprint(tmp_path / "clean")
+    con = connect_snapshot(tmp_path / "wh")
+    assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0] == 2   # no duplicates
+
+
+@pytest.mark.slow
+def test_dask_engine_gives_the_same_warehouse_as_the_local_engine(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
+    a = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "local", "-j", "2")
+    assert a.returncode == 0, a.stderr
+    b = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "dask", "-j", "2", "--engine", "dask")
+    assert b.returncode == 0, b.stderr
+    assert snapshot_fingerprint(tmp_path / "dask") == snapshot_fingerprint(tmp_path / "local")
+
+
+@pytest.mark.slow
+def test_dask_worker_killed_mid_task_is_retried(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
+    marker = tmp_path / "killed-once"
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "2", "--engine", "dask",
+            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker)})
+    assert r.returncode == 0, r.stderr
+    assert marker.exists()
+    con = connect_snapshot(tmp_path / "wh")
+    assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0] == 2
+    assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 16
