@@ -280,3 +280,32 @@ def pseudonym_key(path) -> None:
     except FileExistsError:
         raise UserError(f"a key already exists at {path or 'the default location'}; never replace a key in use") from None
     err_console.print(f"created {p} (mode 600); back it up, keep it out of the warehouse", markup=False)
+
+
+@main.command()
+@click.argument("participant")
+@_warehouse_option
+@click.option("--study", default=None, help="Study of the participant (needed if the pseudonym exists in several).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output directory [default: $STRIDELAB_HOME/reports].")
+@click.option("--json", "as_json", is_flag=True, help="Print the written paths as JSON.")
+def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
+    """Per-participant report (self-contained HTML and PDF) from the newest snapshot.
+
+    \b
+    Examples:
+      stridelab report P001
+      stridelab report P003 --study demo --out /tmp/reports --json
+    """
+    from pipeline.config import default_reports
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.report import build_report
+    try:
+        paths = build_report(_wh(warehouse_dir), participant, out_dir or default_reports(), study=study)
+    except (LookupError, ValueError) as e:
+        raise UserError(str(e).splitlines()[0]) from None
+    if as_json:
+        emit_json({k: str(v) for k, v in paths.items()})
+    else:
+        for k, v in paths.items():
+            err_console.print(f"{k}: {v}", markup=False)
