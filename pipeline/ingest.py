@@ -324,6 +324,13 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
                 p.status = "quarantined"
                 p.reason = (f"a different file with the same name was ingested before (sha256 {clash[0][:12]}…, "
                             f"session {clash[1]}); rename the file if it is a new recording")
+        if p.status == "ingested":
+            owner = first(con.execute("SELECT study, participant_id FROM sessions WHERE session_id = ?",
+                                      [p.metadata["session"]]))
+            if owner is not None and tuple(owner) != (p.metadata["study"], p.metadata["participant"]):
+                p.status = "quarantined"
+                p.reason = (f"session id {p.metadata['session']} already belongs to {owner[0]}/{owner[1]}, not "
+                            f"{p.metadata['study']}/{p.metadata['participant']}; session ids must be unique")
         if p.status == "quarantined":
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
@@ -338,9 +345,6 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
                         [s["session"], s["study"], s["participant"], s["kind"], s.get("protocol"), s["timezone"],
                          p.start_ns, p.end_ns])
         else:
-            if (row[0], row[1]) != (s["study"], s["participant"]):
-                raise IngestRejected(f"session {s['session']} belongs to {row[0]}/{row[1]}, "
-                                     f"not {s['study']}/{s['participant']}")
             con.execute("UPDATE sessions SET start_ns = least(start_ns, ?), end_ns = greatest(end_ns, ?) "
                         "WHERE session_id = ?", [p.start_ns, p.end_ns, s["session"]])
         wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,

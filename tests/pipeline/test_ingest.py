@@ -111,3 +111,10 @@ def test_same_name_different_content_is_quarantined(tmp_path):
     assert "same name" in s.quarantined[0]
     con = connect_snapshot(tmp_path / "wh")
     assert first(con.execute("SELECT count(*) FROM recordings WHERE status = 'ingested'"))[0] == 1
+
+
+def test_session_id_claimed_by_another_participant_is_quarantined(tmp_path):
+    a = write_recording(small_recording(seed=1, session="S07", participant="P001", trial="t1"), tmp_path / "a.mcap")
+    b = write_recording(small_recording(seed=2, session="S07", participant="P002", trial="t2"), tmp_path / "b.mcap")
+    s = _ingest(tmp_path / "wh", [a, b])
+    assert s.ingested == ["a.mcap"] and "already belongs to testing/P001" in s.quarantined[0]

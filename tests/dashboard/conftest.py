@@ -1,0 +1,91 @@
+"""Warehouses for the dashboard tests, built the real way (MCAP files -> ingest through the runner).
+
+* ``missing_wh``: a directory with nothing published;
+* ``empty_wh``: a migrated warehouse whose snapshot has no data;
+* ``ingested_wh``: recordings ingested (two participants, a quarantined file), no stage ran;
+* ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write
+  (strides, calibration QC, joint-angle cycles, activity bouts with reference labels, accuracy,
+  foot trajectories), added through the pipeline's writer by ``pipeline.bench.dashboard``.
+"""
+from __future__ import annotations
+
+import shutil
+from datetime import datetime
+from pathlib import Path
+
+import pytest
+
+from pipeline.formats.mcap_write import write_recording
+from tests.corpus import T0_NS, small_recording
+from warehouse.catalog import Warehouse
+
+APP = Path(__file__).resolve().parents[2] / "dashboard" / "app.py"
+PAGES = ("overview", "accuracy", "participant", "activity", "runs")
+
+
+def _ingest(root: Path, inbox: Path) -> None:
+    from pipeline import runner
+    inbox.mkdir(parents=True, exist_ok=True)
+    files = []
+    for i, (pid, ses) in enumerate((("P001", "S01"), ("P001", "S02"), ("P002", "S03"))):
+        rec = small_recording(seconds=6.0, seed=i, session=ses, participant=pid, trial=f"walk-{i}")
+        files.append(write_recording(rec, inbox / f"{pid}_{ses}.mcap"))
+    bad = inbox / "broken.mcap"
+    bad.write_bytes(files[0].read_bytes()[:500])
+    files.append(bad)
+    runner.run(root, None, files=files, stages=False, command="ingest")
+
+
+@pytest.fixture(scope="session")
+def missing_wh(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("missing") / "warehouse"
+
+
+@pytest.fixture(scope="session")
+def empty_wh(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("empty") / "warehouse"
+    with Warehouse.open(root) as wh:
+        wh.publish_snapshot()
+    return root
+
+
+@pytest.fixture(scope="session")
+def ingested_wh(tmp_path_factory) -> Path:
+    base = tmp_path_factory.mktemp("ingested")
+    _ingest(base / "warehouse", base / "inbox")
+    return base / "warehouse"
+
+
+@pytest.fixture(scope="session")
+def full_wh(tmp_path_factory, ingested_wh) -> Path:
+    from pipeline.bench.dashboard import add_synthetic_results
+    root = tmp_path_factory.mktemp("full") / "warehouse"
+    shutil.copytree(ingested_wh, root)
+    day = 86_400 * 10**9
+    with Warehouse.open(root) as wh:
+        with wh.transaction() as con:
+            start = T0_NS + 2 * day
+            con.execute("INSERT INTO sessions VALUES ('S09', 'testing', 'P001', 'free_living', 'free-living', "
+                        "'Europe/Zurich', ?, ?)", [start, start + 9 * day])
+            wh.insert("recordings", [{"content_hash": "f" * 64, "file_name": "P001_home.mcap", "status": "ingested",
+                                      "session_id": "S09", "trial": "free-living", "start_ns": start,
+                                      "end_ns": start + 9 * day, "n_samples": 1, "ingested_at": datetime(2026, 3, 20)}])
+            rows = con.execute("SELECT * FROM sessions").df().to_dict("records")
+            add_synthetic_results(wh, [dict(r, content_hash="f" * 64) for r in rows], seed=1)
+            wh.insert("stage_runs", [{"run_id": "r1", "session_id": "S03", "stage": "gait", "stage_version": "1",
+                                      "status": "failed", "started_at": datetime(2026, 3, 20),
+                                      "error": "ValueError: no stance phase detected"}])
+        wh.publish_snapshot()
+    return root
+
+
+@pytest.fixture()
+def app_env(monkeypatch):
+    """Point the app at a warehouse (the env var the app honours) with fresh Streamlit caches."""
+    import streamlit as st
+
+    def use(root: Path):
+        monkeypatch.setenv("STRIDELAB_WAREHOUSE", str(root))
+        st.cache_data.clear()
+        st.cache_resource.clear()
+    return use

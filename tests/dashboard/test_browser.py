@@ -1,0 +1,102 @@
+"""End to end in a real headless browser (Debian's Chromium driven by Playwright): start the app on a
+free localhost port, open every page, assert the key elements and that no exception is shown, save
+screenshots."""
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from tests.dashboard.conftest import APP
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+CHROMIUM = os.environ.get("STRIDELAB_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+        "--disable-sync", "--no-first-run"]
+# page url path -> texts that must be visible
+EXPECT = {
+    "overview": ["StrideLab overview", "Participants", "Quarantined files", "broken.mcap", "Quality flags"],
+    "accuracy": ["Accuracy against references", "orientation", "rmse_deg"],
+    "participant": ["Participant", "P001", "Sessions", "Gait parameters"],
+    "activity": ["Daily activity", "Posture transitions", "Daily totals"],
+    "runs": ["Pipeline runs", "Stage runs", "no stance phase detected"],
+}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(full_wh):
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
+    pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")
+    port = _free_port()
+    env = {**os.environ, "STRIDELAB_WAREHOUSE": str(full_wh)}
+    proc = subprocess.Popen([sys.executable, "-m", "streamlit", "run", str(APP), "--server.port", str(port),
+                             "--server.address", "localhost", "--server.headless", "true",
+                             "--browser.gatherUsageStats", "false", "--server.fileWatcherType", "none",
+                             "--", "--warehouse", str(full_wh)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    url = f"http://localhost:{port}"
+    try:
+        for _ in range(120):
+            if proc.poll() is not None:
+                pytest.fail(f"streamlit exited: {proc.stdout.read()[-2000:]}")
+            try:
+                if urllib.request.urlopen(f"{url}/_stcore/health", timeout=1).status == 200:
+                    break
+            except OSError:
+                time.sleep(0.25)
+        else:
+            pytest.fail("streamlit did not become healthy within 30 s")
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def test_every_page_in_chromium(server, tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+    shots = tmp_path_factory.mktemp("screenshots")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            for path, texts in EXPECT.items():
+                page.goto(f"{server}/{path}", wait_until="domcontentloaded")
+                page.wait_for_selector("h1", timeout=30_000)
+                # Streamlit renders in steps: wait until the script run finished (no 'running' status widget)
+                page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                                       timeout=30_000)
+                for t in texts:      # table cells live in a canvas grid: present in the DOM, not "visible"
+                    page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
+                assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {path}"
+                if path in ("participant", "accuracy", "activity", "runs"):
+                    page.locator(".js-plotly-plot").first.wait_for(timeout=30_000)
+                page.screenshot(path=str(shots / f"{path}.png"), full_page=True)
+                assert (shots / f"{path}.png").stat().st_size > 10_000
+            # navigation through the sidebar works too
+            page.goto(f"{server}/overview", wait_until="domcontentloaded")
+            page.get_by_role("link", name="Runs").click()
+            page.get_by_text("Stage runs").first.wait_for(state="attached", timeout=30_000)
+            assert not errors, errors
+        finally:
+            browser.close()
+    print(f"screenshots in {shots}")

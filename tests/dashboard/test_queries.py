@@ -1,0 +1,71 @@
+"""Queries: filter values reach SQL only as parameters; optional stage tables are resolved by schema."""
+from __future__ import annotations
+
+import duckdb
+import pytest
+
+from dashboard import queries as Q
+from warehouse.read import connect_snapshot
+
+HOSTILE = ["x' OR '1'='1", "'; DROP TABLE sessions; --", "P001\" OR 1=1 --", "%", "*", "P001'/*", "\x00"]
+
+
+@pytest.fixture()
+def con(full_wh):
+    c = connect_snapshot(full_wh)
+    yield c
+    c.close()
+
+
+@pytest.mark.parametrize("value", HOSTILE)
+def test_hostile_filter_values_match_nothing_and_change_nothing(con, value):
+    before = con.execute("SELECT count(*) FROM sessions").fetchall()[0][0]
+    assert Q.sessions(con, value).empty
+    assert Q.recordings(con, value).empty
+    assert Q.participants(con, value).empty
+    assert Q.strides(con, value).empty
+    assert Q.activity_daily(con, value).empty
+    assert Q.accuracy_metrics(con, study=[value]).empty
+    assert Q.accuracy_metrics(con, estimator=[value], placement=[value], trial=[value]).empty
+    assert Q.stage_runs(con, run_id=value).empty
+    assert Q.stage_runs(con, stage=[value]).empty
+    assert con.execute("SELECT count(*) FROM sessions").fetchall()[0][0] == before
+
+
+def test_filters_restrict_rows(con):
+    allm = Q.accuracy_metrics(con)
+    vqf = Q.accuracy_metrics(con, estimator=["vqf"])
+    assert 0 < len(vqf) < len(allm) and set(vqf["estimator"]) == {"vqf"}
+    assert len(Q.accuracy_metrics(con, estimator=[])) == len(allm)      # nothing selected = all
+    assert set(Q.sessions(con, "P002")["session_id"]) == {"S03"}
+
+
+def test_datasets_absent_then_resolved(ingested_wh, full_wh):
+    c = connect_snapshot(ingested_wh)
+    try:
+        assert not any(Q.available(c).values())
+        assert Q.strides(c, "P001") is None and Q.activity_daily(c, "P001") is None
+        assert "stridelab run" in Q.missing_hint("strides")
+    finally:
+        c.close()
+    c = connect_snapshot(full_wh)
+    try:
+        assert all(Q.available(c).values())
+    finally:
+        c.close()
+
+
+def test_column_aliases_are_resolved():
+    c = duckdb.connect()
+    c.execute("CREATE TABLE gait_strides (session_id VARCHAR, foot VARCHAR, duration_s DOUBLE, gait_speed_m_s DOUBLE)")
+    r = Q.resolve(c, "strides")
+    assert r.table == "gait_strides" and r.cols["side"] == "foot" and r.cols["speed_m_s"] == "gait_speed_m_s"
+    c.execute("CREATE TABLE calibration_qc (placement VARCHAR)")          # lacks session_id: not usable
+    assert Q.resolve(c, "calibration") is None
+
+
+def test_activity_days_are_local_days(con):
+    daily = Q.activity_daily(con, "P001")
+    per_day = daily[daily["class"] != "_transitions"].groupby("day")["hours"].sum()
+    full_days = per_day.iloc[1:-1]
+    assert ((full_days - 24).abs() < 2.5).all()          # bouts are assigned to the local day they start in

@@ -1,0 +1,84 @@
+"""Per-participant report: HTML self-contained, PDF rendered and checked (pages, pseudonym, a known figure)."""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import time
+
+import pytest
+
+from pipeline.report import build_report
+
+pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report PDF (pip install pypdf)")
+
+
+@pytest.fixture(scope="module")
+def report(full_wh, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reports")
+    t0 = time.perf_counter()
+    paths = build_report(full_wh, "P001", out)
+    return paths, time.perf_counter() - t0
+
+
+def test_pdf_pages_pseudonym_and_known_figure(report):
+    paths, _ = report
+    reader = pypdf.PdfReader(paths["pdf"])
+    assert len(reader.pages) == 5                                # fixed layout: always five A4 pages
+    w, h = (float(x) for x in reader.pages[0].mediabox.upper_right)
+    assert abs(w - 595) < 2 and abs(h - 842) < 2
+    texts = [p.extract_text() for p in reader.pages]
+    assert all("P001" in t for t in texts)                       # the pseudonym on every page
+    assert "Figure 1: Gait parameters across sessions" in texts[1]
+    assert "Figure 3: Time per activity class and day" in texts[3]
+    assert "Bland-Altman" in texts[4]
+    assert not any(".mcap" in t for t in texts)                  # file names (possible site identifiers) never printed
+    assert reader.metadata.title == "StrideLab report P001"
+
+
+def test_pdf_figure_is_drawn(report, tmp_path):
+    """Render page 2 with poppler and check that Figure 1's area holds a plot, not a blank box."""
+    if shutil.which("pdftoppm") is None:
+        pytest.skip("pdftoppm (poppler-utils) not installed: apt-get install poppler-utils")
+    from PIL import Image
+    import numpy as np
+    paths, _ = report
+    subprocess.run(["pdftoppm", "-f", "2", "-l", "2", "-r", "60", "-png", str(paths["pdf"]), str(tmp_path / "p")],
+                   check=True)
+    img = np.asarray(Image.open(next(tmp_path.glob("p*.png"))).convert("RGB")).astype(int)
+    h = img.shape[0]
+    band = img[int(0.12 * h):int(0.33 * h)]                      # where Figure 1 sits on page 2
+    blue = (band[..., 2] > 150) & (band[..., 0] < 120)           # the series colour #4c78a8
+    assert blue.sum() > 50
+    assert (band.sum(axis=2) < 600).mean() > 0.01                # axes, ticks and labels
+
+
+def test_html_is_self_contained(report):
+    paths, _ = report
+    html = paths["html"].read_text()
+    assert "<svg" in html and html.count("<figure>") == 4
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", html)     # nothing fetched from elsewhere
+    assert "<script" not in html
+    assert "P001" in html and ".mcap" not in html
+
+
+def test_report_is_fast(report):
+    _, seconds = report
+    assert seconds < 5.0
+
+
+def test_report_without_stage_results_explains(ingested_wh, tmp_path):
+    paths = build_report(ingested_wh, "P002", tmp_path)
+    reader = pypdf.PdfReader(paths["pdf"])
+    assert len(reader.pages) == 5
+    text = "\n".join(p.extract_text() for p in reader.pages)
+    assert "stridelab run" in text and "P002" in text
+
+
+def test_unknown_participant_and_empty_warehouse(ingested_wh, missing_wh, tmp_path):
+    with pytest.raises(LookupError, match="not in the warehouse"):
+        build_report(ingested_wh, "P999' OR '1'='1", tmp_path)
+    with pytest.raises(LookupError, match="no published snapshot"):
+        build_report(missing_wh, "P001", tmp_path)
+    with pytest.raises(LookupError, match="not in study"):
+        build_report(ingested_wh, "P001", tmp_path, study="other")
