@@ -76,10 +76,12 @@ def _version() -> str:
 
 # ---- worker-side functions (top level so they pickle) -------------------------------------
 
-def _fault_injection() -> None:
-    """Test hook: ``STRIDELAB_TEST_KILL_WORKER_ONCE=<marker file>`` makes the first task that finds no
-    marker create it and SIGKILL its own worker process (used by the fault-tolerance tests)."""
-    marker = os.environ.get("STRIDELAB_TEST_KILL_WORKER_ONCE")
+def _fault_injection(var: str = "STRIDELAB_TEST_KILL_WORKER_ONCE") -> None:
+    """Test hooks for the fault-tolerance tests: when the environment variable ``var`` names a marker
+    file that does not exist yet, create it and SIGKILL the current process. Used with
+    ``STRIDELAB_TEST_KILL_WORKER_ONCE`` (a worker, inside a task) and
+    ``STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT`` (the coordinator, inside a stage's transaction)."""
+    marker = os.environ.get(var)
     if marker:
         try:
             fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
@@ -220,6 +222,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                 with wh.transaction() as con:
                     for t in stage.tables:
                         con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
+                        _fault_injection("STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT")
                         wh.insert(t, out.rows.get(t, []))
                     con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
                     wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,

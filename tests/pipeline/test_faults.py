@@ -128,3 +128,16 @@ def test_dask_worker_killed_mid_task_is_retried(tmp_path):
     con = connect_snapshot(tmp_path / "wh")
     assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0] == 2
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 16
+
+
+def test_coordinator_killed_mid_commit_then_rerun_equals_a_clean_run(tmp_path):
+    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
+    clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "-j", "1")
+    assert clean.returncode == 0, clean.stderr
+    marker = tmp_path / "killed"
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1",
+            env={"STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT": str(marker)})
+    assert r.returncode == -9 and marker.exists()          # died between DELETE and INSERT of a stage commit
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1")
+    assert r.returncode == 0, r.stderr
+    assert snapshot_fingerprint(tmp_path / "wh") == snapshot_fingerprint(tmp_path / "clean")
