@@ -135,6 +135,9 @@ def pelvis_from_sway(acc_stand_pelvis: np.ndarray, acc_walk_pelvis: np.ndarray, 
     a = np.asarray(acc_walk_pelvis, float)
     if a.shape[0] < int(3 * sampling_rate_hz):
         raise CalibrationError("pelvis sway calibration needs ≥ 3 s of walking")
+    trim = int(sampling_rate_hz)                       # leave out gait initiation / termination
+    if a.shape[0] > 5 * sampling_rate_hz:
+        a = a[trim:-trim]
     sos = butter(2, band_hz, btype="bandpass", fs=sampling_rate_hz, output="sos")
     af = sosfiltfilt(sos, a, axis=0) @ R_S_VF
     Q = af[:, [0, 2]] - af[:, [0, 2]].mean(axis=0)
