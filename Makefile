@@ -37,13 +37,13 @@ test: $(STAMP) browser
 
 # Debian's Chromium for the dashboard's real-browser test; skipped (with a message) where apt is unavailable.
 browser:
-	@command -v chromium >/dev/null 2>&1 || { \
+	@{ command -v chromium >/dev/null 2>&1 && command -v pdftoppm >/dev/null 2>&1; } || { \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
-	    echo "installing Debian's chromium for the browser test" >&2; \
-	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) || \
+	    echo "installing Debian's chromium and poppler-utils for the browser and PDF tests" >&2; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium poppler-utils >/dev/null) || \
 	      echo "warning: could not install chromium; the browser test will be skipped" >&2; \
 	  else \
-	    echo "note: chromium not found (sudo apt-get install chromium); the browser test will be skipped" >&2; \
+	    echo "note: chromium/pdftoppm not found (sudo apt-get install chromium poppler-utils); those tests will be skipped" >&2; \
 	  fi; }
 
 clean:

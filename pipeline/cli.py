@@ -124,10 +124,13 @@ def simulate(directory: Path, manifest, seed, participants, hours, as_json) -> N
       stridelab simulate stridelab-home/inbox
       stridelab simulate /tmp/inbox --participants 2 --hours 1 --seed 7
     """
-    from pipeline.console import emit_json, err_console
+    from pipeline.console import UserError, emit_json, err_console
     from pipeline.simulate import simulate_to_dir
-    files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
-                            on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
+    try:
+        files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
+                                on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
+    except ValueError as e:
+        raise UserError(str(e).splitlines()[0]) from None
     if as_json:
         emit_json({"files": [str(f) for f in files]})
     else:
@@ -299,7 +302,7 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
     """
     from pipeline.config import default_reports
     from pipeline.console import UserError, emit_json, err_console
-    from pipeline.report import build_report
+    from dashboard.report import build_report   # the CLI is the one place that wires every layer
     try:
         paths = build_report(_wh(warehouse_dir), participant, out_dir or default_reports(), study=study)
     except (LookupError, ValueError) as e:

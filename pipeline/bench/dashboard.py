@@ -250,7 +250,9 @@ def time_pages(root: Path, repeats: int = 2, timeout: float = 60.0) -> dict[str,
     """Render every page with AppTest (fresh caches first, then warm); seconds per page."""
     import os
     import streamlit as st
+    from streamlit.logger import set_log_level
     from streamlit.testing.v1 import AppTest
+    set_log_level("error")            # AppTest outside a server warns about a missing runtime on every run
     app = Path(__file__).resolve().parents[2] / "dashboard" / "app.py"
     old = os.environ.get("STRIDELAB_WAREHOUSE")
     os.environ["STRIDELAB_WAREHOUSE"] = str(root)
@@ -284,7 +286,7 @@ def time_pages(root: Path, repeats: int = 2, timeout: float = 60.0) -> dict[str,
 
 
 def time_report(root: Path, out_dir: Path) -> dict:
-    from pipeline.report import build_report
+    from dashboard.report import build_report
     from warehouse.read import connect_snapshot
     con = connect_snapshot(root)
     try:

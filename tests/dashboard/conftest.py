@@ -2,7 +2,8 @@
 
 * ``missing_wh``: a directory with nothing published;
 * ``empty_wh``: a migrated warehouse whose snapshot has no data;
-* ``ingested_wh``: recordings ingested (two participants, a quarantined file), no stage ran;
+* ``ingested_wh``: recordings ingested by a real run (two participants, a quarantined file) with the
+  stages registered today (orientation), none of the later ones;
 * ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write
   (strides, calibration QC, joint-angle cycles, activity bouts with reference labels, accuracy,
   foot trajectories), added through the pipeline's writer by ``pipeline.bench.dashboard``.
@@ -33,7 +34,7 @@ def _ingest(root: Path, inbox: Path) -> None:
     bad = inbox / "broken.mcap"
     bad.write_bytes(files[0].read_bytes()[:500])
     files.append(bad)
-    runner.run(root, None, files=files, stages=False, command="ingest")
+    runner.run(root, None, files=files, stages=True, command="run")     # ingest + the stages that exist
 
 
 @pytest.fixture(scope="session")

@@ -22,8 +22,8 @@ CHROMIUM = os.environ.get("STRIDELAB_CHROMIUM") or shutil.which("chromium") or "
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
         "--disable-sync", "--no-first-run"]
 # page url path -> texts that must be visible
-EXPECT = {
-    "overview": ["StrideLab overview", "Participants", "Quarantined files", "broken.mcap", "Quality flags"],
+EXPECT = {      # the default page (Overview) lives at the root URL
+    "": ["StrideLab overview", "Participants", "Quarantined files", "broken.mcap", "Quality flags"],
     "accuracy": ["Accuracy against references", "orientation", "rmse_deg"],
     "participant": ["Participant", "P001", "Sessions", "Gait parameters"],
     "activity": ["Daily activity", "Posture transitions", "Daily totals"],
@@ -80,6 +80,7 @@ def test_every_page_in_chromium(server, tmp_path_factory):
             errors: list[str] = []
             page.on("pageerror", lambda e: errors.append(str(e)))
             for path, texts in EXPECT.items():
+                name = path or "overview"
                 page.goto(f"{server}/{path}", wait_until="domcontentloaded")
                 page.wait_for_selector("h1", timeout=30_000)
                 # Streamlit renders in steps: wait until the script run finished (no 'running' status widget)
@@ -87,15 +88,22 @@ def test_every_page_in_chromium(server, tmp_path_factory):
                                        timeout=30_000)
                 for t in texts:      # table cells live in a canvas grid: present in the DOM, not "visible"
                     page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
-                assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {path}"
+                assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {name}"
+                assert page.get_by_text("Page not found").count() == 0, f"{name}: page not found"
                 if path in ("participant", "accuracy", "activity", "runs"):
                     page.locator(".js-plotly-plot").first.wait_for(timeout=30_000)
-                page.screenshot(path=str(shots / f"{path}.png"), full_page=True)
-                assert (shots / f"{path}.png").stat().st_size > 10_000
-            # navigation through the sidebar works too
-            page.goto(f"{server}/overview", wait_until="domcontentloaded")
-            page.get_by_role("link", name="Runs").click()
-            page.get_by_text("Stage runs").first.wait_for(state="attached", timeout=30_000)
+                page.screenshot(path=str(shots / f"{name}.png"), full_page=True)
+                assert (shots / f"{name}.png").stat().st_size > 10_000
+            # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(server, wait_until="domcontentloaded")
+            page.get_by_text("Quality flags").first.wait_for(state="attached", timeout=30_000)
+            link = page.locator('[data-testid="stSidebarNavLink"]', has_text="Runs").first
+            link.wait_for(state="visible", timeout=30_000)
+            link.click()
+            page.get_by_role("heading", name="Pipeline runs").wait_for(timeout=30_000)
+            page.wait_for_url("**/runs", timeout=30_000)
             assert not errors, errors
         finally:
             browser.close()

@@ -51,11 +51,13 @@ def test_ingest_only_warehouse_hints_at_missing_stages(page, app_env, ingested_w
         assert [m.value for m in at.metric][:3] == ["1", "2", "3"]          # studies, participants, sessions
         assert any("broken.mcap" in df.value.to_string() for df in at.dataframe)   # quarantined with a reason
     elif page == "runs":
-        assert "ingest" in at.dataframe[0].value["command"].tolist()
+        assert at.dataframe[0].value["command"].tolist() == ["run"]
     else:
         assert "stridelab run" in t                                         # each missing stage says what to run
     if page == "participant":
-        assert "No strides in this warehouse yet" in t or "strides" in t
+        assert "No strides in this warehouse yet" in t
+        ori = next(df.value for df in at.dataframe if "estimator" in df.value.columns)   # orientation ran
+        assert len(ori) == 4 and ori["n_samples"].gt(0).all()
 
 
 def test_overview_full(app_env, full_wh):
@@ -94,9 +96,9 @@ def test_activity_full(app_env, full_wh):
     at = open_page("activity")
     assert len(at.get("plotly_chart")) >= 3
     assert any(m.label == "Posture transitions" for m in at.metric)
-    days = at.select_slider(key="act_day").options
-    at.select_slider(key="act_day").set_value(days[-1]).run()
-    assert not at.exception
+    assert at.select_slider(key="act_day").options[-1] == "Fri 13 Mar 2026"     # local days of the 9-day session
+    at.select_slider(key="act_day").set_value("2026-03-13").run()
+    assert not at.exception and at.select_slider(key="act_day").value == "2026-03-13"
 
 
 def test_runs_full_shows_errors(app_env, full_wh):

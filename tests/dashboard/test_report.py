@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from pipeline.report import build_report
+from dashboard.report import build_report
 
 pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report PDF (pip install pypdf)")
 

@@ -1,0 +1,29 @@
+"""StrideLab dashboard: ``streamlit run dashboard/app.py -- --warehouse PATH`` (or ``stridelab dashboard``).
+
+Reads only the newest published snapshot of the warehouse (read-only); never blocks a nightly run.
+The warehouse comes from ``--warehouse`` after ``--``, else ``$STRIDELAB_WAREHOUSE``, else
+``$STRIDELAB_HOME/warehouse``.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+_ROOT = Path(__file__).resolve().parent.parent
+if str(_ROOT) not in sys.path:          # `streamlit run dashboard/app.py` puts only dashboard/ on the path
+    sys.path.insert(0, str(_ROOT))
+
+import streamlit as st  # noqa: E402
+
+_PAGES = Path(__file__).resolve().parent / "views"   # not "pages/": that name turns on the legacy auto-navigation
+
+st.set_page_config(page_title="StrideLab", page_icon=":material/directions_walk:", layout="wide")
+
+pages = [
+    st.Page(_PAGES / "overview.py", title="Overview", icon=":material/dashboard:", url_path="overview", default=True),
+    st.Page(_PAGES / "accuracy.py", title="Accuracy", icon=":material/target:", url_path="accuracy"),
+    st.Page(_PAGES / "participant.py", title="Participant", icon=":material/person:", url_path="participant"),
+    st.Page(_PAGES / "activity.py", title="Activity", icon=":material/directions_run:", url_path="activity"),
+    st.Page(_PAGES / "runs.py", title="Runs", icon=":material/history:", url_path="runs"),
+]
+st.navigation(pages).run()

@@ -1,0 +1,68 @@
+"""What every page shares: the warehouse location, the snapshot handle, empty-state messages."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import streamlit as st
+
+from dashboard import queries as Q
+
+ENV = "STRIDELAB_WAREHOUSE"
+
+
+def warehouse_root() -> Path:
+    """``--warehouse PATH`` after ``--`` on the streamlit command line, else $STRIDELAB_WAREHOUSE, else
+    the default of the CLI ($STRIDELAB_HOME/warehouse)."""
+    ap = argparse.ArgumentParser(add_help=False)
+    ap.add_argument("--warehouse", default=None)
+    args, _ = ap.parse_known_args(sys.argv[1:])
+    if args.warehouse:
+        return Path(args.warehouse).expanduser().resolve()
+    if os.environ.get(ENV):
+        return Path(os.environ[ENV]).expanduser().resolve()
+    from pipeline.config import default_warehouse
+    return default_warehouse()
+
+
+def snapshot() -> Q.Snapshot | None:
+    """The newest published snapshot, or None after telling the user what to run."""
+    root = warehouse_root()
+    snap = Q.open_snapshot(root)
+    if snap is None:
+        st.info(f"The warehouse at `{root}` has no published data yet. To fill it, "
+                f"{Q.RUN_HINT.replace('WAREHOUSE', str(root))}.", icon=":material/info:")
+    return snap
+
+
+def empty_warehouse_note(snap: Q.Snapshot) -> bool:
+    """True (and a hint shown) when the snapshot holds no session at all."""
+    if snap.q(Q.counts)["sessions"] == 0:
+        st.info(f"No sessions in the warehouse yet: {Q.RUN_HINT}.", icon=":material/info:")
+        return True
+    return False
+
+
+def hint(dataset: str) -> None:
+    st.caption(":material/hourglass_empty: " + Q.missing_hint(dataset))
+
+
+def footer(snap: Q.Snapshot | None) -> None:
+    if snap is not None:
+        st.caption(f"Snapshot `{snap.name}` of `{snap.root}` (read-only).")
+
+
+def participant_picker(snap: Q.Snapshot, key: str = "participant") -> tuple[str | None, str | None]:
+    """Study and participant selectors in the sidebar; returns (study, participant_id)."""
+    parts = snap.q(Q.participants)
+    if parts.empty:
+        return None, None
+    studies = sorted(parts["study"].unique())
+    study = st.sidebar.selectbox("Study", studies, key=f"{key}_study") if len(studies) > 1 else studies[0]
+    ids = parts.loc[parts["study"] == study, "participant_id"].tolist()
+    qp = st.query_params.get("participant")
+    idx = ids.index(qp) if qp in ids else 0
+    pid = st.sidebar.selectbox("Participant (pseudonym)", ids, index=idx, key=f"{key}_pid")
+    return study, pid

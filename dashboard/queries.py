@@ -1,0 +1,714 @@
+"""Every SQL query of the dashboard and the reports, on the warehouse's newest snapshot (read-only).
+
+Two layers:
+
+* plain functions ``name(con, ...) -> pandas.DataFrame`` (no Streamlit): the reports and the
+  benchmark call them with their own connection;
+* :class:`Snapshot` used by the pages: one cached read-only connection per published snapshot
+  (``st.cache_resource``; a newer snapshot gives a new connection, the old one is closed when it
+  leaves the cache) and ``st.cache_data`` on every query, keyed by the snapshot name, so a nightly
+  run that publishes a snapshot invalidates the cache without ever being blocked by a reader.
+
+Filter values reach SQL **only as parameters** (``?``). Identifiers (table and column names) come
+from ``information_schema`` of the snapshot itself, never from user input, and are quoted.
+
+Tables written by later stages are optional. Their expected names and columns are declared once in
+:data:`DATASETS` (with accepted aliases), resolved against ``information_schema`` at query time: a
+page shows a dataset when it is present and a hint of what to run when it is not. Adapting to the
+final schema of a stage is an edit of that table.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import duckdb
+import numpy as np
+import pandas as pd
+
+from warehouse.read import latest_snapshot
+
+RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridelab demo --no-serve`)"
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A stage output the dashboard can show: candidate table names and logical -> column aliases."""
+    tables: tuple[str, ...]
+    columns: dict[str, tuple[str, ...]]
+    required: tuple[str, ...]
+    produced_by: str                          # what computes it (for the hint)
+    optional_columns: tuple[str, ...] = field(default=())
+
+
+def _c(*names: str) -> tuple[str, ...]:
+    return names
+
+
+#: stage outputs that are optional (added by later stages); first matching table name wins
+DATASETS: dict[str, Dataset] = {
+    "strides": Dataset(
+        tables=("strides", "gait_strides", "stride_parameters"),
+        columns={"session_id": _c("session_id"), "side": _c("side", "placement", "foot"),
+                 "ic_ns": _c("ic_ns", "start_ns", "t_ns"), "tc_ns": _c("tc_ns"),
+                 "stride_time_s": _c("stride_time_s", "duration_s"),
+                 "stance_pct": _c("stance_pct", "stance_percent", "stance_time_pct"),
+                 "swing_pct": _c("swing_pct", "swing_percent"),
+                 "double_support_pct": _c("double_support_pct"),
+                 "cadence_spm": _c("cadence_spm", "cadence_steps_min", "cadence"),
+                 "stride_length_m": _c("stride_length_m", "length_m"),
+                 "speed_m_s": _c("speed_m_s", "gait_speed_m_s", "velocity_m_s"),
+                 "clearance_m": _c("clearance_m", "max_clearance_m", "foot_clearance_m"),
+                 "turning_deg": _c("turning_deg", "turning_angle_deg"),
+                 "stride_length_ref_m": _c("stride_length_ref_m", "ref_stride_length_m",
+                                           "reference_stride_length_m")},
+        required=("session_id", "stride_time_s"),
+        produced_by="the gait stage (gait events and strides)"),
+    "calibration": Dataset(
+        tables=("calibration_qc", "calibrations", "calibration"),
+        columns={"session_id": _c("session_id"), "placement": _c("placement", "segment"),
+                 "status": _c("status", "qc_status", "qc"), "reasons": _c("reasons", "reason", "qc_reasons",
+                                                                          "message", "flags")},
+        required=("session_id", "placement"),
+        produced_by="the calibration stage"),
+    "joint_cycles": Dataset(
+        tables=("joint_angle_cycles", "joint_angle_curves", "joint_cycles"),
+        columns={"session_id": _c("session_id"), "joint": _c("joint"), "side": _c("side"),
+                 "plane": _c("plane", "axis", "component"),
+                 "cycle_pct": _c("cycle_pct", "pct", "gait_cycle_pct", "percent"),
+                 "mean_deg": _c("mean_deg", "mean", "angle_deg"), "sd_deg": _c("sd_deg", "std_deg", "sd")},
+        required=("session_id", "joint", "cycle_pct", "mean_deg"),
+        produced_by="the joint-angle stage"),
+    "activity_bouts": Dataset(
+        tables=("activity_bouts", "activity_timeline", "activity"),
+        columns={"session_id": _c("session_id"), "start_ns": _c("start_ns", "t_ns"), "end_ns": _c("end_ns"),
+                 "class": _c("class", "activity", "label", "posture"),
+                 "steps": _c("steps", "n_steps", "step_count")},
+        required=("session_id", "start_ns", "end_ns", "class"),
+        produced_by="the daily-activity stage (chest sensor)"),
+    "accuracy": Dataset(
+        tables=("accuracy_metrics", "accuracy"),
+        columns={"session_id": _c("session_id"), "stage": _c("stage"),
+                 "estimator": _c("estimator", "algorithm", "method"), "placement": _c("placement", "joint", "side"),
+                 "metric": _c("metric"), "value": _c("value"), "unit": _c("unit"), "trial": _c("trial", "protocol")},
+        required=("stage", "metric", "value"),
+        produced_by="the accuracy stage (where a reference exists)"),
+    "accuracy_pairs": Dataset(
+        tables=("accuracy_pairs", "accuracy_samples"),
+        columns={"session_id": _c("session_id"), "stage": _c("stage"),
+                 "estimator": _c("estimator", "algorithm", "method"), "placement": _c("placement", "joint", "side"),
+                 "quantity": _c("quantity", "metric"), "estimate": _c("estimate", "value", "imu"),
+                 "reference": _c("reference", "ref"), "unit": _c("unit")},
+        required=("quantity", "estimate", "reference"),
+        produced_by="the accuracy stage (paired estimate/reference values)"),
+    "foot_trajectory": Dataset(
+        tables=("foot_trajectories", "trajectories", "foot_trajectory"),
+        columns={"session_id": _c("session_id"), "placement": _c("placement", "side"),
+                 "series_path": _c("series_path")},
+        required=("session_id", "series_path"),
+        produced_by="the foot-trajectory stage"),
+}
+
+#: activity classes in display order, with fixed colours (dashboard and reports)
+ACTIVITY_CLASSES = ("lying", "sitting", "standing", "level_walking", "stairs_up", "stairs_down", "non_wear")
+ACTIVITY_COLORS = {"lying": "#4c78a8", "sitting": "#72b7b2", "standing": "#54a24b", "level_walking": "#f58518",
+                   "stairs_up": "#e45756", "stairs_down": "#b279a2", "non_wear": "#bab0ac"}
+POSTURES = ("lying", "sitting", "standing")
+
+
+@dataclass(frozen=True)
+class Resolved:
+    table: str
+    cols: dict[str, str]                     # logical -> actual column name
+
+    def has(self, *logical: str) -> bool:
+        return all(c in self.cols for c in logical)
+
+    def q(self, logical: str) -> str:
+        """Quoted actual column (identifier from information_schema, never user input)."""
+        return '"' + self.cols[logical].replace('"', '""') + '"'
+
+    def select(self, alias: str = "t", only: tuple[str, ...] | None = None) -> str:
+        names = [k for k in self.cols if only is None or k in only]
+        return ", ".join(f'{alias}.{self.q(k)} AS "{k}"' for k in names)
+
+    @property
+    def qtable(self) -> str:
+        return '"' + self.table.replace('"', '""') + '"'
+
+
+# ---- schema ---------------------------------------------------------------------------------
+
+def table_columns(con) -> dict[str, list[str]]:
+    rows = con.execute("SELECT table_name, column_name FROM information_schema.columns "
+                       "WHERE table_schema = 'main' ORDER BY table_name, ordinal_position").fetchall()
+    out: dict[str, list[str]] = {}
+    for t, c in rows:
+        out.setdefault(t, []).append(c)
+    return out
+
+
+def resolve(con, name: str, schema: dict[str, list[str]] | None = None) -> Resolved | None:
+    """The table of dataset ``name`` in this snapshot with its column mapping, or None if absent."""
+    ds = DATASETS[name]
+    schema = table_columns(con) if schema is None else schema
+    for t in ds.tables:
+        if t not in schema:
+            continue
+        have = {c.lower(): c for c in schema[t]}
+        cols = {}
+        for logical, cands in ds.columns.items():
+            for cand in cands:
+                if cand.lower() in have:
+                    cols[logical] = have[cand.lower()]
+                    break
+        if all(r in cols for r in ds.required):
+            return Resolved(t, cols)
+    return None
+
+
+def available(con) -> dict[str, bool]:
+    """Which optional datasets this snapshot holds."""
+    schema = table_columns(con)
+    return {name: resolve(con, name, schema) is not None for name in DATASETS}
+
+
+def missing_hint(name: str) -> str:
+    ds = DATASETS[name]
+    return (f"No {name.replace('_', ' ')} in this warehouse yet: they are computed by {ds.produced_by}; "
+            f"{RUN_HINT}. Expected table: {' or '.join(ds.tables[:2])}.")
+
+
+def _df(con, sql: str, params: list | None = None) -> pd.DataFrame:
+    return con.execute(sql, params or []).df()
+
+
+def _has_table(con, table: str) -> bool:
+    return bool(con.execute("SELECT count(*) FROM information_schema.tables WHERE table_schema = 'main' "
+                            "AND table_name = ?", [table]).fetchall()[0][0])
+
+
+def _lst(values) -> list[str] | None:
+    """Multiselect value -> SQL list parameter (None or empty means 'all')."""
+    if values is None:
+        return None
+    vals = [str(v) for v in values]
+    return vals or None
+
+
+# ---- overview -------------------------------------------------------------------------------
+
+def counts(con) -> dict:
+    r = con.execute("""
+        SELECT (SELECT count(DISTINCT study) FROM sessions),
+               (SELECT count(*) FROM participants),
+               (SELECT count(*) FROM sessions),
+               (SELECT count(*) FROM recordings WHERE status = 'ingested'),
+               (SELECT count(*) FROM recordings WHERE status = 'quarantined'),
+               (SELECT count(*) FROM recording_issues)""").fetchall()[0]
+    return dict(zip(("studies", "participants", "sessions", "recordings", "quarantined", "issues"), r))
+
+
+def studies(con) -> pd.DataFrame:
+    return _df(con, """
+        SELECT p.study, count(DISTINCT p.participant_id) AS participants, count(DISTINCT s.session_id) AS sessions,
+               count(DISTINCT s.session_id) FILTER (WHERE s.kind = 'lab') AS lab_sessions,
+               count(DISTINCT s.session_id) FILTER (WHERE s.kind = 'free_living') AS free_living_sessions,
+               make_timestamptz(min(s.start_ns) // 1000) AS first_session,
+               make_timestamptz(max(s.end_ns) // 1000) AS last_session
+        FROM participants p LEFT JOIN sessions s USING (study, participant_id)
+        GROUP BY p.study ORDER BY p.study""")
+
+
+def participants(con, study: str | None = None) -> pd.DataFrame:
+    return _df(con, """
+        SELECT p.study, p.participant_id, count(DISTINCT s.session_id) AS sessions,
+               count(DISTINCT r.content_hash) AS recordings,
+               make_timestamptz(max(s.end_ns) // 1000) AS last_data
+        FROM participants p
+        LEFT JOIN sessions s USING (study, participant_id)
+        LEFT JOIN recordings r ON r.session_id = s.session_id AND r.status = 'ingested'
+        WHERE (? IS NULL OR p.study = ?)
+        GROUP BY p.study, p.participant_id ORDER BY p.study, p.participant_id""", [study, study])
+
+
+def last_run(con) -> dict | None:
+    rows = con.execute("""
+        SELECT run_id, command, status, started_at, finished_at,
+               date_diff('millisecond', started_at, finished_at) / 1000.0 AS duration_s,
+               n_ingested, n_quarantined, n_stage_runs, n_failed, version, host
+        FROM pipeline_runs ORDER BY started_at DESC LIMIT 1""")
+    names = [d[0] for d in rows.description]
+    r = rows.fetchall()
+    return dict(zip(names, r[0])) if r else None
+
+
+def quarantined(con) -> pd.DataFrame:
+    return _df(con, """
+        SELECT file_name, reason, ingested_at AS seen_at, content_hash
+        FROM recordings WHERE status = 'quarantined' ORDER BY ingested_at DESC NULLS LAST, file_name""")
+
+
+def qc_flags(con) -> pd.DataFrame:
+    """Data-quality flags: recording issues, failed stages (latest attempt), failed calibration QC."""
+    parts = ["""
+        SELECT 'recording' AS source, s.study, s.participant_id, r.session_id, i.severity,
+               coalesce(i.topic, '') AS what, i.message
+        FROM recording_issues i JOIN recordings r USING (content_hash)
+        LEFT JOIN sessions s ON s.session_id = r.session_id""", """
+        SELECT 'stage' AS source, s.study, s.participant_id, x.session_id, 'error' AS severity,
+               x.stage AS what, x.error AS message
+        FROM (SELECT *, row_number() OVER (PARTITION BY session_id, stage ORDER BY started_at DESC) AS k
+              FROM stage_runs) x
+        LEFT JOIN sessions s USING (session_id)
+        WHERE x.k = 1 AND x.status = 'failed'"""]
+    cal = resolve(con, "calibration")
+    if cal is not None and cal.has("status"):
+        reasons = f"CAST(c.{cal.q('reasons')} AS VARCHAR)" if cal.has("reasons") else "''"
+        parts.append(f"""
+        SELECT 'calibration' AS source, s.study, s.participant_id, c.{cal.q('session_id')} AS session_id,
+               'warning' AS severity, CAST(c.{cal.q('placement')} AS VARCHAR) AS what,
+               concat_ws(': ', CAST(c.{cal.q('status')} AS VARCHAR), {reasons}) AS message
+        FROM {cal.qtable} c LEFT JOIN sessions s ON s.session_id = c.{cal.q('session_id')}
+        WHERE lower(CAST(c.{cal.q('status')} AS VARCHAR)) NOT IN ('ok', 'pass', 'passed', 'good', 'true')""")
+    return _df(con, " UNION ALL ".join(parts) + " ORDER BY source, study, participant_id, session_id")
+
+
+def stage_coverage(con) -> pd.DataFrame:
+    """Per stage: sessions done (latest ok), failed, and the newest version."""
+    return _df(con, """
+        SELECT stage, count(*) FILTER (WHERE status = 'ok') AS sessions_ok,
+               count(*) FILTER (WHERE status = 'failed') AS sessions_failed,
+               max(stage_version) AS version
+        FROM (SELECT *, row_number() OVER (PARTITION BY session_id, stage ORDER BY started_at DESC) AS k
+              FROM stage_runs) WHERE k = 1
+        GROUP BY stage ORDER BY stage""")
+
+
+# ---- participant ----------------------------------------------------------------------------
+
+def participant_studies(con, participant_id: str) -> list[str]:
+    return [r[0] for r in con.execute("SELECT study FROM participants WHERE participant_id = ? ORDER BY study",
+                                      [participant_id]).fetchall()]
+
+
+def sessions(con, participant_id: str | None = None, study: str | None = None) -> pd.DataFrame:
+    return _df(con, """
+        SELECT s.study, s.participant_id, s.session_id, s.kind, s.protocol, s.timezone,
+               make_timestamptz(s.start_ns // 1000) AS start, make_timestamptz(s.end_ns // 1000) AS "end",
+               (s.end_ns - s.start_ns) / 3.6e12 AS hours,
+               count(r.content_hash) AS recordings, string_agg(DISTINCT r.trial, ', ' ORDER BY r.trial) AS trials
+        FROM sessions s LEFT JOIN recordings r ON r.session_id = s.session_id AND r.status = 'ingested'
+        WHERE (? IS NULL OR s.participant_id = ?) AND (? IS NULL OR s.study = ?)
+        GROUP BY s.study, s.participant_id, s.session_id, s.kind, s.protocol, s.timezone, s.start_ns, s.end_ns
+        ORDER BY s.start_ns, s.session_id""", [participant_id, participant_id, study, study])
+
+
+def recordings(con, participant_id: str, study: str | None = None) -> pd.DataFrame:
+    return _df(con, """
+        SELECT r.session_id, r.trial, r.file_name, r.status, r.n_samples,
+               (r.end_ns - r.start_ns) / 1e9 AS seconds,
+               (SELECT string_agg(DISTINCT placement, ', ' ORDER BY placement) FROM sensors x
+                 WHERE x.content_hash = r.content_hash AND x.kind = 'imu') AS imus,
+               (SELECT count(*) FROM recording_issues i WHERE i.content_hash = r.content_hash) AS issues
+        FROM recordings r JOIN sessions s ON s.session_id = r.session_id
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY r.start_ns, r.file_name""", [participant_id, study, study])
+
+
+def participant_issues(con, participant_id: str, study: str | None = None) -> pd.DataFrame:
+    q = qc_flags(con)
+    if q.empty:
+        return q
+    m = q["participant_id"] == participant_id
+    if study is not None:
+        m &= q["study"] == study
+    return q[m].reset_index(drop=True)
+
+
+def orientation_coverage(con, participant_id: str, study: str | None = None) -> pd.DataFrame:
+    if not _has_table(con, "orientation"):
+        return pd.DataFrame(columns=["session_id", "placement", "estimator", "n_samples", "mag_used"])
+    return _df(con, """
+        SELECT o.session_id, o.placement, o.estimator, o.estimator_version, o.n_samples, o.sampling_rate_hz, o.mag_used
+        FROM orientation o JOIN sessions s USING (session_id)
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY o.session_id, o.placement""", [participant_id, study, study])
+
+
+def strides(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Every stride of the participant's sessions (logical column names), or None if no gait stage yet."""
+    r = resolve(con, "strides")
+    if r is None:
+        return None
+    return _df(con, f"""
+        SELECT s.session_id AS session, s.kind, s.protocol, s.start_ns AS session_start_ns, {r.select('t', tuple(k for k in r.cols if k != 'session_id'))}
+        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns""", [participant_id, study, study]).rename(columns={"session": "session_id"})
+
+
+GAIT_PARAMS = {"speed_m_s": "gait speed (m/s)", "cadence_spm": "cadence (steps/min)",
+               "stride_length_m": "stride length (m)", "stride_time_s": "stride time (s)",
+               "stance_pct": "stance (% of stride)", "clearance_m": "foot clearance (m)"}
+
+
+def gait_summary(strides_df: pd.DataFrame | None) -> pd.DataFrame:
+    """Per session: mean and SD of each gait parameter, cadence and symmetry (pure pandas, no SQL)."""
+    if strides_df is None or strides_df.empty:
+        return pd.DataFrame()
+    df = strides_df.copy()
+    if "cadence_spm" not in df and "stride_time_s" in df:
+        df["cadence_spm"] = 120.0 / df["stride_time_s"]          # two steps per stride
+    out = []
+    for (sid, start), g in df.groupby(["session_id", "session_start_ns"], sort=False):
+        row = {"session_id": sid, "session_start_ns": start, "protocol": g["protocol"].iloc[0], "strides": len(g)}
+        for col in GAIT_PARAMS:
+            if col in g:
+                v = pd.to_numeric(g[col], errors="coerce")
+                row[col] = v.mean()
+                row[f"{col}_sd"] = v.std()
+        if "side" in g:
+            side = g["side"].astype(str).str.lower()
+            left, right = g[side.str.contains("left")], g[side.str.contains("right")]
+            for col in ("stride_time_s", "stride_length_m", "stance_pct"):
+                if col in g and len(left) and len(right):
+                    a, b = left[col].mean(), right[col].mean()
+                    row[f"symmetry_{col}"] = 100.0 * abs(a - b) / (0.5 * (a + b)) if (a + b) else np.nan
+        out.append(row)
+    res = pd.DataFrame(out).sort_values("session_start_ns")
+    res["date"] = pd.to_datetime(res["session_start_ns"], unit="ns", utc=True)
+    return res.reset_index(drop=True)
+
+
+def joint_cycles(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    r = resolve(con, "joint_cycles")
+    if r is None:
+        return None
+    return _df(con, f"""
+        SELECT s.session_id AS session, s.start_ns AS session_start_ns, {r.select('t', tuple(k for k in r.cols if k != 'session_id'))}
+        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns, 3, 4""", [participant_id, study, study]).rename(columns={"session": "session_id"})
+
+
+def calibration_qc(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    r = resolve(con, "calibration")
+    if r is None:
+        return None
+    return _df(con, f"""
+        SELECT t.* FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns""", [participant_id, study, study])
+
+
+def foot_trajectories(con, root: str | Path, participant_id: str, study: str | None = None,
+                      max_points: int = 5000) -> pd.DataFrame | None:
+    """Foot positions (x, y, z in m) of the participant's newest session with trajectories, or None."""
+    r = resolve(con, "foot_trajectory")
+    if r is None:
+        return None
+    pl = f"t.{r.q('placement')}" if r.has("placement") else "'foot'"
+    rows = con.execute(f"""
+        SELECT t.{r.q('session_id')}, {pl}, t.{r.q('series_path')}
+        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns DESC""", [participant_id, study, study]).fetchall()
+    if not rows:
+        return pd.DataFrame()
+    newest = rows[0][0]
+    frames = []
+    root = Path(root).resolve()
+    for sid, placement, rel in rows:
+        if sid != newest:
+            continue
+        path = (root / rel).resolve()
+        if root not in path.parents or not path.is_file():
+            continue
+        cols = {c.lower(): c for c in con.execute("SELECT name FROM parquet_schema(?)", [str(path)]).df()["name"]}
+        names = [next((cols[k] for k in cands if k in cols), None)
+                 for cands in (("x", "x_m", "pos_x", "px"), ("y", "y_m", "pos_y", "py"), ("z", "z_m", "pos_z", "pz"))]
+        if None in names:
+            continue
+        sel = ", ".join(f'"{n}" AS {a}' for n, a in zip(names, "xyz"))
+        df = con.execute(f"SELECT {sel} FROM read_parquet(?)", [str(path)]).df()
+        step = max(1, len(df) // max_points)
+        df = df.iloc[::step].reset_index(drop=True)
+        df["session_id"], df["placement"] = sid, placement
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+# ---- accuracy -------------------------------------------------------------------------------
+
+def accuracy_filters(con) -> dict[str, list[str]]:
+    """Values offered by the accuracy filters (studies, estimators, placements, trial types)."""
+    out = {"study": [r[0] for r in con.execute("SELECT DISTINCT study FROM sessions ORDER BY 1").fetchall()],
+           "estimator": [], "placement": [], "trial": []}
+    r = resolve(con, "accuracy")
+    if r is None:
+        return out
+    for k in ("estimator", "placement"):
+        if r.has(k):
+            out[k] = [x[0] for x in con.execute(f"SELECT DISTINCT CAST({r.q(k)} AS VARCHAR) FROM {r.qtable} "
+                                                f"WHERE {r.q(k)} IS NOT NULL ORDER BY 1").fetchall()]
+    trial = f"t.{r.q('trial')}" if r.has("trial") else "s.protocol"
+    if r.has("session_id"):
+        out["trial"] = [x[0] for x in con.execute(
+            f"SELECT DISTINCT CAST({trial} AS VARCHAR) FROM {r.qtable} t LEFT JOIN sessions s "
+            f"ON s.session_id = t.{r.q('session_id')} WHERE {trial} IS NOT NULL ORDER BY 1").fetchall()]
+    return out
+
+
+def _acc_where(r: Resolved, alias: str = "t") -> tuple[str, str]:
+    """Join + WHERE clause for the four accuracy filters; parameters: study, estimator, placement, trial lists."""
+    join = f"LEFT JOIN sessions s ON s.session_id = {alias}.{r.q('session_id')}" if r.has("session_id") else \
+        "LEFT JOIN (SELECT NULL::VARCHAR AS study, NULL::VARCHAR AS protocol) s ON TRUE"
+    est = f"CAST({alias}.{r.q('estimator')} AS VARCHAR)" if r.has("estimator") else "NULL"
+    pl = f"CAST({alias}.{r.q('placement')} AS VARCHAR)" if r.has("placement") else "NULL"
+    trial = f"CAST({alias}.{r.q('trial')} AS VARCHAR)" if r.has("trial") else "s.protocol"
+    where = (f"(?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], s.study)) "
+             f"AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], {est})) "
+             f"AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], {pl})) "
+             f"AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], {trial}))")
+    return join, where
+
+
+def _acc_params(study, estimator, placement, trial) -> list:
+    out = []
+    for v in (study, estimator, placement, trial):
+        v = _lst(v)
+        out += [v, v]
+    return out
+
+
+def accuracy_metrics(con, study=None, estimator=None, placement=None, trial=None) -> pd.DataFrame | None:
+    """Accuracy rows (stage, estimator, placement, metric, value, unit, session, study, trial) after filters."""
+    r = resolve(con, "accuracy")
+    if r is None:
+        return None
+    join, where = _acc_where(r)
+    trial_col = f"t.{r.q('trial')}" if r.has("trial") else "s.protocol"
+    extra = ", ".join(f"t.{r.q(k)} AS \"{k}\"" for k in ("estimator", "placement", "unit", "session_id") if r.has(k))
+    return _df(con, f"""
+        SELECT t.{r.q('stage')} AS stage, t.{r.q('metric')} AS metric, CAST(t.{r.q('value')} AS DOUBLE) AS value,
+               s.study, {trial_col} AS trial{', ' + extra if extra else ''}
+        FROM {r.qtable} t {join} WHERE {where}
+        ORDER BY 1, 2""", _acc_params(study, estimator, placement, trial))
+
+
+def accuracy_pairs(con, study=None, estimator=None, placement=None, trial=None) -> pd.DataFrame | None:
+    """Paired estimate/reference values (for Bland–Altman and event timing errors) after filters."""
+    r = resolve(con, "accuracy_pairs")
+    if r is None:
+        return None
+    join, where = _acc_where(r)
+    extra = ", ".join(f"t.{r.q(k)} AS \"{k}\"" for k in ("stage", "estimator", "placement", "unit", "session_id")
+                      if r.has(k))
+    return _df(con, f"""
+        SELECT t.{r.q('quantity')} AS quantity, CAST(t.{r.q('estimate')} AS DOUBLE) AS estimate,
+               CAST(t.{r.q('reference')} AS DOUBLE) AS reference, s.study{', ' + extra if extra else ''}
+        FROM {r.qtable} t {join} WHERE {where}""", _acc_params(study, estimator, placement, trial))
+
+
+def stride_length_pairs(con, study=None) -> pd.DataFrame | None:
+    """IMU vs reference stride length from the strides table when it carries a reference column."""
+    r = resolve(con, "strides")
+    if r is None or not r.has("stride_length_m", "stride_length_ref_m"):
+        return None
+    return _df(con, f"""
+        SELECT CAST(t.{r.q('stride_length_m')} AS DOUBLE) AS estimate,
+               CAST(t.{r.q('stride_length_ref_m')} AS DOUBLE) AS reference, s.study, s.participant_id
+        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        WHERE t.{r.q('stride_length_ref_m')} IS NOT NULL AND (? IS NULL OR s.study = ?)""", [study, study])
+
+
+def posture_confusion(con, study: str | None = None, participant_id: str | None = None) -> pd.DataFrame | None:
+    """Seconds of overlap between reference activity labels and classified activity bouts.
+
+    Reference: ``reference_events`` of type ``activity`` (t_ns..end_ns, label); classified: the
+    activity stage's bouts of the same session. None when the activity stage has not run.
+    """
+    r = resolve(con, "activity_bouts")
+    if r is None:
+        return None
+    return _df(con, f"""
+        SELECT e.label AS reference, CAST(b.{r.q('class')} AS VARCHAR) AS predicted,
+               sum(least(e.end_ns, b.{r.q('end_ns')}) - greatest(e.t_ns, b.{r.q('start_ns')})) / 1e9 AS seconds
+        FROM reference_events e
+        JOIN sessions s ON s.session_id = e.session_id
+        JOIN {r.qtable} b ON b.{r.q('session_id')} = e.session_id
+             AND b.{r.q('start_ns')} < e.end_ns AND b.{r.q('end_ns')} > e.t_ns
+        WHERE e.type = 'activity' AND e.end_ns IS NOT NULL
+          AND (? IS NULL OR s.study = ?) AND (? IS NULL OR s.participant_id = ?)
+        GROUP BY 1, 2 ORDER BY 1, 2""", [study, study, participant_id, participant_id])
+
+
+# ---- activity -------------------------------------------------------------------------------
+
+def activity_participants(con) -> pd.DataFrame:
+    r = resolve(con, "activity_bouts")
+    if r is None:
+        return pd.DataFrame(columns=["study", "participant_id"])
+    return _df(con, f"""
+        SELECT DISTINCT s.study, s.participant_id FROM {r.qtable} b JOIN sessions s
+        ON s.session_id = b.{r.q('session_id')} ORDER BY 1, 2""")
+
+
+def activity_bouts(con, participant_id: str, study: str | None = None, day: str | None = None) -> pd.DataFrame | None:
+    """Bouts of a participant (local day and times in the session's time zone), optionally of one day."""
+    r = resolve(con, "activity_bouts")
+    if r is None:
+        return None
+    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"
+    return _df(con, f"""
+        WITH x AS (
+            SELECT s.session_id, CAST(b.{r.q('class')} AS VARCHAR) AS class,
+                   b.{r.q('start_ns')} AS start_ns, b.{r.q('end_ns')} AS end_ns, {steps} AS steps,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('start_ns')} // 1000)) AS start_local,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('end_ns')} // 1000)) AS end_local
+            FROM {r.qtable} b JOIN sessions s ON s.session_id = b.{r.q('session_id')}
+            WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?))
+        SELECT *, CAST(start_local AS DATE) AS day, (end_ns - start_ns) / 1e9 AS seconds FROM x
+        WHERE (? IS NULL OR CAST(start_local AS DATE) = CAST(? AS DATE))
+        ORDER BY start_ns""", [participant_id, study, study, day, day])
+
+
+def activity_daily(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Per local day and class: hours, steps, bouts; plus posture transitions per day (class '_transitions').
+
+    Bouts that cross local midnight are split at midnight (steps pro rata), so a day never exceeds 24 h.
+    """
+    r = resolve(con, "activity_bouts")
+    if r is None:
+        return None
+    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"
+    return _df(con, f"""
+        WITH x AS (
+            SELECT s.session_id, CAST(b.{r.q('class')} AS VARCHAR) AS class, b.{r.q('start_ns')} AS start_ns,
+                   {steps} AS steps,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('start_ns')} // 1000)) AS t0,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('end_ns')} // 1000)) AS t1
+            FROM {r.qtable} b JOIN sessions s ON s.session_id = b.{r.q('session_id')}
+            WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?) AND b.{r.q('end_ns')} > b.{r.q('start_ns')}),
+        d AS (
+            SELECT x.*, CAST(dd AS DATE) AS day,
+                   epoch(least(t1, CAST(dd AS DATE) + INTERVAL 1 DAY) - greatest(t0, CAST(dd AS TIMESTAMP))) AS seconds,
+                   epoch(t1 - t0) AS total_s
+            FROM x, unnest(generate_series(date_trunc('day', t0), t1, INTERVAL 1 DAY)) AS g(dd)),
+        p AS (SELECT CAST(t0 AS DATE) AS day, class,
+                     lag(class) OVER (PARTITION BY session_id ORDER BY start_ns) AS prev FROM x
+              WHERE class IN ('lying', 'sitting', 'standing'))
+        SELECT day, class, sum(seconds) / 3600.0 AS hours, sum(steps * seconds / total_s) AS steps, count(*) AS bouts
+        FROM d WHERE seconds > 0 GROUP BY ALL
+        UNION ALL
+        SELECT day, '_transitions' AS class, NULL AS hours, NULL AS steps, count(*) AS bouts
+        FROM p WHERE prev IS NOT NULL AND prev <> class GROUP BY day
+        ORDER BY day, class""", [participant_id, study, study])
+
+
+# ---- runs -----------------------------------------------------------------------------------
+
+def pipeline_runs(con, limit: int = 200) -> pd.DataFrame:
+    return _df(con, """
+        SELECT run_id, command, status, started_at, finished_at,
+               date_diff('millisecond', started_at, finished_at) / 1000.0 AS duration_s,
+               n_ingested, n_quarantined, n_stage_runs, n_failed, jobs, version, host
+        FROM pipeline_runs ORDER BY started_at DESC LIMIT ?""", [int(limit)])
+
+
+def stage_runs(con, run_id: str | None = None, status: str | None = None, stage=None, limit: int = 2000) -> pd.DataFrame:
+    return _df(con, """
+        SELECT r.run_id, r.stage, r.stage_version, r.session_id, s.participant_id, r.status, r.started_at,
+               r.duration_s, r.error, r.note
+        FROM stage_runs r LEFT JOIN sessions s USING (session_id)
+        WHERE (? IS NULL OR r.run_id = ?) AND (? IS NULL OR r.status = ?)
+          AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], r.stage))
+        ORDER BY r.started_at DESC, r.stage, r.session_id LIMIT ?""",
+               [run_id, run_id, status, status, _lst(stage), _lst(stage), int(limit)])
+
+
+def stage_durations(con) -> pd.DataFrame:
+    return _df(con, """
+        SELECT stage, count(*) AS runs, count(*) FILTER (WHERE status = 'failed') AS failed,
+               avg(duration_s) AS mean_s, quantile_cont(duration_s, 0.5) AS median_s, max(duration_s) AS max_s,
+               sum(duration_s) AS total_s
+        FROM stage_runs GROUP BY stage ORDER BY stage""")
+
+
+# ---- cached access for the Streamlit pages -------------------------------------------------
+
+class Snapshot:
+    """The pages' handle on the newest snapshot: ``snap.q(queries.sessions, pid)`` runs a cached query.
+
+    ``None`` from :func:`open_snapshot` means the warehouse has published nothing yet.
+    """
+
+    def __init__(self, root: Path, name: str):
+        self.root = root
+        self.name = name
+
+    def q(self, fn: Callable, *args, **kwargs):
+        if fn.__name__ not in _QUERIES:
+            raise ValueError(f"{fn.__name__} is not a query of dashboard.queries")
+        return _cache()[1](str(self.root), self.name, fn.__name__, args, tuple(sorted(kwargs.items())))
+
+
+def open_snapshot(root: str | Path) -> Snapshot | None:
+    snap = latest_snapshot(root)
+    if snap is None:
+        return None
+    return Snapshot(Path(root), snap.name)
+
+
+def _close(con) -> None:
+    try:
+        con.close()
+    except Exception:  # noqa: BLE001 - already closed
+        pass
+
+
+def _st():
+    import streamlit as st
+    return st
+
+
+def _make_cached():
+    st = _st()
+
+    @st.cache_resource(max_entries=2, show_spinner=False, on_release=_close)
+    def connection(root: str, snapshot: str):
+        return duckdb.connect(str(Path(root) / "snapshots" / snapshot), read_only=True)
+
+    @st.cache_data(max_entries=512, show_spinner=False, ttl=3600)
+    def cached(root: str, snapshot: str, fn_name: str, args: tuple, kwargs: tuple):
+        fn = _QUERIES[fn_name]
+        cur = connection(root, snapshot).cursor()     # a cursor per query: safe across script threads
+        try:
+            return fn(cur, *args, **dict(kwargs))
+        finally:
+            cur.close()
+
+    return connection, cached
+
+
+_QUERIES: dict[str, Callable] = {}
+_CACHE: list = []
+
+
+def _cache():
+    """(connection, cached query) functions, created on first use (the reports never need Streamlit)."""
+    if not _CACHE:
+        _CACHE.extend(_make_cached())
+    return _CACHE
+
+def _register() -> None:
+    for name, obj in list(globals().items()):
+        if callable(obj) and getattr(obj, "__module__", None) == __name__ and not name.startswith("_") \
+                and name not in {"resolve", "table_columns", "missing_hint", "open_snapshot", "gait_summary",
+                                 "Snapshot", "Dataset", "Resolved"}:
+            _QUERIES[name] = obj
+
+
+_register()

@@ -1,0 +1,475 @@
+"""Per-participant report: a self-contained HTML file and a PDF with the same content and a fixed layout.
+
+Layout (always the same five A4 pages, so a study coordinator can file them; a section without data
+says why and what to run):
+
+1. identification (pseudonym, study, snapshot) · sessions · data quality
+2. gait parameters across sessions (Figure 1) and their per-session table, with symmetry
+3. joint-angle cycles of the newest lab session against a normative band (Figure 2)
+4. daily activity: time per class per day (Figure 3) and a daily table (steps, transitions)
+5. accuracy against the reference, where one was recorded (Figure 4: Bland–Altman of stride length)
+
+Only the pseudonym identifies the participant; file names (which may carry site identifiers) are
+not printed. Figures are drawn once with matplotlib and embedded in both outputs (inline SVG in
+the HTML, 160 dpi images in the PDF). Reads only the newest published snapshot.
+"""
+from __future__ import annotations
+
+import html
+import io
+import os
+import re
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from dashboard import queries as Q
+from dashboard.normative import normative_band
+
+A4 = (8.27, 11.69)
+TITLES = {1: "Participant, sessions and data quality", 2: "Gait parameters", 3: "Joint angles",
+          4: "Daily activity", 5: "Accuracy against reference"}
+FIG_CAPTIONS = {1: "Figure 1: Gait parameters across sessions (mean ± SD per session)",
+                2: "Figure 2: Joint angles over the gait cycle, newest lab session, against a normative band",
+                3: "Figure 3: Time per activity class and day",
+                4: "Figure 4: Bland-Altman plot of stride length (IMU vs reference)"}
+
+
+# ---- data -----------------------------------------------------------------------------------
+
+def collect(con, root: Path, participant_id: str, study: str | None) -> dict:
+    """Everything the report shows, as DataFrames (None = stage not run yet)."""
+    studies = Q.participant_studies(con, participant_id)
+    if not studies:
+        raise LookupError(f"participant {participant_id!r} is not in the warehouse (check the pseudonym)")
+    if study is None:
+        if len(studies) > 1:
+            raise ValueError(f"participant {participant_id!r} exists in studies {', '.join(studies)}: pass --study")
+        study = studies[0]
+    elif study not in studies:
+        raise LookupError(f"participant {participant_id!r} is not in study {study!r} (found in: {', '.join(studies)})")
+    ses = Q.sessions(con, participant_id, study)
+    strides = Q.strides(con, participant_id, study)
+    acc = Q.accuracy_metrics(con)
+    if acc is not None and "session_id" in acc:
+        acc = acc[acc["session_id"].isin(ses["session_id"])]
+    pairs = Q.stride_length_pairs(con, study)
+    if pairs is not None:
+        pairs = pairs[pairs["participant_id"] == participant_id]
+    if pairs is None or pairs.empty:
+        ap = Q.accuracy_pairs(con)
+        if ap is not None and "session_id" in ap:
+            ap = ap[ap["session_id"].isin(ses["session_id"]) & ap["quantity"].str.contains("stride_length")]
+            pairs = ap if not ap.empty else pairs
+    return {
+        "participant_id": participant_id, "study": study, "sessions": ses,
+        "recordings": Q.recordings(con, participant_id, study),
+        "issues": Q.participant_issues(con, participant_id, study),
+        "strides": strides, "gait": Q.gait_summary(strides) if strides is not None else None,
+        "joints": Q.joint_cycles(con, participant_id, study), "calibration": Q.calibration_qc(con, participant_id, study),
+        "daily": Q.activity_daily(con, participant_id, study), "accuracy": acc, "stride_pairs": pairs,
+        "orientation": Q.orientation_coverage(con, participant_id, study),
+    }
+
+
+# ---- figures (matplotlib) ----------------------------------------------------------------------
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    plt.rcParams.update({"pdf.fonttype": 42, "svg.fonttype": "none", "font.size": 8, "axes.titlesize": 9,
+                         "figure.dpi": 100, "svg.hashsalt": "stridelab", "axes.spines.top": False,
+                         "axes.spines.right": False})
+    return plt
+
+
+def fig_gait(gait: pd.DataFrame):
+    plt = _plt()
+    params = [p for p in ("speed_m_s", "cadence_spm", "stride_length_m", "stance_pct") if p in gait]
+    fig, axes = plt.subplots(1, len(params), figsize=(7.4, 2.3), squeeze=False)
+    x = np.arange(len(gait))
+    for ax, p in zip(axes[0], params):
+        ax.errorbar(x, gait[p], yerr=gait.get(f"{p}_sd"), marker="o", capsize=3, lw=1.2, color="#4c78a8")
+        ax.set_title(Q.GAIT_PARAMS[p])
+        ax.set_xticks(x, [d.strftime("%d %b") for d in gait["date"]], rotation=45, ha="right")
+    fig.tight_layout()
+    return fig
+
+
+def fig_joints(joints: pd.DataFrame):
+    plt = _plt()
+    sid = joints.sort_values("session_start_ns")["session_id"].iloc[-1]
+    j = joints[joints["session_id"] == sid]
+    if "plane" in j and j["plane"].notna().any():
+        sag = j[j["plane"].astype(str).str.lower().str.contains("sag|flex")]
+        j = sag if not sag.empty else j[j["plane"] == sorted(j["plane"].dropna().unique())[0]]
+    names = [n for n in ("hip", "knee", "ankle") if j["joint"].astype(str).str.contains(n).any()] or \
+        sorted(j["joint"].unique())[:3]
+    fig, axes = plt.subplots(1, len(names), figsize=(7.4, 2.5), squeeze=False)
+    colors = {"left": "#e45756", "right": "#4c78a8"}
+    for ax, name in zip(axes[0], names):
+        band = normative_band(name)
+        if band is not None:
+            pct, m, sd = band
+            ax.fill_between(pct, m - sd, m + sd, color="0.8", label="normative ± SD")
+        g = j[j["joint"].astype(str).str.contains(name)]
+        for side, gs in (g.groupby("side") if "side" in g else [("", g)]):
+            gs = gs.sort_values("cycle_pct")
+            c = colors.get(str(side), "#333333")
+            ax.plot(gs["cycle_pct"], gs["mean_deg"], color=c, lw=1.3, label=str(side) or "mean")
+            if "sd_deg" in gs:
+                ax.fill_between(gs["cycle_pct"], gs["mean_deg"] - gs["sd_deg"], gs["mean_deg"] + gs["sd_deg"],
+                                color=c, alpha=0.15, lw=0)
+        ax.set_title(f"{name} (deg)")
+        ax.set_xlabel("gait cycle (%)")
+    axes[0][0].legend(fontsize=6, frameon=False)
+    fig.tight_layout()
+    return fig, sid
+
+
+def fig_activity(daily: pd.DataFrame):
+    plt = _plt()
+    d = daily[daily["class"] != "_transitions"].pivot_table(index="day", columns="class", values="hours",
+                                                            aggfunc="sum", fill_value=0.0)
+    cols = [c for c in Q.ACTIVITY_CLASSES if c in d] + [c for c in d if c not in Q.ACTIVITY_CLASSES]
+    fig, ax = plt.subplots(figsize=(7.4, 2.8))
+    bottom = np.zeros(len(d))
+    x = np.arange(len(d))
+    for c in cols:
+        ax.bar(x, d[c], bottom=bottom, color=Q.ACTIVITY_COLORS.get(c, "#999999"), label=c.replace("_", " "))
+        bottom += d[c].to_numpy()
+    ax.set_xticks(x, [pd.Timestamp(v).strftime("%a %d %b") for v in d.index], rotation=45, ha="right")
+    ax.set_ylabel("hours")
+    ax.legend(fontsize=6, ncol=4, frameon=False, loc="upper center", bbox_to_anchor=(0.5, 1.18))
+    fig.tight_layout()
+    return fig
+
+
+def fig_bland_altman(pairs: pd.DataFrame):
+    plt = _plt()
+    est, ref = pairs["estimate"].to_numpy(float), pairs["reference"].to_numpy(float)
+    mean, diff = (est + ref) / 2, est - ref
+    bias = float(np.nanmean(diff))
+    sd = float(np.nanstd(diff, ddof=1)) if len(diff) > 1 else 0.0
+    fig, ax = plt.subplots(figsize=(5.0, 2.8))
+    ax.scatter(mean, diff * 100, s=8, alpha=0.6, color="#4c78a8")
+    for y, ls, lab in ((bias, "-", f"bias {bias * 100:+.1f} cm"), (bias + 1.96 * sd, "--", f"+1.96 SD {(bias + 1.96 * sd) * 100:+.1f} cm"),
+                       (bias - 1.96 * sd, "--", f"-1.96 SD {(bias - 1.96 * sd) * 100:+.1f} cm")):
+        ax.axhline(y * 100, ls=ls, color="0.3", lw=0.9)
+        ax.text(float(np.nanmax(mean)), y * 100, " " + lab, va="bottom", ha="right", fontsize=6)
+    ax.set_xlabel("mean of IMU and reference stride length (m)")
+    ax.set_ylabel("IMU - reference (cm)")
+    fig.tight_layout()
+    return fig, bias, sd
+
+
+def _svg(fig) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
+    s = buf.getvalue()
+    return s[s.index("<svg"):]
+
+
+# ---- tables -----------------------------------------------------------------------------------
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and np.isnan(v)):
+        return "—"
+    if isinstance(v, (float, np.floating)):
+        return f"{v:.3g}" if abs(v) < 1000 else f"{v:.0f}"
+    if isinstance(v, pd.Timestamp):
+        return v.strftime("%Y-%m-%d %H:%M")
+    return str(v)
+
+
+def sessions_table(d) -> pd.DataFrame:
+    s = d["sessions"]
+    if s.empty:
+        return pd.DataFrame(columns=["session", "kind", "protocol", "start", "hours", "recordings"])
+    return pd.DataFrame({"session": s["session_id"], "kind": s["kind"], "protocol": s["protocol"],
+                         "start (UTC)": pd.to_datetime(s["start"], utc=True).dt.strftime("%Y-%m-%d %H:%M"),
+                         "hours": s["hours"].round(2), "recordings": s["recordings"], "trials": s["trials"]})
+
+
+def gait_table(gait: pd.DataFrame) -> pd.DataFrame:
+    cols = {"session_id": "session", "strides": "strides", "speed_m_s": "speed m/s", "cadence_spm": "cadence /min",
+            "stride_length_m": "stride length m", "stance_pct": "stance %", "symmetry_stride_time_s": "SI stride time %",
+            "symmetry_stride_length_m": "SI stride length %"}
+    return gait[[c for c in cols if c in gait]].rename(columns=cols)
+
+
+def quality_table(d) -> pd.DataFrame:
+    rec, iss = d["recordings"], d["issues"]
+    rows = [("recordings ingested", int((rec["status"] == "ingested").sum()) if not rec.empty else 0),
+            ("recording warnings (gaps, …)", int((iss["source"] == "recording").sum()) if not iss.empty else 0),
+            ("failed pipeline stages", int((iss["source"] == "stage").sum()) if not iss.empty else 0),
+            ("calibration QC flags", int((iss["source"] == "calibration").sum()) if not iss.empty else 0),
+            ("IMUs with orientation", len(d["orientation"]))]
+    return pd.DataFrame(rows, columns=["check", "count"])
+
+
+def activity_table(daily: pd.DataFrame) -> pd.DataFrame:
+    d = daily.copy()
+    t = d[d["class"] != "_transitions"].pivot_table(index="day", columns="class", values="hours", aggfunc="sum",
+                                                    fill_value=0.0)
+    out = pd.DataFrame(index=t.index)
+    out["lying h"] = t.get("lying", 0.0)
+    out["sitting h"] = t.get("sitting", 0.0)
+    out["standing h"] = t.get("standing", 0.0)
+    out["walking h"] = sum(t.get(c, 0.0) for c in ("level_walking", "stairs_up", "stairs_down"))
+    steps = d[d["class"] != "_transitions"].groupby("day")["steps"].sum(min_count=1)
+    out["steps"] = steps.reindex(out.index)
+    tr = d[d["class"] == "_transitions"].set_index("day")["bouts"]
+    out["transitions"] = tr.reindex(out.index).fillna(0).astype(int)
+    out = out.round(2).reset_index()
+    out["day"] = out["day"].astype(str)
+    return out
+
+
+def accuracy_table(acc: pd.DataFrame) -> pd.DataFrame:
+    group = [c for c in ("stage", "estimator", "metric", "unit") if c in acc and acc[c].notna().any()]
+    return acc.groupby(group, dropna=False)["value"].agg(["count", "mean", "std"]).round(3).reset_index()
+
+
+# ---- the document model: five pages of blocks ------------------------------------------------------
+
+def _blocks(d: dict) -> dict[int, list[tuple]]:
+    """Page number -> list of blocks: ("text", str) | ("table", title, df) | ("figure", caption, fig) | ("note", str)."""
+    pages: dict[int, list[tuple]] = {k: [] for k in TITLES}
+    ses = d["sessions"]
+    span = "—" if ses.empty else f"{pd.to_datetime(ses['start'].min(), utc=True):%Y-%m-%d} to " \
+                                 f"{pd.to_datetime(ses['end'].max(), utc=True):%Y-%m-%d}"
+    pages[1] += [("text", f"Participant (pseudonym): {d['participant_id']}    Study: {d['study']}"),
+                 ("text", f"Sessions: {len(ses)} ({int((ses['kind'] == 'lab').sum())} lab, "
+                          f"{int((ses['kind'] == 'free_living').sum())} free-living), {span}"),
+                 ("table", "Sessions", sessions_table(d).head(18)),
+                 ("table", "Data quality", quality_table(d))]
+    if len(ses) > 18:
+        pages[1].append(("note", f"… and {len(ses) - 18} more sessions (see the dashboard)."))
+    flags = d["issues"]
+    if not flags.empty:
+        pages[1].append(("table", "Quality flags", flags[["source", "session_id", "what", "message"]].head(8)))
+
+    g = d["gait"]
+    if d["strides"] is None:
+        pages[2].append(("note", Q.missing_hint("strides")))
+    elif g is None or g.empty:
+        pages[2].append(("note", "No strides were detected in this participant's lab sessions."))
+    else:
+        pages[2].append(("figure", FIG_CAPTIONS[1], fig_gait(g)))
+        pages[2].append(("table", "Per session (SI: symmetry index, 100·|L−R|/mean; 0 = symmetric)", gait_table(g)))
+
+    j = d["joints"]
+    if j is None:
+        pages[3].append(("note", Q.missing_hint("joint_cycles")))
+    elif j.empty:
+        pages[3].append(("note", "No joint-angle cycles for this participant."))
+    else:
+        fig, sid = fig_joints(j)
+        pages[3].append(("figure", FIG_CAPTIONS[2] + f" ({sid})", fig))
+        pages[3].append(("note", "Grey: approximate adult normative mean ± SD, sagittal plane (dashboard/normative.py); "
+                                 "coloured bands: ± SD over the session's cycles."))
+        rom = j.groupby([c for c in ("session_id", "joint", "side", "plane") if c in j])["mean_deg"].agg(np.ptp)
+        rom = rom.rename("range of motion deg").round(1).reset_index()
+        if "plane" in rom:
+            rom = rom[rom["plane"].astype(str).str.lower().str.contains("sag|flex")] if \
+                rom["plane"].astype(str).str.lower().str.contains("sag|flex").any() else rom
+        pages[3].append(("table", "Range of motion of the mean cycle", rom.tail(12)))
+    cal = d["calibration"]
+    if cal is not None and not cal.empty:
+        cols = [c for c in cal.columns if c in ("session_id", "placement", "status", "reasons", "qc_status", "reason")]
+        pages[3].append(("table", "Calibration QC", cal[cols or list(cal.columns[:4])].tail(8)))
+
+    daily = d["daily"]
+    if daily is None:
+        pages[4].append(("note", Q.missing_hint("activity_bouts")))
+    elif daily.empty:
+        pages[4].append(("note", "No free-living chest recording classified for this participant."))
+    else:
+        pages[4].append(("figure", FIG_CAPTIONS[3], fig_activity(daily)))
+        pages[4].append(("table", "Per day", activity_table(daily).head(14)))
+
+    acc, pairs = d["accuracy"], d["stride_pairs"]
+    if acc is None and pairs is None:
+        pages[5].append(("note", Q.missing_hint("accuracy")))
+    else:
+        if acc is not None and not acc.empty:
+            pages[5].append(("table", "Accuracy metrics of this participant's sessions", accuracy_table(acc).head(16)))
+        elif pairs is None or pairs.empty:
+            pages[5].append(("note", "No reference was recorded in this participant's sessions."))
+        if pairs is not None and not pairs.empty:
+            fig, bias, sd = fig_bland_altman(pairs)
+            pages[5].append(("figure", FIG_CAPTIONS[4] + f": bias {bias * 100:+.1f} cm, limits of agreement "
+                                                         f"± {1.96 * sd * 100:.1f} cm, n = {len(pairs)}", fig))
+    return pages
+
+
+# ---- HTML -------------------------------------------------------------------------------------
+
+_CSS = """body{font-family:DejaVu Sans,Helvetica,Arial,sans-serif;font-size:11px;color:#222;max-width:820px;margin:20px auto}
+h1{font-size:18px;margin:0} h2{font-size:14px;border-bottom:1px solid #888;margin-top:28px}
+h3{font-size:12px;margin:10px 0 4px} table{border-collapse:collapse;margin:4px 0 10px}
+td,th{border:1px solid #ccc;padding:2px 6px;text-align:left} th{background:#f0f0f0}
+.note{color:#555;font-style:italic} figure{margin:6px 0} figcaption{font-weight:bold;margin-top:2px}
+section{page-break-after:always} header{border-bottom:2px solid #333;padding-bottom:4px}
+svg{max-width:100%;height:auto}"""
+
+
+def _html_table(df: pd.DataFrame) -> str:
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(v))}</td>" for v in row) + "</tr>"
+                   for row in df.itertuples(index=False))
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def render_html(d: dict, pages: dict, meta: dict) -> str:
+    e = html.escape
+    out = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>StrideLab report {e(d['participant_id'])}"
+           f"</title><style>{_CSS}</style></head><body>",
+           f"<header><h1>StrideLab participant report: {e(d['participant_id'])}</h1>"
+           f"<div>Study {e(d['study'])} · generated {e(meta['generated'])} · snapshot {e(meta['snapshot'])}</div></header>"]
+    for n, title in TITLES.items():
+        out.append(f"<section id='page-{n}'><h2>{n}. {e(title)}</h2>")
+        for b in pages[n]:
+            if b[0] == "text":
+                out.append(f"<p>{e(b[1])}</p>")
+            elif b[0] == "note":
+                out.append(f"<p class='note'>{e(b[1])}</p>")
+            elif b[0] == "table":
+                out.append(f"<h3>{e(b[1])}</h3>{_html_table(b[2])}")
+            elif b[0] == "figure":
+                out.append(f"<figure>{_svg(b[2])}<figcaption>{e(b[1])}</figcaption></figure>")
+        out.append("</section>")
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+# ---- PDF (matplotlib PdfPages: fixed A4 pages) -------------------------------------------------
+
+def _wrap(text: str, width: int = 110) -> list[str]:
+    import textwrap
+    return textwrap.wrap(text, width) or [""]
+
+
+def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
+    plt = _plt()
+    from matplotlib.backends.backend_pdf import PdfPages
+    with PdfPages(path, metadata={"Title": f"StrideLab report {d['participant_id']}", "Author": "StrideLab",
+                                  "Subject": f"study {d['study']}", "CreationDate": None}) as pdf:
+        for n, title in TITLES.items():
+            page = plt.figure(figsize=A4)
+            y = 0.965
+            page.text(0.06, y, f"StrideLab participant report: {d['participant_id']}", fontsize=12, weight="bold")
+            page.text(0.94, y, f"page {n} / {len(TITLES)}", fontsize=8, ha="right")
+            y -= 0.018
+            page.text(0.06, y, f"Study {d['study']} · generated {meta['generated']} · snapshot {meta['snapshot']}",
+                      fontsize=7, color="0.35")
+            page.add_artist(plt.Line2D([0.06, 0.94], [y - 0.008, y - 0.008], color="0.2", lw=0.8,
+                                       transform=page.transFigure))
+            y -= 0.045
+            page.text(0.06, y, f"{n}. {title}", fontsize=11, weight="bold")
+            y -= 0.03
+            for b in pages[n]:
+                if y < 0.08:
+                    break
+                if b[0] in ("text", "note"):
+                    for line in _wrap(b[1]):
+                        page.text(0.06, y, line, fontsize=8, style="italic" if b[0] == "note" else "normal",
+                                  color="0.3" if b[0] == "note" else "0.0")
+                        y -= 0.016
+                    y -= 0.006
+                elif b[0] == "table":
+                    df = b[2]
+                    page.text(0.06, y, b[1], fontsize=9, weight="bold")
+                    y -= 0.008
+                    rows = len(df) + 1
+                    h = min(0.016 * rows, y - 0.06)
+                    if h <= 0.02:
+                        continue
+                    ax = page.add_axes([0.06, y - h, 0.88, h])
+                    ax.axis("off")
+                    cells = [[_fmt(v)[:40] for v in r] for r in df.itertuples(index=False)] or [["—"] * len(df.columns)]
+                    tb = ax.table(cellText=cells, colLabels=[str(c) for c in df.columns], loc="upper left",
+                                  cellLoc="left", colLoc="left", bbox=[0, 0, 1, 1])
+                    tb.auto_set_font_size(False)
+                    tb.set_fontsize(6.5)
+                    for (r, _c), cell in tb.get_celld().items():
+                        cell.set_linewidth(0.3)
+                        if r == 0:
+                            cell.set_facecolor("#eeeeee")
+                    y -= h + 0.03
+                elif b[0] == "figure":
+                    fig = b[2]
+                    w_in, h_in = fig.get_size_inches()
+                    h = min(h_in / A4[1], y - 0.1)
+                    buf = io.BytesIO()
+                    fig.savefig(buf, format="png", dpi=160, bbox_inches="tight")
+                    buf.seek(0)
+                    img = plt.imread(buf)
+                    ih, iw = img.shape[:2]
+                    w = min(0.88, h * A4[1] * iw / ih / A4[0])
+                    ax = page.add_axes([0.06, y - h, w, h])
+                    ax.imshow(img, interpolation="antialiased")
+                    ax.axis("off")
+                    ax.set_label(b[1])
+                    y -= h + 0.012
+                    for line in _wrap(b[1], 120):
+                        page.text(0.06, y, line, fontsize=8, weight="bold")
+                        y -= 0.015
+                    y -= 0.015
+            page.text(0.5, 0.025, f"{d['participant_id']} · pseudonymised data · StrideLab {meta['version']}",
+                      fontsize=6.5, ha="center", color="0.4")
+            pdf.savefig(page)
+            plt.close(page)
+
+
+# ---- entry point ----------------------------------------------------------------------------------
+
+_SAFE = re.compile(r"[^A-Za-z0-9._-]")
+
+
+def build_report(warehouse_root: Path, participant_id: str, out_dir: Path, *, study: str | None = None) -> dict:
+    """Write ``<out_dir>/<study>_<participant>.html`` and ``.pdf`` from the newest snapshot.
+
+    Raises LookupError (participant or snapshot not found) or ValueError (ambiguous participant).
+    """
+    from importlib.metadata import PackageNotFoundError, version
+    from warehouse.read import connect_snapshot, latest_snapshot
+    root = Path(warehouse_root)
+    snap = latest_snapshot(root)
+    con = connect_snapshot(root)
+    if con is None or snap is None:
+        raise LookupError(f"the warehouse at {root} has no published snapshot yet; run `stridelab run` first")
+    try:
+        d = collect(con, root, participant_id, study)
+    finally:
+        con.close()
+    try:
+        ver = version("stridelab")
+    except PackageNotFoundError:
+        ver = "dev"
+    meta = {"generated": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "snapshot": snap.name,
+            "version": ver}
+    plt = _plt()
+    pages = _blocks(d)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = f"{_SAFE.sub('_', d['study'])}_{_SAFE.sub('_', participant_id)}"
+    html_path, pdf_path = out_dir / f"{stem}.html", out_dir / f"{stem}.pdf"
+    try:
+        text = render_html(d, pages, meta)
+        tmp = html_path.with_name(f".tmp-{os.getpid()}-{html_path.name}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, html_path)
+        tmp = pdf_path.with_name(f".tmp-{os.getpid()}-{pdf_path.name}")
+        render_pdf(d, pages, meta, tmp)
+        os.replace(tmp, pdf_path)
+    finally:
+        for blocks in pages.values():
+            for b in blocks:
+                if b[0] == "figure":
+                    plt.close(b[2])
+    return {"html": html_path, "pdf": pdf_path}

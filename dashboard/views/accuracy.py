@@ -1,0 +1,66 @@
+"""Accuracy against references, per stage and algorithm: error distributions, Bland–Altman (stride
+length, joint range of motion), event timing error histograms, posture confusion matrix."""
+import streamlit as st
+
+from dashboard import figures as F
+from dashboard import queries as Q
+from dashboard.common import empty_warehouse_note, footer, hint, snapshot
+
+st.title("Accuracy against references")
+snap = snapshot()
+if snap is not None and not empty_warehouse_note(snap):
+    opts = snap.q(Q.accuracy_filters)
+    with st.sidebar:
+        st.subheader("Filters")
+        study = st.multiselect("Study", opts["study"], key="acc_study")
+        estimator = st.multiselect("Estimator", opts["estimator"], key="acc_estimator")
+        placement = st.multiselect("Placement / joint", opts["placement"], key="acc_placement")
+        trial = st.multiselect("Trial type", opts["trial"], key="acc_trial")
+    filt = (tuple(study), tuple(estimator), tuple(placement), tuple(trial))
+    metrics = snap.q(Q.accuracy_metrics, *filt)
+    pairs = snap.q(Q.accuracy_pairs, *filt)
+    stages = ["orientation", "calibration", "joint_angles", "gait_events", "strides", "activity"]
+    if metrics is not None and not metrics.empty:
+        stages += [s for s in sorted(metrics["stage"].unique()) if s not in stages]
+    tabs = st.tabs([s.replace("_", " ") for s in stages])
+    for stage, tab in zip(stages, tabs):
+        with tab:
+            m = None if metrics is None else metrics[metrics["stage"].astype(str).str.startswith(stage.rstrip("s"))]
+            if metrics is None:
+                hint("accuracy")
+            elif m.empty:
+                st.caption(f"No {stage.replace('_', ' ')} accuracy rows for these filters (a reference is needed; "
+                           f"check the filters or run the stage).")
+            else:
+                group = [c for c in ("estimator", "placement", "metric", "unit") if c in m and m[c].notna().any()]
+                table = m.groupby(group, dropna=False)["value"].agg(["count", "mean", "std", "median", "min", "max"])
+                st.dataframe(table.reset_index(), hide_index=True)
+                for metric in sorted(m["metric"].unique())[:4]:
+                    st.plotly_chart(F.error_distribution(m, metric), key=f"dist_{stage}_{metric}")
+            p = None if pairs is None else pairs[pairs["stage"].astype(str).str.startswith(stage.rstrip("s"))] \
+                if "stage" in pairs else pairs
+            if stage == "strides":
+                sl = snap.q(Q.stride_length_pairs, study[0] if len(study) == 1 else None)
+                src = sl if sl is not None and not sl.empty else \
+                    (p[p["quantity"].str.contains("stride_length")] if p is not None else None)
+                if src is not None and not src.empty:
+                    st.plotly_chart(F.bland_altman(src, "stride length", "(m)"), key="ba_stride")
+            if stage in ("joint_angles", "calibration") and p is not None:
+                rom = p[p["quantity"].str.contains("rom")]
+                for q, g in rom.groupby("quantity"):
+                    st.plotly_chart(F.bland_altman(g, q.replace("_", " "), "(deg)"), key=f"ba_{stage}_{q}")
+            if stage == "gait_events" and p is not None:
+                ev = p[p["quantity"].str.upper().str.match(r"^(IC|TC)")].copy()
+                if not ev.empty:
+                    scale = ev["unit"].map({"ns": 1e-6, "s": 1e3, "ms": 1.0}).fillna(1.0) if "unit" in ev else 1.0
+                    ev["error_ms"] = (ev["estimate"] - ev["reference"]) * scale
+                    st.plotly_chart(F.timing_histogram(ev), key="timing_hist")
+            if stage == "activity":
+                conf = snap.q(Q.posture_confusion, study[0] if len(study) == 1 else None)
+                if conf is None:
+                    hint("activity_bouts")
+                elif conf.empty:
+                    st.caption("No reference activity labels overlap the classified bouts.")
+                else:
+                    st.plotly_chart(F.confusion(conf), key="confusion")
+footer(snap)

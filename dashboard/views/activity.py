@@ -1,0 +1,55 @@
+"""Activity: day-by-day posture timeline, daily totals (time per class, steps per modality,
+transitions) and trends across weeks."""
+import pandas as pd
+import streamlit as st
+
+from dashboard import figures as F
+from dashboard import queries as Q
+from dashboard.common import empty_warehouse_note, footer, hint, snapshot
+
+st.title("Daily activity")
+snap = snapshot()
+if snap is not None and not empty_warehouse_note(snap):
+    if not snap.q(Q.available)["activity_bouts"]:
+        hint("activity_bouts")
+    else:
+        who = snap.q(Q.activity_participants)
+        if who.empty:
+            st.info("The activity stage has run but found no free-living chest recording to classify.")
+        else:
+            labels = (who["participant_id"] + " · " + who["study"]).tolist()
+            qp = st.query_params.get("participant")
+            idx = next((i for i, p in enumerate(who["participant_id"]) if p == qp), 0)
+            choice = st.sidebar.selectbox("Participant (pseudonym)", labels, index=idx, key="act_pid")
+            row = who.iloc[labels.index(choice)]
+            pid, study = row["participant_id"], row["study"]
+            daily = snap.q(Q.activity_daily, pid, study)
+            daily = daily.assign(day=daily["day"].astype(str).str[:10])          # ISO local dates
+            days = sorted(daily["day"].unique())
+            day = st.select_slider("Day", options=days, value=days[0], key="act_day",
+                                   format_func=lambda v: f"{pd.Timestamp(v):%a %d %b %Y}") if len(days) > 1 else days[0]
+            bouts = snap.q(Q.activity_bouts, pid, study, day)
+            st.plotly_chart(F.activity_timeline(bouts), key="activity_timeline")
+            d = daily[daily["day"] == day]
+            cols = st.columns(4)
+            hours = d.set_index("class")["hours"]
+            cols[0].metric("Walking (h)", f"{hours.reindex(['level_walking', 'stairs_up', 'stairs_down']).sum():.2f}")
+            cols[1].metric("Upright (h)", f"{hours.reindex(['standing', 'level_walking', 'stairs_up', 'stairs_down']).sum():.2f}")
+            steps = d["steps"].sum()
+            cols[2].metric("Steps", f"{steps:.0f}" if steps == steps and steps > 0 else "—")
+            tr = d.loc[d["class"] == "_transitions", "bouts"]
+            cols[3].metric("Posture transitions", int(tr.iloc[0]) if len(tr) else 0)
+
+            st.subheader("Daily totals")
+            st.plotly_chart(F.daily_totals(daily), key="daily_totals")
+            if daily["steps"].fillna(0).gt(0).any():
+                st.plotly_chart(F.daily_steps(daily), key="daily_steps")
+            table = daily.pivot_table(index="day", columns="class", values="hours", aggfunc="sum").round(2)
+            trans = daily[daily["class"] == "_transitions"].set_index("day")["bouts"]
+            table["transitions"] = trans.reindex(table.index).fillna(0).astype(int)
+            table = table.drop(columns=["_transitions"], errors="ignore")
+            st.dataframe(table.reset_index(), hide_index=True)
+            if len(days) > 1:
+                st.subheader("Trend across weeks")
+                st.plotly_chart(F.weekly_trend(daily), key="weekly_trend")
+footer(snap)

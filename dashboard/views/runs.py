@@ -1,0 +1,36 @@
+"""Runs: the ledger of nightly runs and stage runs with durations and errors."""
+import streamlit as st
+
+from dashboard import figures as F
+from dashboard import queries as Q
+from dashboard.common import footer, snapshot
+
+st.title("Pipeline runs")
+snap = snapshot()
+if snap is not None:
+    runs = snap.q(Q.pipeline_runs)
+    if runs.empty:
+        st.info(f"No run recorded yet: {Q.RUN_HINT}.")
+    else:
+        st.plotly_chart(F.run_durations(runs), key="run_durations")
+        st.dataframe(runs, hide_index=True)
+
+        st.subheader("Stage runs")
+        durs = snap.q(Q.stage_durations)
+        if durs.empty:
+            st.caption("No stage has run yet (ingest-only runs so far).")
+        else:
+            st.dataframe(durs, hide_index=True)
+            c1, c2, c3 = st.columns(3)
+            run_id = c1.selectbox("Run", ["all"] + runs["run_id"].tolist(), key="runs_run")
+            status = c2.selectbox("Status", ["all", "ok", "failed"], key="runs_status")
+            stages = c3.multiselect("Stage", durs["stage"].tolist(), key="runs_stage")
+            sr = snap.q(Q.stage_runs, None if run_id == "all" else run_id, None if status == "all" else status,
+                        tuple(stages))
+            st.dataframe(sr, hide_index=True)
+            failed = sr[sr["status"] == "failed"]
+            if not failed.empty:
+                st.subheader("Errors")
+                for _, r in failed.head(50).iterrows():
+                    st.error(f"{r['stage']} · {r['session_id']} · run {r['run_id']}: {r['error']}", icon=":material/error:")
+footer(snap)
