@@ -71,7 +71,7 @@ def _print_summary(summary, as_json: bool) -> None:
     d = summary.as_dict()
     err_console.print(f"run {d['run_id']}: {d['ingested']} ingested, {d['duplicates']} unchanged, "
                       f"{len(d['quarantined'])} quarantined, {d['stage_runs']} stage runs, {d['fresh']} up to date, "
-                      f"{len(d['failed'])} failed, {d['seconds']} s")
+                      f"{len(d['failed'])} failed, {len(d['reports'])} reports, {d['seconds']} s")
     for q in d["quarantined"]:
         err_console.print(f"  quarantined: {q}", markup=False)
     for f in d["failed"]:
@@ -172,8 +172,11 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
               help="local: process pool on this machine; dask: Dask distributed (LocalCluster or --scheduler).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (tcp://host:8786); workers must see the warehouse directory.")
+@click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where to write the reports of participants with new results [default: $STRIDELAB_HOME/reports].")
+@click.option("--no-reports", is_flag=True, help="Do not write participant reports.")
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
-def run(inbox, warehouse_dir, jobs, engine, scheduler, as_json) -> None:
+def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
     A second run started while one is active refuses with a clear message. Failures of one session
@@ -193,9 +196,37 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, as_json) -> None:
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
                                  scheduler=scheduler)
+    if not no_reports:
+        summary.reports = _write_reports(_wh(warehouse_dir), summary.run_id, reports_dir)
     _print_summary(summary, as_json)
     if summary.failed:
         raise SystemExit(1)
+
+
+def _write_reports(wh: Path, run_id: str, reports_dir: Path | None) -> list[str]:
+    """Reports for the participants whose results changed in this run (errors do not fail the run)."""
+    from pipeline.config import default_reports
+    from pipeline.console import err_console
+    from warehouse.read import connect_snapshot
+    con = connect_snapshot(wh)
+    if con is None:
+        return []
+    try:
+        who = con.execute("SELECT DISTINCT s.study, s.participant_id FROM stage_runs r JOIN sessions s USING (session_id) "
+                          "WHERE r.run_id = ? AND r.status = 'ok' ORDER BY 1, 2", [run_id]).fetchall()
+    finally:
+        con.close()
+    if not who:
+        return []
+    from dashboard.report import build_report
+    out = []
+    for study, pid in who:
+        try:
+            paths = build_report(wh, pid, reports_dir or default_reports(), study=study)
+            out.append(str(paths["pdf"]))
+        except Exception as e:  # noqa: BLE001 - a report problem must not fail the nightly run
+            err_console.print(f"warning: report for {study}/{pid} failed: {e}", markup=False)
+    return out
 
 
 @main.command()

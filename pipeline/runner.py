@@ -55,12 +55,13 @@ class RunSummary:
     skipped_fresh: int = 0
     failed: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
+    reports: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
     def as_dict(self) -> dict:
         return {"run_id": self.run_id, "ingested": len(self.ingested), "duplicates": len(self.duplicates),
                 "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
-                "failed": self.failed, "seconds": round(self.seconds, 2)}
+                "failed": self.failed, "reports": self.reports, "seconds": round(self.seconds, 2)}
 
 
 def _now() -> datetime:

@@ -1,6 +1,7 @@
 """The nightly runner end to end through the real CLI: staleness, kill -9, snapshots, lock, isolation."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -47,16 +48,22 @@ def snapshot_fingerprint(root: Path) -> dict:
 
 def test_run_computes_orientation_for_every_imu_then_is_fresh(tmp_path):
     make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json")
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json",
+            "--reports", tmp_path / "reports")
     assert r.returncode == 0, r.stderr
+    reports = json.loads(r.stdout)["reports"]                 # participants with new results get a report
+    assert sorted(Path(p).name for p in reports) == ["testing_P000.pdf", "testing_P001.pdf"]
+    assert all(Path(p).stat().st_size > 10_000 for p in reports)
     con = connect_snapshot(tmp_path / "wh")
     n_imu = first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'imu'"))[0]
     assert n_imu == 16
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == n_imu
     assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'ok'"))[0] == 2
     con.close()
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json")
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json",
+            "--reports", tmp_path / "reports")
     assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["reports"] == []
     assert '"stage_runs": 0' in r.stdout and '"fresh": 2' in r.stdout and '"ingested": 0' in r.stdout
 
 
