@@ -1,0 +1,66 @@
+"""Gain selection with leave-trials-out cross-validation (spec thesis_orientation.md §7 C11, §8 A13).
+
+Few gains, one value for all trials: a candidate grid is scored on every trial once (mean total RMSE,
+A13), then for each fold the candidate with the lowest mean error on the *training* trials is scored on
+the held-out trials. The cross-validated error is the honest figure; the shipped default is the
+candidate chosen most often (ties: lowest error on all trials). ``tuned_gains.json`` in this folder
+records the result and how it was obtained.
+
+Not implemented here: the thesis' particle-swarm optimiser vectorised over the swarm (§4.8, §9.4 P3);
+with one or two gains a grid is exhaustive and cheaper.
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections import Counter
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from estimators.orientation.evaluation import orientation_rmse_deg
+
+__all__ = ["CVResult", "score_grid", "leave_trials_out"]
+
+
+@dataclass(frozen=True)
+class CVResult:
+    """errors: (n_candidates, n_trials) total RMSE, degrees; chosen_per_fold: candidate index per fold;
+    cv_error_deg: mean held-out error; default_index: the shipped candidate."""
+    candidates: tuple
+    errors: np.ndarray
+    folds: tuple[tuple[int, ...], ...]
+    chosen_per_fold: tuple[int, ...]
+    cv_error_deg: float
+    default_index: int
+
+
+def score_grid(estimate: Callable, candidates: Sequence, trials: Sequence) -> np.ndarray:
+    """(n_candidates, n_trials) mean-total-RMSE matrix. ``estimate(params, gyr, acc, mag, fs) -> quat``;
+    trials need ``gyr, acc, mag, quat_ref, movement, sampling_rate_hz`` attributes."""
+    err = np.empty((len(candidates), len(trials)))
+    for i, p in enumerate(candidates):
+        for j, t in enumerate(trials):
+            q = estimate(p, t.gyr, t.acc, t.mag, t.sampling_rate_hz)
+            err[i, j] = orientation_rmse_deg(q, t.quat_ref, t.movement).total_rmse_deg
+    return err
+
+
+def leave_trials_out(errors: np.ndarray, candidates: Sequence, n_folds: int = 3) -> CVResult:
+    """Cross-validate the choice of candidate over trial folds (trial k goes to fold k mod n_folds)."""
+    n = errors.shape[1]
+    if n < n_folds:
+        raise ValueError(f"need at least n_folds={n_folds} trials, got {n}")
+    folds = tuple(tuple(range(k, n, n_folds)) for k in range(n_folds))
+    chosen, held = [], []
+    for f in folds:
+        train = [i for i in range(n) if i not in f]
+        best = int(np.argmin(errors[:, train].mean(axis=1)))
+        chosen.append(best)
+        held.extend(errors[best, list(f)])
+    counts = Counter(chosen)
+    top = max(counts.values())
+    tied = [c for c in counts if counts[c] == top]
+    default = min(tied, key=lambda c: errors[c].mean())
+    return CVResult(tuple(dataclasses.asdict(c) if dataclasses.is_dataclass(c) else c for c in candidates),
+                    errors, folds, tuple(chosen), float(np.mean(held)), int(default))

@@ -1,0 +1,190 @@
+"""Decoupled complementary filter, evaluation metric, family meta-tests and the BROAD accuracy check."""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from estimators.orientation import (DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, DCFFilter, DCFOfflineParams, MadgwickParams, MahonyParams,
+                                    DCFParams, YunCFParams, dcf, dcf_offline)
+from estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
+from estimators.quaternion import quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_mul, quat_rotate
+
+G = 9.81
+B_ENU = 48.0 * np.array([0.0, np.cos(np.radians(63.0)), -np.sin(np.radians(63.0))])
+PROJECT_ROOT = Path(__file__).resolve().parents[3]
+BROAD = PROJECT_ROOT.parent / "shared" / "data" / "broad"
+PARAMS_CLASSES = [DCFParams, DCFOfflineParams, YunCFParams, MadgwickParams, MahonyParams]
+
+
+def _moving(n=3000, fs=100.0, seed=1):
+    """Smooth random rotation with gravity + field, sensor-frame measurements, and the true quaternions."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / fs
+    w = np.column_stack([np.sin(2 * np.pi * f * t + p) * a for f, p, a in
+                         zip(rng.uniform(0.1, 0.5, 3), rng.uniform(0, 6, 3), (1.0, 0.8, 1.5))])
+    w[: int(2 * fs)] = 0.0
+    q = np.empty((n, 4))
+    q[0] = quat_from_axis_angle([1.0, 0.5, 0.0], 0.4)
+    for i in range(1, n):
+        rv = w[i] / fs
+        q[i] = quat_mul(q[i - 1], quat_from_rotvec(rv))
+    acc = quat_rotate(quat_conj(q), np.array([0, 0, G]))
+    mag = quat_rotate(quat_conj(q), B_ENU)
+    return w, acc, mag, q
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_zero_input_keeps_initial_attitude(name):
+    q0 = quat_from_axis_angle([0.2, 1.0, 0.3], 0.6)
+    n = 400
+    acc = np.tile(quat_rotate(quat_conj(q0), [0, 0, G]), (n, 1))
+    mag = np.tile(quat_rotate(quat_conj(q0), B_ENU), (n, 1))
+    res = ESTIMATORS[name](np.zeros((n, 3)), acc, mag, sampling_rate_hz=100.0)
+    e = orientation_error_deg(res.quat, np.tile(q0, (n, 1)))[0]
+    assert e[50:].max() < 0.5
+    assert np.allclose(res.quat[-1], res.quat[200], atol=1e-3)
+
+
+@pytest.mark.parametrize("name", sorted(ESTIMATORS))
+def test_estimators_track_noise_free_rotation(name):
+    gyr, acc, mag, q = _moving()
+    res = ESTIMATORS[name](gyr, acc, mag, sampling_rate_hz=100.0)
+    assert res.quat.shape == q.shape
+    assert orientation_rmse_deg(res.quat, q).total_rmse_deg < (5.0 if name == "yun_cf" else 1.0)
+
+
+def test_dcf_chunked_equals_whole_and_state_roundtrip():
+    gyr, acc, mag, _ = _moving(seed=3)
+    gyr = gyr + 0.01
+    whole = dcf(gyr, acc, mag, sampling_rate_hz=100.0)
+    f = DCFFilter(DCFParams(), sampling_rate_hz=100.0)
+    a = f.update_batch(gyr[:700], acc[:700], mag[:700])
+    g = DCFFilter(DCFParams(), sampling_rate_hz=100.0)
+    g.state = f.state
+    b = g.update_batch(gyr[700:], acc[700:], mag[700:])
+    np.testing.assert_allclose(np.vstack([a.quat, b.quat]), whole.quat, rtol=0, atol=1e-12)
+
+
+def test_dcf_removes_gyro_bias_at_rest():
+    n, fs = 6000, 100.0
+    gyr = np.tile([0.0, 0.0, np.radians(1.0)], (n, 1))        # 1°/s bias about the vertical, 60 s at rest
+    acc = np.tile([0.0, 0.0, G], (n, 1))
+    res = dcf(gyr, acc, None, sampling_rate_hz=fs)               # 6D: nothing else can stop the heading drift
+    e = orientation_error_deg(res.quat[-1:], res.quat[int(5 * fs):int(5 * fs) + 1])[0][0]
+    assert e < 0.2                                                # plain integration would drift 55°
+
+
+def test_dcf_rejects_a_magnetic_disturbance():
+    gyr, acc, mag, q = _moving(n=6000, seed=5)
+    mag_d = mag.copy()
+    mag_d[2500:3500] *= 1.3                                      # field +30 % for 10 s (spec T8)
+    clean = dcf(gyr, acc, mag, sampling_rate_hz=100.0)
+    dist = dcf(gyr, acc, mag_d, sampling_rate_hz=100.0)
+    assert (dist.gain[2600:3400] == 0).mean() > 0.8
+    h = orientation_error_deg(dist.quat, q)[1]
+    assert h[2500:3600].max() < orientation_error_deg(clean.quat, q)[1].max() + 1.0
+    off = dcf_offline(gyr, acc, mag_d, sampling_rate_hz=100.0)
+    assert orientation_error_deg(off.quat, q)[1][2500:3600].max() < 1.5
+
+
+def test_dcf_gaps_short_recordings_and_6d():
+    gyr, acc, mag, _ = _moving(seed=7)
+    gyr[500:520] = np.nan
+    acc[900:950] = np.nan
+    mag[1200:1300] = np.nan
+    for f in (dcf, dcf_offline):
+        res = f(gyr, acc, mag, sampling_rate_hz=100.0)
+        assert np.isfinite(res.quat).all()
+        assert not f(gyr, acc, None, sampling_rate_hz=100.0).mag_used
+        with pytest.raises(ValueError, match="shorter than one second"):
+            f(gyr[:50], acc[:50], None, sampling_rate_hz=100.0)
+
+
+def test_error_split_heading_and_inclination():
+    n = 10
+    ref = np.tile(quat_from_axis_angle([0.3, 0.1, 1.0], 0.8), (n, 1))
+    yaw = quat_mul(quat_from_axis_angle([0, 0, 1.0], np.radians(7.0)), ref)       # earth-frame heading error
+    tot, head, inc = orientation_error_deg(yaw, ref)
+    np.testing.assert_allclose([tot[0], head[0], inc[0]], [7.0, 7.0, 0.0], atol=1e-5)
+    tilt = quat_mul(quat_from_axis_angle([1.0, 0, 0], np.radians(4.0)), ref)
+    tot, head, inc = orientation_error_deg(tilt, ref)
+    np.testing.assert_allclose([tot[0], head[0], inc[0]], [4.0, 0.0, 4.0], atol=1e-5)
+    r = orientation_rmse_deg(yaw, ref, np.r_[np.ones(5, bool), np.zeros(5, bool)])
+    assert r.n_scored == 5 and r.total_rmse_deg == pytest.approx(7.0)
+    with pytest.raises(ValueError, match="no sample"):
+        orientation_rmse_deg(yaw, ref, np.zeros(n, bool))
+
+
+@pytest.mark.parametrize("params_cls", PARAMS_CLASSES)
+def test_params_documented_hashable_and_json_roundtrip(params_cls):
+    p = params_cls()
+    doc = params_cls.__doc__ or ""
+    assert all(f.name in doc for f in dataclasses.fields(p))
+    hash(p)
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(json.dumps(dataclasses.asdict(p))).items()}
+    if params_cls is DCFOfflineParams:
+        d["online"] = DCFParams(**d["online"])
+    assert params_cls(**d) == p
+
+
+def test_registry_defaults_exist():
+    assert DEFAULT_ONLINE in ESTIMATORS and DEFAULT_OFFLINE in ESTIMATORS
+
+
+@pytest.fixture(scope="module")
+def broad_trials():
+    if not BROAD.is_dir():
+        pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
+    from pipeline.formats.broad import load_broad
+    return load_broad(BROAD)
+
+
+@pytest.mark.realdata
+def test_broad_reader_finds_every_trial(broad_trials):
+    assert len(broad_trials) == len(list(BROAD.glob("*.hdf5")))
+    t = broad_trials[0]
+    assert t.gyr.shape == t.acc.shape == t.mag.shape and t.quat_ref.shape == (len(t.gyr), 4)
+    assert 280 < t.sampling_rate_hz < 290 and t.movement.any() and t.groups
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_default_online_beats_vqf_on_broad(broad_trials):
+    def mean_err(name):
+        return np.mean([orientation_rmse_deg(ESTIMATORS[name](t.gyr, t.acc, t.mag, sampling_rate_hz=t.sampling_rate_hz)
+                                             .quat, t.quat_ref, t.movement).total_rmse_deg for t in broad_trials])
+    ours, ref = mean_err(DEFAULT_ONLINE), mean_err("vqf")
+    assert ours <= ref, f"default online {DEFAULT_ONLINE} {ours:.3f}° vs vqf {ref:.3f}°"
+
+
+def test_shipped_tuned_gains_are_the_defaults():
+    d = json.loads((PROJECT_ROOT / "estimators" / "orientation" / "tuned_gains.json").read_text())
+    assert DCFParams().tau_mag_s == d["dcf"]["params"]["tau_mag_s"]
+    assert DCFOfflineParams().tau_mag_s == d["dcf_offline"]["params"]["tau_mag_s"]
+
+
+def test_leave_trials_out_picks_on_training_folds_only():
+    from estimators.orientation.tuning import leave_trials_out
+    err = np.array([[1.0, 1.0, 1.0, 1.0, 1.0, 1.0], [0.5, 2.0, 2.0, 0.5, 2.0, 2.0]])
+    cv = leave_trials_out(err, ["a", "b"], n_folds=3)
+    assert cv.folds == ((0, 3), (1, 4), (2, 5)) and cv.chosen_per_fold == (0, 0, 0) and cv.cv_error_deg == 1.0
+
+
+@pytest.mark.realdata
+def test_bench_orientation_json_format():
+    if not BROAD.is_dir():
+        pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
+    from click.testing import CliRunner
+    from pipeline.bench.orientation import command
+    one = sorted(BROAD.glob("*.hdf5"))[0]
+    r = CliRunner().invoke(command, ["--broad", str(one), "--estimator", "dcf", "--estimator", "vqf", "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.stdout)
+    assert set(d) == {"trials", "summary", "default", "default_offline"}
+    assert {t["estimator"] for t in d["trials"]} == {"dcf", "vqf"}
+    assert set(d["trials"][0]) == {"trial", "estimator", "total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"}
+    assert set(d["summary"]["dcf"]) == {"mean_total_rmse_deg", "us_per_sample"}
