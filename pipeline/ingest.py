@@ -132,12 +132,17 @@ class _TopicState:
         self.acc_norm_medians: list[float] = []
         self.gyr_p99: list[float] = []
         self.gaps: list[tuple[int, float]] = []
+        self.n_nan = 0
 
     def add(self, b: Block) -> None:
         t = b.t_ns
         if len(t) == 0:
             return
-        if not np.isfinite(b.values).all():
+        if self.kind == "range":
+            pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
+        elif self.kind == "reference_pose" and not np.isinf(b.values).any():
+            self.n_nan += int(np.isnan(b.values).any(axis=1).sum())      # occluded markers: kept as NaN
+        elif not np.isfinite(b.values).all():
             bad = np.flatnonzero(~np.isfinite(b.values).all(axis=1))
             raise IngestRejected(f"{self.topic}: {len(bad)} samples with NaN/inf values (first at sample "
                                  f"{self.n + int(bad[0])}); fix or drop them at export")
@@ -240,6 +245,9 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike) -> Prepared:
         for s in states.values():
             _flush(s, root, session, res, path)
         for s in states.values():
+            if s.n_nan:
+                out.issues.append({"severity": "warning", "topic": s.topic,
+                                   "message": f"{s.n_nan} reference samples without a pose (occlusion), kept as NaN"})
             for t_gap, dur in s.gaps:
                 when = datetime.fromtimestamp(t_gap / 1e9, tz=timezone.utc).isoformat(timespec="seconds")
                 out.issues.append({"severity": "warning", "topic": s.topic,
@@ -325,12 +333,16 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
                 p.reason = (f"a different file with the same name was ingested before (sha256 {clash[0][:12]}…, "
                             f"session {clash[1]}); rename the file if it is a new recording")
         if p.status == "ingested":
-            owner = first(con.execute("SELECT study, participant_id FROM sessions WHERE session_id = ?",
+            owner = first(con.execute("SELECT study, participant_id, kind FROM sessions WHERE session_id = ?",
                                       [p.metadata["session"]]))
-            if owner is not None and tuple(owner) != (p.metadata["study"], p.metadata["participant"]):
+            if owner is not None and tuple(owner[:2]) != (p.metadata["study"], p.metadata["participant"]):
                 p.status = "quarantined"
                 p.reason = (f"session id {p.metadata['session']} already belongs to {owner[0]}/{owner[1]}, not "
                             f"{p.metadata['study']}/{p.metadata['participant']}; session ids must be unique")
+            elif owner is not None and owner[2] != p.metadata["kind"]:
+                p.status = "quarantined"
+                p.reason = (f"session {p.metadata['session']} is a '{owner[2]}' session but this recording says kind "
+                            f"'{p.metadata['kind']}'; all recordings of a session need the same kind")
         if p.status == "quarantined":
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,

@@ -1,0 +1,294 @@
+"""Lab session: a calibration trial and walking trials with 8 IMUs, optical reference and gait events."""
+from __future__ import annotations
+
+import datetime as _dt
+import zoneinfo
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators.quaternion import quat_from_matrix
+from estimators.recording import ImuData, PoseData, RangeData, Recording
+from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
+
+from ._gait_patterns import BodyGeometry, GaitParams, body_geometry, gait_params
+from ._kinematics import SEGMENTS, SIDES, HipWindow, LowerBodyModel, TrialPlan, WalkPath
+from ._sensor_model import (FD_STEP_S, MagneticEnvironment, SensorErrors, TrueImu, apply_errors, noisy_pose,
+                            random_rotation, true_imu)
+
+LAB_PROTOCOL = "stridelab-lab-gait-v1"
+RANGE_DIVIDER = 3            # distance sensors at 100/3 Hz
+RANGE_BEAM_FOOT = np.array([0.0, -1.0, 0.0])   # beam direction in the foot frame (down when flat)
+
+
+@dataclass
+class LabTrialTruth:
+    """Ground truth of one lab trial (all arrays on the IMU sample grid, N samples).
+
+    - ``t_ns`` (N,) int64 UTC sample times; ``t_s`` (N,) seconds from the trial start.
+    - ``segment_pos[seg]`` (N, 3) m ENU origin and ``segment_quat[seg]`` (N, 4) [w x y z] ISB segment
+      frame -> ENU, for pelvis, thigh_*, shank_*, foot_*, chest (noise-free; the recording's
+      ``reference_poses`` are these plus marker noise).
+    - ``mounting_quat[placement]`` (4,) constant segment -> sensor rotation: q_sensor = q_segment ⊗ q_mount
+      (before strap wobble); ``sensor_offset_m[placement]`` (3,) sensor position in the segment frame.
+    - ``sensor_quat[placement]`` (N, 4) true sensor orientation (with wobble) and ``sensor_pos`` (N, 3).
+    - ``acc_true`` / ``gyr_true`` / ``mag_true`` [placement] (N, 3): error-free signals in the sensor frame.
+    - ``joint_angles_deg[joint]`` (N, 3) for hip_left/right, knee_left/right, ankle_left/right: columns
+      (flexion/extension, ab/adduction, internal/external rotation), ISB JCS (Z-X-Y Cardan), signs of
+      spec/thesis_calib_gait_posture.md §5.3: hip flexion +, knee flexion +, ankle dorsiflexion +,
+      adduction / inversion +, internal rotation +, left side with β and γ negated.
+    - ``events[side]`` = {"IC": (k,) s, "TC": (k,) s} from the trial start (true contact instants).
+    - ``foot_points[side]`` = {"heel", "ball"}: (N, 3) m sole points (toe-off pivot = "ball").
+    - ``windows``: calibration windows (label, t0_s, t1_s, side or None).
+    - ``range_geometry[key]`` = (position in foot frame (3,), beam direction in foot frame (3,)).
+    """
+    t_ns: np.ndarray
+    t_s: np.ndarray
+    segment_pos: dict
+    segment_quat: dict
+    mounting_quat: dict
+    sensor_offset_m: dict
+    sensor_quat: dict
+    sensor_pos: dict
+    acc_true: dict
+    gyr_true: dict
+    mag_true: dict
+    joint_angles_deg: dict
+    events: dict
+    foot_points: dict
+    windows: list
+    range_geometry: dict = field(default_factory=dict)
+    geometry: BodyGeometry | None = None
+    gait: GaitParams | None = None
+
+
+def sensor_offsets(geo: BodyGeometry) -> dict[str, np.ndarray]:
+    """Sensor positions in the segment frames (m)."""
+    out = {"pelvis": np.array([-0.10, 0.04, 0.0]), "chest": np.array([geo.chest_depth_m, 0.0, 0.0])}
+    for side, sign in (("right", 1.0), ("left", -1.0)):
+        out[f"thigh_{side}"] = np.array([0.0, -0.5 * geo.thigh_m, sign * 0.075])
+        out[f"shank_{side}"] = np.array([0.035, -0.35 * geo.shank_m, -sign * 0.015])
+        out[f"foot_{side}"] = np.array([0.06, -0.005, 0.0])
+    return out
+
+
+def range_geometry(geo: BodyGeometry) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Two downward-looking distance sensors per shoe (Duong & Suh 2015): A at the forefoot, B at the heel,
+    3 cm above the sole, on the lateral side."""
+    out = {}
+    for side, sign in (("right", 1.0), ("left", -1.0)):
+        y = -geo.ankle_height_m + 0.03
+        out[f"foot_{side}/A"] = (np.array([0.6 * geo.ball_x_m, y, sign * 0.045]), RANGE_BEAM_FOOT)
+        out[f"foot_{side}/B"] = (np.array([0.8 * geo.heel_x_m, y, sign * 0.04]), RANGE_BEAM_FOOT)
+    return out
+
+
+def joint_angles_deg(R_prox, R_dist, side: str, joint: str) -> np.ndarray:
+    """ISB/Grood & Suntay angles (FE, AA, IE) in degrees with the clinical signs of spec §5.3."""
+    Rr = np.swapaxes(R_prox, 1, 2) @ R_dist
+    alpha = np.arctan2(-Rr[:, 0, 1], Rr[:, 1, 1])
+    beta = np.arcsin(np.clip(Rr[:, 2, 1], -1.0, 1.0))
+    gamma = np.arctan2(-Rr[:, 2, 0], Rr[:, 2, 2])
+    if joint == "knee":
+        alpha = -alpha
+    if side == "left":
+        beta, gamma = -beta, -gamma
+    return np.degrees(np.stack([alpha, beta, gamma], 1))
+
+
+def local_to_utc_ns(day: _dt.date, hhmm: str, tz: str, offset_s: float = 0.0) -> int:
+    local = _dt.datetime.combine(day, _dt.time.fromisoformat(hhmm), tzinfo=zoneinfo.ZoneInfo(tz))
+    return int(round(local.timestamp() * 1e9)) + int(round(offset_s * 1e9))
+
+
+# ---- trial plans ---------------------------------------------------------------------------------
+
+def calibration_plan(m: StudyManifest, gait: GaitParams) -> tuple[TrialPlan, list]:
+    """Quiet standing, hip flexion/extension right then left, straight steps, standing."""
+    lab = m.lab
+    f_hip = 0.6
+    t = lab.quiet_standing_s
+    windows = [("quiet_standing", 0.0, t, None)]
+    hips = []
+    for side in ("right", "left"):
+        dur = lab.hip_repetitions / f_hip + 1.0
+        hips.append(HipWindow(side=side, t0=t, t1=t + dur, reps=lab.hip_repetitions))
+        windows.append(("hip_flexion_extension", t, t + dur, side))
+        t += dur + 1.5
+    t_w0 = t
+    path = WalkPath(psi0=np.pi / 2)
+    # find the walking duration that gives exactly `straight_steps` steps
+    best = None
+    for k in range(200):
+        t_w1 = t_w0 + 2.0 + 0.05 * k
+        plan = TrialPlan(duration_s=t_w1 + 3.0, path=path, t_walk0=t_w0, t_walk1=t_w1, hip_windows=tuple(hips))
+        mdl = LowerBodyModel(_geo_dummy(), gait, plan)
+        n = sum(mdl.schedules[s].n_steps for s in SIDES)
+        if n >= lab.straight_steps:
+            best = plan
+            if n == lab.straight_steps:
+                break
+    plan = best
+    last = max(float(LowerBodyModel(_geo_dummy(), gait, plan).schedules[s].ic.max()) for s in SIDES)
+    windows.append(("straight_walking", t_w0, min(plan.duration_s, last + 0.6), None))
+    return plan, windows
+
+
+_GEO_DUMMY = None
+
+
+def _geo_dummy():
+    # the schedule does not depend on the geometry except for the footprints; any geometry works here
+    global _GEO_DUMMY
+    if _GEO_DUMMY is None:
+        _GEO_DUMMY = body_geometry(ParticipantSpec(id="X"))
+    return _GEO_DUMMY
+
+
+def walking_plan(m: StudyManifest, gait: GaitParams, trial: int) -> TrialPlan:
+    """Straight walk, a smooth 180° turn (left on odd trials, right on even ones), straight back."""
+    dur = m.lab.walking_trial_s
+    t_w0, t_w1 = 3.0, dur - 3.0
+    dist = gait.speed_m_s * (t_w1 - t_w0 - 1.2)
+    turn_len = 4.0
+    s_turn = max(0.5, 0.5 * (dist - turn_len))
+    sign = 1.0 if trial % 2 == 1 else -1.0
+    path = WalkPath(psi0=np.pi / 2, turns=[(s_turn, turn_len, sign * np.pi)], s_max=dist + 10.0)
+    return TrialPlan(duration_s=dur, path=path, t_walk0=t_w0, t_walk1=t_w1)
+
+
+# ---- one trial -------------------------------------------------------------------------------
+
+@dataclass
+class SessionDevices:
+    """Per-session constants: mounting rotations and device errors (same physical IMUs in all trials)."""
+    mounts: dict
+    errors: dict
+    offsets: dict
+    gyr_bias: dict
+
+
+def draw_devices(rng: np.random.Generator, spec: SensorModelSpec, geo: BodyGeometry, placements) -> SessionDevices:
+    lo, hi = spec.mounting_misalignment_deg
+    mounts = {p: random_rotation(rng, lo, hi) for p in placements}
+    errors = {p: SensorErrors.draw(rng, spec, p) for p in placements}
+    return SessionDevices(mounts=mounts, errors=errors, offsets=sensor_offsets(geo),
+                          gyr_bias={p: errors[p].gyr_bias.copy() for p in placements})
+
+
+def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices: SessionDevices,
+                   spec: SensorModelSpec, mag_env: MagneticEnvironment | None, rng: np.random.Generator,
+                   distance_sensors: bool, optical_reference: bool, windows: list,
+                   metadata: dict, name: str) -> tuple[Recording, LabTrialTruth]:
+    n = int(round(model.plan.duration_s * rate_hz))
+    t_s = np.arange(n) / rate_hz
+    t_ns = t0_ns + np.round(t_s * 1e9).astype(np.int64)
+    h = FD_STEP_S
+    t5 = (t_s[None, :] + h * np.arange(-2, 3)[:, None]).ravel()
+    poses = model.poses(t5)
+    poses5 = {seg: (p.reshape(5, n, 3), R.reshape(5, n, 3, 3)) for seg, (p, R) in poses.items()}
+    geo = model.geom
+    rec = Recording(metadata=dict(metadata), name=name)
+    seg_pos = {s: poses5[s][0][2] for s in SEGMENTS}
+    seg_R = {s: poses5[s][1][2] for s in SEGMENTS}
+    truth = LabTrialTruth(t_ns=t_ns, t_s=t_s, segment_pos=seg_pos,
+                          segment_quat={s: quat_from_matrix(seg_R[s]) for s in SEGMENTS},
+                          mounting_quat={p: quat_from_matrix(devices.mounts[p]) for p in SEGMENTS},
+                          sensor_offset_m=dict(devices.offsets), sensor_quat={}, sensor_pos={}, acc_true={},
+                          gyr_true={}, mag_true={}, joint_angles_deg={}, events={}, foot_points={},
+                          windows=list(windows), geometry=geo, gait=model.gait)
+    wobble_on = spec.wobble_deg_per_g > 0 or spec.wobble_mm_per_g > 0
+    for p in SEGMENTS:
+        sig: TrueImu = true_imu(poses5[p], devices.offsets[p], devices.mounts[p],
+                                devices.errors[p] if wobble_on else None, mag_env)
+        acc, gyr, mag, end_bias = apply_errors(sig, devices.errors[p], spec, rng, rate_hz, devices.gyr_bias[p])
+        devices.gyr_bias[p] = end_bias
+        rec.imu[p] = ImuData(t_ns=t_ns, acc=acc, gyr=gyr, mag=mag)
+        truth.sensor_quat[p], truth.sensor_pos[p] = sig.quat, sig.pos
+        truth.acc_true[p], truth.gyr_true[p], truth.mag_true[p] = sig.acc, sig.gyr, sig.mag
+    for side in SIDES:
+        for joint, prox, dist in (("hip", "pelvis", f"thigh_{side}"), ("knee", f"thigh_{side}", f"shank_{side}"),
+                                  ("ankle", f"shank_{side}", f"foot_{side}")):
+            truth.joint_angles_deg[f"{joint}_{side}"] = joint_angles_deg(seg_R[prox], seg_R[dist], side, joint)
+        pts = model.sole_points(side, seg_pos[f"foot_{side}"], seg_R[f"foot_{side}"])
+        truth.foot_points[side] = {"heel": pts["heel"], "ball": pts["ball"]}
+        sch = model.schedules[side]
+        ic = sch.ic[(sch.ic >= 0) & (sch.ic < t_s[-1])]
+        tc = sch.tc[(sch.tc >= 0) & (sch.tc < t_s[-1])]
+        truth.events[side] = {"IC": ic, "TC": tc}
+        for typ, times in (("IC", ic), ("TC", tc)):
+            for tt in times:
+                rec.events.append({"t_ns": int(t0_ns + round(tt * 1e9)), "type": typ, "side": side,
+                                   "placement": f"foot_{side}"})
+    for label, a, b, side in windows:
+        ev = {"t_ns": int(t0_ns + round(a * 1e9)), "end_ns": int(t0_ns + round(b * 1e9)),
+              "type": "calibration_window", "label": label}
+        if side is not None:
+            ev["side"] = side
+        if label == "hip_flexion_extension":
+            ev["repetitions"] = int(next(w.reps for w in model.plan.hip_windows if w.side == side))
+        if label == "straight_walking":
+            ev["steps"] = int(sum(np.sum((model.schedules[s].ic >= a) & (model.schedules[s].ic <= b)) for s in SIDES))
+        rec.events.append(ev)
+    rec.events.sort(key=lambda e: (e["t_ns"], e["type"]))
+    if optical_reference:
+        for s in SEGMENTS:
+            pos, q = noisy_pose(seg_pos[s], seg_R[s], spec, rng)
+            rec.reference_poses[s] = PoseData(t_ns=t_ns, pos=pos, quat=q)
+    if distance_sensors:
+        idx = np.arange(0, n, RANGE_DIVIDER)
+        for key, (r_foot, beam) in range_geometry(geo).items():
+            seg = key.split("/")[0]
+            R = seg_R[seg][idx]
+            pnt = seg_pos[seg][idx] + R @ r_foot
+            d = R @ beam
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rng_m = np.where(d[:, 2] < -0.1, -pnt[:, 2] / d[:, 2], np.inf)
+            if spec.range_noise_m > 0:
+                rng_m = rng_m + rng.normal(0.0, spec.range_noise_m, rng_m.shape)
+            rng_m = np.where((rng_m > 0.2) | ~np.isfinite(rng_m), np.nan, np.maximum(rng_m, 0.0))
+            rec.ranges[key] = RangeData(t_ns=t_ns[idx], range_m=rng_m, min_range_m=0.0, max_range_m=0.2)
+            truth.range_geometry[key] = (r_foot, beam)
+    return rec, truth
+
+
+def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, index: int, *,
+                         seed: int | None = None, sensor_model: SensorModelSpec | None = None,
+                         session: int = 1):
+    """Yield ``(Recording, LabTrialTruth)`` for the calibration trial and each walking trial of one lab
+    session of ``participant`` (0-based ``index`` in the study, which fixes the date: first_lab_date +
+    index days, trials from lab_start_local on). ``sensor_model`` overrides the manifest's (e.g.
+    ``SensorModelSpec.ideal()`` for noise-free signals)."""
+    spec = sensor_model or manifest.sensor_model
+    seed = manifest.seed if seed is None else int(seed)
+    rate = manifest.sampling_rate_hz
+    geo, gait = body_geometry(participant), gait_params(participant)
+    root = np.random.SeedSequence([seed, index, 1, session])
+    dev_ss, env_ss, *trial_ss = root.spawn(2 + 1 + manifest.lab.walking_trials)
+    devices = draw_devices(np.random.default_rng(dev_ss), spec, geo, SEGMENTS)
+    mag_env = MagneticEnvironment(spec, np.random.default_rng(np.random.SeedSequence([seed, 99])))
+    day = manifest.first_lab_date + _dt.timedelta(days=index)
+    t_start = local_to_utc_ns(day, manifest.lab_start_local, manifest.timezone)
+    pid = participant.id
+    sess = f"{pid}-lab-{session}"
+    base = {"study": manifest.name, "participant": pid, "session": sess, "protocol": LAB_PROTOCOL,
+            "timezone": manifest.timezone, "condition": participant.condition,
+            "height_m": f"{participant.height_m:.3f}", "thigh_length_m": f"{participant.thigh_m:.3f}",
+            "shank_length_m": f"{participant.shank_m:.3f}"}
+    if participant.hemiparetic:
+        base["paretic_side"] = str(participant.paretic_side)
+    plan, windows = calibration_plan(manifest, gait)
+    trials = [("calibration", "lab", plan, windows)]   # one lab session; the trial name marks calibration
+    for k in range(1, manifest.lab.walking_trials + 1):
+        trials.append((f"walk-{k}", "lab", walking_plan(manifest, gait, k), []))
+    t_off = 0.0
+    for (trial, kind, plan, windows), ss in zip(trials, trial_ss):
+        model = LowerBodyModel(geo, gait, plan)
+        md = dict(base, kind=kind, trial=trial)
+        rec, truth = simulate_trial(model, t0_ns=t_start + int(round(t_off * 1e9)), rate_hz=rate, devices=devices,
+                                    spec=spec, mag_env=mag_env, rng=np.random.default_rng(ss),
+                                    distance_sensors=manifest.lab.distance_sensors,
+                                    optical_reference=manifest.lab.optical_reference, windows=windows,
+                                    metadata=md, name=f"{pid}_lab{session}_{trial}")
+        t_off += plan.duration_s + 60.0
+        yield rec, truth

@@ -1,0 +1,42 @@
+"""The real CLI end to end on a simulated study: simulate -> run -> every IMU has an orientation."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.pipeline.test_runner import cli
+from warehouse.catalog import first
+from warehouse.read import connect_snapshot
+
+
+@pytest.mark.slow
+def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
+    r = cli("simulate", tmp_path / "inbox", "--participants", "2", "--hours", "0.1", "--json")
+    assert r.returncode == 0, r.stderr
+    files = json.loads(r.stdout)["files"]
+    assert len(files) >= 2 * 2                     # per participant: lab trials + one free-living day
+    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["ingested"] == len(files) and not summary["quarantined"] and not summary["failed"]
+    con = connect_snapshot(tmp_path / "wh")
+    assert first(con.execute("SELECT count(*) FROM participants"))[0] == 2
+    kinds = dict(con.execute("SELECT kind, count(*) FROM sessions GROUP BY 1").fetchall())
+    assert kinds == {"lab": 2, "free_living": 2}
+    n_imu = first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'imu'"))[0]
+    assert n_imu == first(con.execute("SELECT count(*) FROM orientation"))[0] > 0
+    placements = {p for (p,) in con.execute("SELECT DISTINCT placement FROM sensors WHERE kind = 'imu'").fetchall()}
+    assert placements == {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left",
+                          "foot_right", "chest"}
+    # the simulator's reference is in the warehouse too
+    assert first(con.execute("SELECT count(*) FROM reference_events WHERE type = 'IC'"))[0] > 10
+    assert first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'reference_pose'"))[0] > 0
+
+
+def test_simulate_refuses_a_bad_manifest_with_one_line(tmp_path):
+    bad = tmp_path / "study.toml"
+    bad.write_text("[study]\nname = 'x'\nseed = 'not a number'\n")
+    r = cli("simulate", tmp_path / "inbox", "--manifest", bad)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("error:") and len(r.stderr.strip().splitlines()) == 1
