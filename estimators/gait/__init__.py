@@ -1,0 +1,14 @@
+"""Foot gait analysis: stance/swing, initial/terminal contacts, strides, per-session parameters.
+
+Arrays in (gyr rad/s, acc m/s² specific force, ``sampling_rate_hz`` keyword), frozen dataclasses out, events
+and strides as sample indices. See docs/gait.md for conventions and measured accuracy.
+"""
+from __future__ import annotations
+
+from estimators.gait._events import GaitEventDetector, GaitEvents, IcTcParams, detect_ic_tc, pitch_signal
+from estimators.gait._kinematics import (PARAM_COLUMNS, STRIDE_COLUMNS, FootKinematics, FootParams, SessionGait,
+                                         StrideTable, foot_kinematics, gait_session)
+
+__all__ = ["GaitEventDetector", "GaitEvents", "IcTcParams", "detect_ic_tc", "pitch_signal", "FootKinematics",
+           "FootParams", "SessionGait", "StrideTable", "foot_kinematics", "gait_session", "PARAM_COLUMNS",
+           "STRIDE_COLUMNS"]

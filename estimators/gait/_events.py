@@ -1,0 +1,162 @@
+"""Real-time initial/terminal contact (IC/TC) detection on the foot pitch signal (Nazarahari 2021, ch. 6).
+
+Spec: ``spec/thesis_calib_gait_posture.md`` §3.2–3.3 (Algorithm 1), §9.2. Signal (Eq. 52, normative §3.2):
+
+    s_k = e_z · (R_k u_S)        u_S = foot anterior axis in sensor coordinates, horizontal at stance     (P1)
+
+so s = −sin(pitch): s > 0 toes up (IC region, local maximum), s < 0 toes down (TC region, local minimum).
+
+Rules at sample k (candidate extremum j = k − 1, look-ahead 1 sample, Algorithm 1):
+    local min at j:  s_j < s_{j−i} ∀ i = 1…N_w,  s_j < s_{j+1},  #{s_{j−i} < s_{j−i−1}} ≥ ⌈0.8 N_w⌉      (R1)
+    TC at k:  flag = 0,  k − TC_last > N_ref,  s_k < T,  local min at k−1                                   (R2)
+    IC at k:  flag = 1,  k − IC_last > N_ref,  s_k > T,  local max at k−1                                   (R3)
+with T = −0.2, N_ref = N_w = round(0.15 f_s) (15 at 100 Hz), strict TC → IC → TC alternation (flag).
+
+One numba step function works on a state vector; :class:`GaitEventDetector` calls it per pushed sample and
+:func:`detect_ic_tc` calls it in a compiled loop, so streaming and batch are identical by construction (tested).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+__all__ = ["IcTcParams", "GaitEvents", "GaitEventDetector", "detect_ic_tc", "pitch_signal"]
+
+
+@dataclass(frozen=True)
+class IcTcParams:
+    """Parameters of Algorithm 1 in seconds (rate-independent; spec §3.3 scaling rule).
+
+    threshold: T on s = −sin(pitch) (−0.2 ≈ 11.5° toes down).
+    refractory_s: same-type events must be more than this apart (0.15 s = 15 samples at 100 Hz).
+    lookback_s: look-back window N_w for the extremum (0.15 s).
+    trend_fraction: share of monotone pairs required in the look-back window (0.8).
+    """
+    threshold: float = -0.2
+    refractory_s: float = 0.15
+    lookback_s: float = 0.15
+    trend_fraction: float = 0.8
+
+
+@dataclass(frozen=True)
+class GaitEvents:
+    """Events of one foot, sample indices into the input.
+
+    ic_idx, tc_idx: (K,) int64 event = the extremum sample k−1 (best estimate of the contact instant).
+    ic_detect_idx, tc_detect_idx: (K,) int64 detection sample k (when a streaming detector knows it; +1).
+    """
+    ic_idx: np.ndarray
+    tc_idx: np.ndarray
+    ic_detect_idx: np.ndarray
+    tc_detect_idx: np.ndarray
+    params: IcTcParams
+
+
+# state layout: [k, flag, last_tc, last_ic, n_filled, head]; ring buffer of length n_w + 3 kept separately
+_K, _FLAG, _LTC, _LIC, _FILL, _HEAD = range(6)
+
+
+@njit(cache=True)
+def _is_ext(buf, head, L, n_w, need, sign):
+    """(R1) on the ring buffer: ``buf[(head-1) % L]`` = s_k = s_{j+1}, ``buf[(head-2) % L]`` = s_j."""
+    sk = buf[(head - 1) % L]
+    sj = buf[(head - 2) % L]
+    if not sign * (sk - sj) > 0:
+        return False
+    for i in range(1, n_w + 1):
+        if not sign * (buf[(head - 2 - i) % L] - sj) > 0:
+            return False
+    cnt = 0
+    for i in range(1, n_w + 1):
+        if sign * (buf[(head - 3 - i) % L] - buf[(head - 2 - i) % L]) > 0:
+            cnt += 1
+    return cnt >= need
+
+
+@njit(cache=True)
+def _step(state, buf, s, thr, n_ref, n_w, need):
+    """Push one sample; returns 0 (none), 1 (TC at k) or 2 (IC at k). Rules (R2), (R3)."""
+    L = buf.shape[0]
+    state[_K] += 1
+    k = state[_K]
+    buf[state[_HEAD]] = s
+    state[_HEAD] = (state[_HEAD] + 1) % L
+    if state[_FILL] < L:
+        state[_FILL] += 1
+        if state[_FILL] < L:
+            return 0
+    head = state[_HEAD]
+    if not np.isfinite(s):
+        return 0
+    if state[_FLAG] == 0 and (state[_LTC] < 0 or k - state[_LTC] > n_ref) and s < thr and \
+            _is_ext(buf, head, L, n_w, need, 1.0):
+        state[_LTC] = k
+        state[_FLAG] = 1
+        return 1
+    if state[_FLAG] == 1 and (state[_LIC] < 0 or k - state[_LIC] > n_ref) and s > thr and \
+            _is_ext(buf, head, L, n_w, need, -1.0):
+        state[_LIC] = k
+        state[_FLAG] = 0
+        return 2
+    return 0
+
+
+@njit(cache=True)
+def _run(sig, state, buf, thr, n_ref, n_w, need, out):
+    for i in range(sig.shape[0]):
+        out[i] = _step(state, buf, sig[i], thr, n_ref, n_w, need)
+
+
+def _coeffs(params: IcTcParams, sampling_rate_hz: float) -> tuple[int, int, int]:
+    if not sampling_rate_hz > 0:
+        raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
+    n_w = max(2, int(round(params.lookback_s * sampling_rate_hz)))
+    n_ref = max(1, int(round(params.refractory_s * sampling_rate_hz)))
+    return n_ref, n_w, int(math.ceil(params.trend_fraction * n_w - 1e-9))
+
+
+class GaitEventDetector:
+    """Streaming IC/TC detector of one foot: ``push(s_k)`` → ``None`` or ``("TC"|"IC", k_detect, k_extremum)``.
+
+    The state (``state``, ``buf``) is plain arrays that can be copied and restored (chunked = whole).
+    """
+
+    def __init__(self, *, sampling_rate_hz: float, params: IcTcParams = IcTcParams()):
+        self.params = params
+        self._n_ref, self._n_w, self._need = _coeffs(params, sampling_rate_hz)
+        self.state = np.array([-1, 0, -1, -1, 0, 0], dtype=np.int64)
+        self.buf = np.zeros(self._n_w + 3)
+
+    def push(self, s: float):
+        """Feed one sample of s = −sin(pitch); returns the event detected at this sample, if any."""
+        r = _step(self.state, self.buf, float(s), self.params.threshold, self._n_ref, self._n_w, self._need)
+        if r == 0:
+            return None
+        k = int(self.state[_K])
+        return ("TC" if r == 1 else "IC", k, k - 1)
+
+
+def detect_ic_tc(s: np.ndarray, *, sampling_rate_hz: float, params: IcTcParams = IcTcParams()) -> GaitEvents:
+    """Batch Algorithm 1 over the whole pitch signal ``s`` (N,); equals :class:`GaitEventDetector` sample by sample."""
+    s = np.ascontiguousarray(s, dtype=float)
+    if s.ndim != 1:
+        raise ValueError(f"s must be a 1-D pitch signal, got shape {s.shape}")
+    det = GaitEventDetector(sampling_rate_hz=sampling_rate_hz, params=params)
+    out = np.zeros(len(s), dtype=np.int8)
+    _run(s, det.state, det.buf, params.threshold, det._n_ref, det._n_w, det._need, out)
+    tc = np.flatnonzero(out == 1)
+    ic = np.flatnonzero(out == 2)
+    return GaitEvents(ic_idx=ic - 1, tc_idx=tc - 1, ic_detect_idx=ic, tc_detect_idx=tc, params=params)
+
+
+def pitch_signal(quat: np.ndarray, anterior_axis_sensor: np.ndarray) -> np.ndarray:
+    """(P1): s_k = e_z · (R_k u_S) for quat (N, 4) sensor→world and the anterior axis u_S (3,) in sensor coords."""
+    q = np.asarray(quat, dtype=float)
+    u = np.asarray(anterior_axis_sensor, dtype=float)
+    u = u / np.linalg.norm(u)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    # third row of R(q)
+    return 2 * (x * z - w * y) * u[0] + 2 * (y * z + w * x) * u[1] + (1 - 2 * (x * x + y * y)) * u[2]

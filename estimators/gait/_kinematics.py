@@ -1,0 +1,232 @@
+"""Foot kinematics of one foot (trajectory, events, strides) and the session parameters of both feet.
+
+Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.trajectory) → stance runs and their
+mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
+coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
+→ IC/TC by Algorithm 1 → strides.
+
+    K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
+        (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
+    K2  a stride = two consecutive mid-stances m_i < m_{i+1} with exactly one TC then one IC between them
+        (gaitmap's min_vel stride); any other pattern is not a stride (no invented strides).
+    K3  stride length = |p_xy(m_{i+1}) − p_xy(m_i)|; stride time = IC − previous IC (NaN without one);
+        swing = IC − TC; stance = TC − previous IC; gait speed = length / stride time;
+        clearance = max p_z over [TC, IC] − p_z(m_i) (height of the sensor point above its stance level);
+        turning angle = change of the heading of R u_S between the two mid-stances (deg, + = to the left, ENU).
+Session (``gait_session``):
+    S1  cadence = 120 / mean stride time (steps/min, both feet);  S2  double support % = share of each stride
+        (previous IC → IC) during which both feet are in stance (stance = IC → next TC of that foot);
+    S3  symmetry index SI = 200 |L − R| / (L + R) % of the per-foot means (Robinson et al. 1987).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal
+from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
+
+__all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
+           "STRIDE_COLUMNS"]
+
+STRIDE_COLUMNS = ("start", "end", "tc", "ic", "pre_ic")
+PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_time_s", "stance_pct", "swing_pct",
+                 "gait_speed_m_s", "clearance_m", "turning_angle_deg")
+
+
+@dataclass(frozen=True)
+class FootParams:
+    """Everything that configures ``foot_kinematics``.
+
+    trajectory: ESKF/ZUPT/RTS parameters.  events: Algorithm 1 parameters.
+    min_stride_length_m: strides shorter than this are not used to find the anterior axis (K1).
+    max_stride_time_s: strides longer than this are dropped (spec §3.8: 3 s).
+    """
+    trajectory: EskfParams = EskfParams()
+    events: IcTcParams = IcTcParams()
+    min_stride_length_m: float = 0.2
+    max_stride_time_s: float = 3.0
+
+
+@dataclass(frozen=True)
+class StrideTable:
+    """Strides of one foot (K2, K3).
+
+    idx: (S, 5) int64 sample indices, columns ``STRIDE_COLUMNS`` (start/end = mid-stances; pre_ic = −1 if none).
+    values: (S, 9) float, columns ``PARAM_COLUMNS`` (SI units; NaN where undefined).
+    """
+    idx: np.ndarray
+    values: np.ndarray
+
+    def column(self, name: str) -> np.ndarray:
+        """One parameter column by name (``PARAM_COLUMNS``) or index column (``STRIDE_COLUMNS``)."""
+        if name in PARAM_COLUMNS:
+            return self.values[:, PARAM_COLUMNS.index(name)]
+        return self.idx[:, STRIDE_COLUMNS.index(name)]
+
+    def __len__(self) -> int:
+        return int(self.idx.shape[0])
+
+
+@dataclass(frozen=True)
+class FootKinematics:
+    """Result of ``foot_kinematics`` for one foot.
+
+    trajectory: the ESKF result (pos, vel, quat, zupt).  pitch: (N,) s = −sin(pitch), NaN before the filter starts.
+    anterior_axis: (3,) u_S in sensor coordinates.  mid_stance: (M,) int64 mid-stance samples.
+    events: IC/TC.  strides: StrideTable.  status: "ok" | "no_stance" | "no_strides".  notes: human messages.
+    """
+    trajectory: TrajectoryResult
+    pitch: np.ndarray
+    anterior_axis: np.ndarray
+    mid_stance: np.ndarray
+    events: GaitEvents
+    strides: StrideTable
+    sampling_rate_hz: float
+    status: str
+    notes: tuple = field(default=())
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _rot_T(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    from estimators.quaternion import quat_to_matrix
+    return quat_to_matrix(q).T @ v
+
+
+def _empty_strides() -> StrideTable:
+    return StrideTable(np.zeros((0, 5), np.int64), np.zeros((0, len(PARAM_COLUMNS))))
+
+
+def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
+                    params: FootParams = FootParams()) -> FootKinematics:
+    """All kinematics of one foot IMU (module docstring K1–K3). gyr rad/s, acc m/s², any mounting."""
+    fs = float(sampling_rate_hz)
+    notes: list[str] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        traj = eskf_trajectory(gyr, acc, sampling_rate_hz=fs, params=params.trajectory)
+    n = traj.pos.shape[0]
+    empty_ev = GaitEvents(*(np.zeros(0, np.int64) for _ in range(4)), params=params.events)
+    if traj.status != "ok":
+        notes.append("no stance (zero-velocity) period detected: sensor not on a foot, shuffling or running?")
+        return FootKinematics(traj, np.full(n, np.nan), np.array([1.0, 0, 0]), np.zeros(0, np.int64), empty_ev,
+                              _empty_strides(), fs, "no_stance", tuple(notes))
+    w = np.linalg.norm(np.asarray(gyr, float), axis=1)
+    mids = np.array([a + int(np.argmin(w[a:b])) for a, b in _runs(traj.zupt)], dtype=np.int64)
+    # K1: anterior axis from stride displacements
+    us = []
+    for a, b in zip(mids[:-1], mids[1:]):
+        d = traj.pos[b] - traj.pos[a]
+        d[2] = 0.0
+        L = np.linalg.norm(d)
+        if np.isfinite(L) and L >= params.min_stride_length_m and (b - a) <= params.max_stride_time_s * fs:
+            us.append(_rot_T(traj.quat[a], d / L))
+    if us:
+        u = np.sum(us, axis=0)
+        u /= np.linalg.norm(u)
+    else:
+        u = np.array([1.0, 0.0, 0.0])
+        notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
+    s = pitch_signal(traj.quat, u)
+    ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events)
+    # K2, K3
+    idx_rows, val_rows = [], []
+    heading = None
+    for a, b in zip(mids[:-1], mids[1:]):
+        if (b - a) > params.max_stride_time_s * fs:
+            continue
+        tcs = ev.tc_idx[(ev.tc_idx > a) & (ev.tc_idx < b)]
+        ics = ev.ic_idx[(ev.ic_idx > a) & (ev.ic_idx < b)]
+        if len(tcs) != 1 or len(ics) != 1 or not tcs[0] < ics[0]:
+            continue
+        tc, ic = int(tcs[0]), int(ics[0])
+        prev = ev.ic_idx[ev.ic_idx <= a]
+        pre_ic = int(prev[-1]) if len(prev) and (ic - prev[-1]) <= params.max_stride_time_s * fs else -1
+        d = traj.pos[b] - traj.pos[a]
+        length = float(np.hypot(d[0], d[1]))
+        stride_t = (ic - pre_ic) / fs if pre_ic >= 0 else np.nan
+        stance_t = (tc - pre_ic) / fs if pre_ic >= 0 else np.nan
+        swing_t = (ic - tc) / fs
+        clearance = float(np.nanmax(traj.pos[tc:ic + 1, 2]) - traj.pos[a, 2])
+        from estimators.quaternion import quat_rotate
+        ha, hb = quat_rotate(traj.quat[a], u), quat_rotate(traj.quat[b], u)
+        turn = np.degrees(np.angle(np.exp(1j * (np.arctan2(hb[1], hb[0]) - np.arctan2(ha[1], ha[0])))))
+        idx_rows.append((a, b, tc, ic, pre_ic))
+        val_rows.append((length, stride_t, stance_t, swing_t, 100 * stance_t / stride_t, 100 * swing_t / stride_t,
+                         length / stride_t, clearance, turn))
+    strides = StrideTable(np.array(idx_rows, np.int64).reshape(-1, 5),
+                          np.array(val_rows, float).reshape(-1, len(PARAM_COLUMNS))) if idx_rows else _empty_strides()
+    status = "ok" if len(strides) else "no_strides"
+    if not len(strides):
+        notes.append(f"{len(mids)} stance period(s) but no complete stride (stance, TC, IC, stance)")
+    return FootKinematics(traj, s, u, mids, ev, strides, fs, status, tuple(notes))
+
+
+@dataclass(frozen=True)
+class SessionGait:
+    """Session parameters from both feet (S1–S3); NaN where a foot has no strides.
+
+    cadence_steps_min, gait_speed_m_s, stride_length_m, stride_time_s: session means (both feet).
+    double_support_pct: mean over strides of both feet (S2).
+    per_foot: {"left"|"right": {param: mean}};  symmetry_index_pct: {param: SI} (S3).
+    n_strides: {"left": int, "right": int}.
+    """
+    cadence_steps_min: float
+    gait_speed_m_s: float
+    stride_length_m: float
+    stride_time_s: float
+    double_support_pct: float
+    per_foot: dict
+    symmetry_index_pct: dict
+    n_strides: dict
+
+
+def _stance_mask(fk: FootKinematics, n: int) -> np.ndarray:
+    m = np.zeros(n, bool)
+    for ic in fk.events.ic_idx:
+        nxt = fk.events.tc_idx[fk.events.tc_idx > ic]
+        if len(nxt) and nxt[0] - ic < 3 * fk.sampling_rate_hz:
+            m[ic:nxt[0] + 1] = True
+    return m
+
+
+def gait_session(left: FootKinematics, right: FootKinematics) -> SessionGait:
+    """Session parameters of a recording with both feet on the same sample grid (S1–S3)."""
+    if left.sampling_rate_hz != right.sampling_rate_hz:
+        raise ValueError("left and right feet must share one sample grid (resample first)")
+    n = max(len(left.pitch), len(right.pitch))
+    both = _stance_mask(left, n) & _stance_mask(right, n)
+    per_foot, ds_all = {}, []
+    for side, fk in (("left", left), ("right", right)):
+        st = fk.strides
+        ds_foot = []
+        per_foot[side] = {c: (float(np.nanmean(st.column(c))) if len(st) and np.isfinite(st.column(c)).any()
+                              else float("nan")) for c in PARAM_COLUMNS}
+        for pre, ic in zip(st.column("pre_ic"), st.column("ic")):
+            if pre >= 0:
+                ds_foot.append(100.0 * both[pre:ic].mean())
+        per_foot[side]["double_support_pct"] = float(np.mean(ds_foot)) if ds_foot else float("nan")
+        ds_all += ds_foot
+    allst = [fk.strides for fk in (left, right) if len(fk.strides)]
+
+    def pooled(c):
+        v = np.concatenate([s.column(c) for s in allst]) if allst else np.zeros(0)
+        v = v[np.isfinite(v)]
+        return float(v.mean()) if len(v) else float("nan")
+    stride_t = pooled("stride_time_s")
+    si = {}
+    for c in ("stride_length_m", "stride_time_s", "stance_pct", "swing_time_s", "clearance_m"):
+        a, b = per_foot["left"][c], per_foot["right"][c]
+        si[c] = float(200.0 * abs(a - b) / (a + b)) if np.isfinite(a) and np.isfinite(b) and (a + b) else float("nan")
+    return SessionGait(cadence_steps_min=120.0 / stride_t if np.isfinite(stride_t) else float("nan"),
+                       gait_speed_m_s=pooled("gait_speed_m_s"), stride_length_m=pooled("stride_length_m"),
+                       stride_time_s=stride_t,
+                       double_support_pct=float(np.mean(ds_all)) if ds_all else float("nan"),
+                       per_foot=per_foot, symmetry_index_pct=si,
+                       n_strides={"left": len(left.strides), "right": len(right.strides)})

@@ -1,0 +1,214 @@
+"""Public API of the foot trajectory: zero-velocity detection and the ESKF + ZUPT + RTS smoother."""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
+
+__all__ = ["ZuptParams", "detect_zupt", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+
+
+@dataclass(frozen=True)
+class ZuptParams:
+    """Zero-velocity (stance) detector, windowed like Duong & Suh eq. (21–22) (spec B6.3).
+
+    gyr_threshold_rad_s: a sample is still when every ``|ω|`` in the centred window is ≤ this (0.6 rad/s ≈ 34 °/s,
+        the foot-IMU literature default, e.g. gaitmap's norm ZUPT detector; spec B10 D3 range 0.3–0.6).
+    acc_tolerance_m_s2: and every ``| |f| − g |`` in the window is ≤ this (loose: rejects impacts, not tilt).
+    window_s: centred window length (0.05 s; N_g ≈ 5 samples at 100 Hz, spec D3 says 6–10).
+    min_stance_s: runs of still samples shorter than this are dropped (no single-sample ZUPTs).
+    """
+    gyr_threshold_rad_s: float = 0.6
+    acc_tolerance_m_s2: float = 2.5
+    window_s: float = 0.05
+    min_stance_s: float = 0.05
+
+
+@njit(cache=True)
+def _window_max(x, half):
+    n = x.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        lo = max(0, i - half)
+        hi = min(n, i + half + 1)
+        m = x[lo]
+        for j in range(lo + 1, hi):
+            if x[j] > m:
+                m = x[j]
+        out[i] = m
+    return out
+
+
+@njit(cache=True)
+def _drop_short(mask, min_len):
+    n = mask.shape[0]
+    i = 0
+    while i < n:
+        if mask[i]:
+            j = i
+            while j < n and mask[j]:
+                j += 1
+            if j - i < min_len:
+                for t in range(i, j):
+                    mask[t] = False
+            i = j
+        else:
+            i += 1
+
+
+def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
+                params: ZuptParams = ZuptParams()) -> np.ndarray:
+    """(N,) bool: samples where the foot is at rest (stance), by windowed thresholds (spec B6.3, eq. 21–22)."""
+    w = np.linalg.norm(gyr, axis=1)
+    a = np.abs(np.linalg.norm(acc, axis=1) - GRAVITY)
+    w = np.where(np.isfinite(w), w, np.inf)
+    a = np.where(np.isfinite(a), a, np.inf)
+    half = max(0, int(round(params.window_s * sampling_rate_hz / 2)))
+    mask = (_window_max(w, half) <= params.gyr_threshold_rad_s) & (_window_max(a, half) <= params.acc_tolerance_m_s2)
+    _drop_short(mask, max(1, int(round(params.min_stance_s * sampling_rate_hz))))
+    return mask
+
+
+@dataclass(frozen=True)
+class EskfParams:
+    """Error-state Kalman filter with ZUPT and RTS smoother (equations E1–E7 in ``_eskf``).
+
+    acc_noise_m_s2: per-sample accelerometer white-noise std σ_a (Q_v = (σ_a T)²).
+    gyr_noise_rad_s: per-sample gyroscope white-noise std σ_g (Q_θ = (σ_g T)²).
+    acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` and ``|ω|``
+        (30 % and 1 %: heel-strike impacts are clipped (16 g) and under-sampled, so their integral is barely
+        known; c_a was picked from a coarse scan on the gaitmap walk, see docs/gait.md — not a priori).
+    pos_noise_m: per-sample position process noise std (keeps P regular for the smoother; tiny).
+    zupt_noise_m_s: σ_z of the zero-velocity pseudo-measurement (Duong & Suh Table 1: 0.01 m/s).
+    zupt_lever_m: r_lever of (E5b): during heel/toe rocker a point 0.1 m (half a foot) from the contact moves at
+        |ω|·r, so a ZUPT is only as certain as that (0.1 m chosen from foot geometry, not fitted).
+    estimate_biases: 15 states (+ b_a, b_g) instead of 9; slower, helps long stance-free stretches.
+    acc_bias_rw, gyr_bias_rw: bias random-walk densities (m/s²/√s, rad/s/√s) when ``estimate_biases``.
+    init_att_std_rad, init_acc_bias_m_s2, init_gyr_bias_rad_s: initial standard deviations.
+    smooth: run the RTS backward pass (False: forward filter only, the causal variant).
+    zupt: the stance detector parameters.
+    """
+    acc_noise_m_s2: float = 0.5
+    gyr_noise_rad_s: float = 0.02
+    acc_noise_rel: float = 0.3
+    gyr_noise_rel: float = 0.01
+    pos_noise_m: float = 1e-5
+    zupt_noise_m_s: float = 0.01
+    zupt_lever_m: float = 0.1
+    estimate_biases: bool = False
+    acc_bias_rw: float = 1e-3
+    gyr_bias_rw: float = 1e-4
+    init_att_std_rad: float = 0.02
+    init_acc_bias_m_s2: float = 0.1
+    init_gyr_bias_rad_s: float = 0.01
+    smooth: bool = True
+    zupt: ZuptParams = ZuptParams()
+
+
+@dataclass(frozen=True)
+class TrajectoryResult:
+    """Foot trajectory, one row per input sample (NaN before the first stance, where the filter starts).
+
+    pos: (N, 3) m, ENU-like world (z up, yaw of the first stance = 0, origin = sensor at the first stance).
+    vel: (N, 3) m/s.  quat: (N, 4) [w x y z] sensor→world.  bias: (N, 6) b_a (m/s²), b_g (rad/s).
+    zupt: (N,) bool stance samples used as zero-velocity updates.
+    start_idx: first filtered sample (−1 when no stance was found).
+    status: "ok" | "no_stance".
+    """
+    pos: np.ndarray
+    vel: np.ndarray
+    quat: np.ndarray
+    bias: np.ndarray
+    zupt: np.ndarray
+    start_idx: int
+    status: str
+    params: EskfParams
+
+
+def check_foot_imu(gyr, acc, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Validate shapes, rate and units (P12); return float64 C-contiguous copies."""
+    gyr = np.ascontiguousarray(gyr, dtype=float)
+    acc = np.ascontiguousarray(acc, dtype=float)
+    if gyr.ndim != 2 or gyr.shape[1] != 3 or acc.shape != gyr.shape:
+        raise ValueError(f"gyr and acc must both be (N, 3) arrays; got {gyr.shape} and {acc.shape}")
+    if not (np.isfinite(sampling_rate_hz) and sampling_rate_hz > 0):
+        raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
+    if len(acc):
+        g = float(np.nanmedian(np.linalg.norm(acc, axis=1)))
+        if 0.5 < g < 2.0:
+            raise ValueError(f"acc median norm is {g:.2f}: looks like g, expected m/s² (multiply by 9.80665)")
+        if np.nanpercentile(np.abs(gyr), 99) > 35.0:
+            raise ValueError("gyr looks like deg/s, expected rad/s (use np.deg2rad)")
+    return gyr, acc
+
+
+def _level_quat(f: np.ndarray) -> np.ndarray:
+    """Quaternion (yaw 0 in the sense of the shortest rotation) that maps the mean specific force ``f`` onto +z."""
+    u = f / np.linalg.norm(f)
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(np.dot(u, z))
+    axis = np.cross(u, z)
+    s = np.linalg.norm(axis)
+    if s < 1e-12:
+        return np.array([1.0, 0.0, 0.0, 0.0]) if c > 0 else np.array([0.0, 1.0, 0.0, 0.0])
+    ang = np.arctan2(s, c)
+    axis = axis / s
+    return np.concatenate([[np.cos(ang / 2)], np.sin(ang / 2) * axis])
+
+
+def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
+                    params: EskfParams = EskfParams(), zupt: np.ndarray | None = None) -> TrajectoryResult:
+    """Foot position, velocity and attitude by ESKF + ZUPT + RTS (module ``_eskf`` equations E1–E7).
+
+    gyr (N, 3) rad/s, acc (N, 3) m/s² specific force (any mounting). ``zupt`` (N,) bool overrides the detector.
+    No stance → a warning and ``status="no_stance"`` with all-NaN arrays (no invented trajectory).
+    """
+    gyr, acc = check_foot_imu(gyr, acc, sampling_rate_hz)
+    n_s = gyr.shape[0]
+    if zupt is None:
+        zupt = detect_zupt(gyr, acc, sampling_rate_hz=sampling_rate_hz, params=params.zupt) if n_s else \
+            np.zeros(0, bool)
+    zupt = np.ascontiguousarray(zupt, dtype=np.bool_)
+    if zupt.shape != (n_s,):
+        raise ValueError(f"zupt must be (N,) bool with N = {n_s}; got {zupt.shape}")
+    nan3 = np.full((n_s, 3), np.nan)
+    if not zupt.any():
+        warnings.warn("eskf_trajectory: no stance (zero-velocity) sample detected; no trajectory computed",
+                      stacklevel=2)
+        return TrajectoryResult(nan3, nan3.copy(), np.full((n_s, 4), np.nan), np.full((n_s, 6), np.nan), zupt, -1,
+                                "no_stance", params)
+    k0 = int(np.argmax(zupt))
+    k1 = k0
+    lim = min(n_s, k0 + int(round(1.0 * sampling_rate_hz)))
+    while k1 < lim and zupt[k1]:
+        k1 += 1
+    f0 = acc[k0:k1].mean(axis=0)
+    bg0 = gyr[k0:k1].mean(axis=0) if (k1 - k0) >= max(3, int(0.1 * sampling_rate_hz)) else np.zeros(3)
+    q0 = _level_quat(f0)
+    T = 1.0 / sampling_rate_hz
+    ns = 15 if params.estimate_biases else 9
+    qd = np.zeros(ns)
+    qd[0:3] = params.pos_noise_m ** 2
+    qd[3:6] = (params.acc_noise_m_s2 * T) ** 2
+    qd[6:9] = (params.gyr_noise_rad_s * T) ** 2
+    p0 = np.zeros(ns)
+    p0[0:3] = 1e-8
+    p0[3:6] = 1e-6
+    p0[6:9] = params.init_att_std_rad ** 2
+    if ns == 15:
+        qd[9:12] = params.acc_bias_rw ** 2 * T
+        qd[12:15] = params.gyr_bias_rw ** 2 * T
+        p0[9:12] = params.init_acc_bias_m_s2 ** 2
+        p0[12:15] = params.init_gyr_bias_rad_s ** 2
+    pos, vel = nan3, nan3.copy()
+    quat = np.full((n_s, 4), np.nan)
+    bias = np.full((n_s, 6), np.nan)
+    sig_a = params.acc_noise_m_s2 + params.acc_noise_rel * np.abs(np.linalg.norm(acc, axis=1) - GRAVITY)
+    sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1)
+    eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
+                    pos, vel, quat, bias)
+    return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params)
