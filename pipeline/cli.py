@@ -258,6 +258,7 @@ def demo(no_serve, home, port, jobs) -> None:
         err_console.print(f"simulating the demo study into {inbox} …")
         simulate_to_dir(inbox, on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
     summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo")
+    summary.reports = _write_reports(wh, summary.run_id, None)
     _print_summary(summary, False)
     if no_serve:
         err_console.print(f"warehouse: {wh}")
