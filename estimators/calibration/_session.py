@@ -119,6 +119,9 @@ def calibrate_session(acc: Mapping[str, np.ndarray] | None, gyr: Mapping[str, np
         method = params.method
         if method == "auto":
             method = "hip_fe" if side in win.hip_fe else "walking"
+            if method == "hip_fe" and win.walking is not None and float(np.mean(smoothed_norm(
+                    gyr_S[p][_sl(win.hip_fe[side])], int(round(fs))))) < params.active_gyr_rad_s:
+                method = "walking"          # the segment does not rotate in the hip FE (e.g. a foot kept level)
         mw = win.hip_fe.get(side) if method == "hip_fe" else win.walking
         a_st = acc_S[p][stand]
         g_norm, g_spread = _gravity_qc(a_st)
@@ -141,7 +144,14 @@ def calibrate_session(acc: Mapping[str, np.ndarray] | None, gyr: Mapping[str, np
         ev, evec = np.linalg.eigh(gc.T @ gc)
         axis_tilt = float(np.degrees(np.arcsin(np.clip(abs(evec[:, -1] @ R_S_VF[:, 1]), 0, 1))))
         z_S = R_S_AF[:, 2]
-        cycles = count_cycles(g_move, z_S, sampling_rate_hz=fs, prominence_rad_s=params.peak_prominence_rad_s)
+        g_count = g_move
+        if method == "walking":
+            # gait initiation / termination steps move one leg only and fall outside the both-legs-moving
+            # window: count swings up to 1 s beyond it (never into a hip FE window)
+            lo = max([int(mw[0] - fs)] + [int(b) for a, b in win.hip_fe.values() if b <= mw[0]])
+            g_count = gyr_S[p][max(lo, 0):int(min(mw[1] + fs, len(gyr_S[p])))]
+        cycles = count_cycles(g_count, z_S, sampling_rate_hz=fs, prominence_rad_s=params.peak_prominence_rad_s,
+                              min_peak_fraction=params.min_peak_fraction)
         if method == "walking":
             walk_cycles[p] = cycles
         cal = ImuCalibration(R_sensor_af=P[p].T @ R_S_AF, status="pass", planarity=planarity, gamma_deg=gamma,
@@ -183,7 +193,7 @@ def calibrate_session(acc: Mapping[str, np.ndarray] | None, gyr: Mapping[str, np
             imus[p] = c
     n_steps = 0
     if win.walking is not None:
-        for seg in ("thigh", "shank"):
+        for seg in ("shank", "thigh", "foot"):
             if all(f"{seg}_{s}" in walk_cycles for s in SIDES):
                 n_steps = sum(walk_cycles[f"{seg}_{s}"] for s in SIDES)
                 break

@@ -18,7 +18,8 @@ STATUS_ORDER = {"pass": 0, "warn": 1, "fail": 2}
 class CalibrationParams:
     """Sensor-to-segment calibration parameters (spec/thesis_calib_gait_posture.md §2.2, §0.5).
 
-    method: movement used for the heading step: ``"auto"`` (hip FE when detected, else walking),
+    method: movement used for the heading step: ``"auto"`` (hip FE when detected, else walking; a
+        segment that does not rotate during the hip FE, e.g. a foot kept level, uses walking),
         ``"hip_fe"`` (thesis recommendation for patients) or ``"walking"`` (PC8, able-bodied).
     min_standing_s: shortest quiet standing accepted, s (thesis: 1 s suffices).
     target_standing_s: recommended standing, s (3-5 s); shorter standing gives a warning.
@@ -27,7 +28,10 @@ class CalibrationParams:
     active_gyr_rad_s: a leg side is moving if its 1-s smoothed gyro norm exceeds this, rad/s.
     min_fe_repetitions: fewest hip flexion/extension repetitions accepted (thesis ≥ 10).
     min_walking_steps: fewest straight-walking steps accepted (thesis PC8: 8).
-    peak_prominence_rad_s: prominence of a repetition / swing peak on the main axis, rad/s.
+    peak_prominence_rad_s: prominence of a repetition / swing peak on the main axis, rad/s (0.5:
+        a hip FE of ±18° at 0.6 Hz peaks at ≈ 1.1 rad/s, and its first repetition rises from rest).
+    min_peak_fraction: a peak also needs ≥ this fraction of the largest peak (0.2: gait-initiation and
+        -termination swings are slower than steady steps but are steps; stance bumps stay below).
     min_planarity: smallest explained variance λ1/(λ1+λ2) of the principal axis (spec: 0.8).
     max_axis_tilt_deg: largest angle between the 3D principal rotation axis and the horizontal
         plane of the standing estimate (agreement standing vs movement); above it → warning.
@@ -46,7 +50,8 @@ class CalibrationParams:
     active_gyr_rad_s: float = 0.3
     min_fe_repetitions: int = 10
     min_walking_steps: int = 8
-    peak_prominence_rad_s: float = 1.0
+    peak_prominence_rad_s: float = 0.5
+    min_peak_fraction: float = 0.2
     min_planarity: float = 0.8
     max_axis_tilt_deg: float = 15.0
     max_gravity_spread_deg: float = 3.0

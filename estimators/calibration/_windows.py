@@ -33,13 +33,20 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def standing_mask(acc: Mapping[str, np.ndarray], gyr: Mapping[str, np.ndarray], *, sampling_rate_hz: float,
                   params: CalibrationParams = CalibrationParams()) -> np.ndarray:
-    """(N,) True where every IMU is quiet (spec §2.2 thresholds, 0.25-s smoothing)."""
+    """(N,) True where every IMU is quiet (spec §2.2 thresholds, 0.25-s smoothing): smoothed |ω| below
+    ``stand_gyr_rad_s`` and |a| within ``stand_acc_m_s2`` of the IMU's own median |a| while its gyro is
+    quiet (g as that accelerometer reads it, within 3 × ``stand_acc_m_s2`` of ``gravity_m_s2``)."""
     n_s = int(round(0.25 * sampling_rate_hz))
     mask = None
     for p in gyr:
         g = smoothed_norm(gyr[p], n_s) < params.stand_gyr_rad_s
-        a = np.abs(uniform_filter1d(np.linalg.norm(np.nan_to_num(acc[p]), axis=1), n_s, mode="nearest")
-                   - params.gravity_m_s2) < params.stand_acc_m_s2
+        a_n = uniform_filter1d(np.linalg.norm(np.nan_to_num(acc[p]), axis=1), n_s, mode="nearest")
+        # |a| at rest as this accelerometer reads it (scale-factor / bias errors of a few 0.1 m/s² must
+        # not hide quiet standing; the QC flags |a| far from g separately)
+        g_ref = float(np.median(a_n[g])) if np.any(g) else params.gravity_m_s2
+        if abs(g_ref - params.gravity_m_s2) > 3 * params.stand_acc_m_s2:
+            g_ref = params.gravity_m_s2
+        a = np.abs(a_n - g_ref) < params.stand_acc_m_s2
         m = g & a
         mask = m if mask is None else mask & m
     return mask
@@ -130,15 +137,29 @@ def detect_calibration_windows(acc: Mapping[str, np.ndarray], gyr: Mapping[str, 
     return CalibrationWindows(standing=standing, hip_fe=fe, walking=walking, source="auto")
 
 
+def first_quiet_standing(acc: Mapping[str, np.ndarray], gyr: Mapping[str, np.ndarray], *, sampling_rate_hz: float,
+                         params: CalibrationParams = CalibrationParams()) -> tuple[int, int] | None:
+    """The first ``[start, end)`` run where every IMU is quiet for ≥ ``min_standing_s`` (e.g. the
+    standing at the start of a walking trial, for the quiet-standing offset removal of thesis ch. 8),
+    or ``None``. Same thresholds as :func:`standing_mask`."""
+    if sampling_rate_hz <= 0:
+        raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
+    if not gyr:
+        return None
+    stand = standing_mask(acc, gyr, sampling_rate_hz=sampling_rate_hz, params=params)
+    st = [r for r in runs(stand) if r[1] - r[0] >= params.min_standing_s * sampling_rate_hz]
+    return st[0] if st else None
+
+
 def count_cycles(gyr_move: np.ndarray, axis_S: np.ndarray, *, sampling_rate_hz: float,
-                 prominence_rad_s: float = 1.0) -> int:
+                 prominence_rad_s: float = 0.5, min_peak_fraction: float = 0.2) -> int:
     """Positive peaks of the angular velocity on ``axis_S`` (hip flexion, or a leg swing in walking):
-    prominence ≥ ``prominence_rad_s`` and height ≥ 40 % of the largest peak, ≥ 0.3 s apart."""
+    prominence ≥ ``prominence_rad_s`` and height ≥ ``min_peak_fraction`` of the largest peak, ≥ 0.3 s apart."""
     w = np.nan_to_num(np.asarray(gyr_move, float)) @ np.asarray(axis_S, float)
     w = np.concatenate([[0.0], w, [0.0]])          # a peak cut by the window edge still counts
     if w.size < 5 or not np.any(w > 0):
         return 0
     pk, _ = find_peaks(w, prominence=prominence_rad_s, distance=max(1, int(0.3 * sampling_rate_hz)))
     if pk.size:
-        pk = pk[w[pk] >= 0.4 * w[pk].max()]
+        pk = pk[w[pk] >= min_peak_fraction * w[pk].max()]
     return int(pk.size)

@@ -57,16 +57,39 @@ def normalise_cycles(signal: np.ndarray, ic_idx: np.ndarray, *, min_samples: int
     i0 = np.minimum(np.floor(pos).astype(np.int64), x.shape[0] - 2)
     w = (pos - i0)[..., None]
     cyc = x[i0] * (1 - w) + x[i0 + 1] * w                                     # (C, P, K)
-    with np.errstate(invalid="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean = np.nanmean(cyc, axis=0)
-            sd = np.nanstd(cyc, axis=0, ddof=1) if C > 1 else np.full((n_points, K), np.nan)
-            rom = np.nanmax(cyc, axis=1) - np.nanmin(cyc, axis=1)
-            rom_sd = np.nanstd(rom, axis=0, ddof=1) if C > 1 else np.full(K, np.nan)
-            rom_mean = np.nanmean(rom, axis=0)
+    return _summarise(cyc, pairs)
+
+
+def _summarise(cyc: np.ndarray, pairs: np.ndarray) -> CycleCurves:
+    C, n_points, K = cyc.shape
+    if C == 0:
+        e = np.full((n_points, K), np.nan)
+        return CycleCurves(np.empty((0, n_points, K)), e, e.copy(), np.empty((0, K)), np.full(K, np.nan),
+                           np.full(K, np.nan), np.asarray(pairs, np.int64).reshape(0, 2))
+    import warnings
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(cyc, axis=0)
+        sd = np.nanstd(cyc, axis=0, ddof=1) if C > 1 else np.full((n_points, K), np.nan)
+        rom = np.nanmax(cyc, axis=1) - np.nanmin(cyc, axis=1)
+        rom_sd = np.nanstd(rom, axis=0, ddof=1) if C > 1 else np.full(K, np.nan)
+        rom_mean = np.nanmean(rom, axis=0)
     return CycleCurves(cyc, mean, sd, rom, rom_mean, rom_sd, pairs)
+
+
+def pool_cycles(curves) -> CycleCurves:
+    """One :class:`CycleCurves` over the cycles of several (e.g. every walking trial of a session).
+
+    ``bounds`` keeps each cycle's sample indices within its own trial. Empty input or inputs without
+    cycles give the typed empty result (K and the number of points from the first input, else 3 and 101).
+    """
+    curves = list(curves)
+    n_points = curves[0].cycles.shape[1] if curves else N_POINTS
+    K = curves[0].cycles.shape[2] if curves else 3
+    cyc = [c.cycles for c in curves if c.n_cycles]
+    if not cyc:
+        return _summarise(np.empty((0, n_points, K)), np.empty((0, 2), np.int64))
+    return _summarise(np.concatenate(cyc), np.concatenate([c.bounds for c in curves if c.n_cycles]))
 
 
 def session_gait_curves(angles, ic_by_side: dict, *, sampling_rate_hz: float,

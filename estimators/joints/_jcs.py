@@ -13,6 +13,7 @@ floating axis e2 = e3 × e1, γ about the distal y (e3, long axis). Clinical sig
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -123,7 +124,9 @@ def remove_standing_offset(angles_deg: np.ndarray, standing: tuple[int, int]) ->
     s0, s1 = int(standing[0]), int(standing[1])
     if not 0 <= s0 < s1 <= a.shape[0]:
         raise ValueError(f"standing window {standing} outside the trial of {a.shape[0]} samples")
-    off = np.nanmean(a[s0:s1], axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # all-NaN (no calibration): NaN offsets
+        off = np.nanmean(a[s0:s1], axis=0)
     return a - off, off
 
 

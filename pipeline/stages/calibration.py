@@ -1,0 +1,157 @@
+"""Sensor-to-segment calibration per lab session: warehouse -> estimators.calibration -> warehouse.
+
+The session's calibration trial (recording whose trial is ``calibration``) is read with the sensor
+orientations of the orientation stage; :func:`estimators.calibration.calibrate_session` finds the
+windows (or takes them from the study manifest, ``[stages.calibration.windows]``) and returns one
+calibration and QC status per IMU. A session without a calibration trial gets a ``fail`` row per
+lower-limb IMU ("calibration trial missing"), never an exception: joint angles then carry that status.
+
+Manifest form (seconds from the start of the calibration trial; a table keyed by a session id
+applies to that session only)::
+
+    [stages.calibration]
+    method = "hip_fe"
+    [stages.calibration.windows]
+    standing = [0.0, 4.0]
+    walking = [42.3, 47.3]
+    hip_fe = { right = [4.0, 21.6], left = [23.2, 40.8] }
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json
+from warehouse.read import read_imu_files
+from warehouse.store import read_table
+
+CALIBRATION_TRIAL = "calibration"
+WINDOW_KEYS = ("standing", "hip_fe", "walking")
+
+
+def default_params() -> dict:
+    from estimators.calibration import CalibrationParams
+    return {**dataclasses.asdict(CalibrationParams()), "windows": {}}
+
+
+def calibration_params(params: dict):
+    """The estimator's frozen params from the stage params (manifest overrides included)."""
+    from estimators.calibration import CalibrationParams
+    names = {f.name for f in dataclasses.fields(CalibrationParams)}
+    return CalibrationParams(**{k: v for k, v in params.items() if k in names})
+
+
+def find_calibration_recording(recordings: list[dict]) -> dict | None:
+    """The session's calibration trial (the last one if it was repeated), or None."""
+    cands = [r for r in recordings if (r.get("trial") or "").lower() == CALIBRATION_TRIAL]
+    return cands[-1] if cands else None
+
+
+def common_grid(t_by_placement: dict[str, np.ndarray]) -> np.ndarray:
+    """Timestamps (int64 ns) present in every sensor of a recording: one time grid for the estimators."""
+    grid = None
+    for t in t_by_placement.values():
+        grid = t if grid is None else np.intersect1d(grid, t, assume_unique=True)
+    return np.asarray(grid if grid is not None else [], np.int64)
+
+
+def read_recording(inp: SessionInput, rec: dict, orientation_rows: list[dict], placements) -> dict:
+    """acc, gyr, quat (placement -> (N, ·) on the common grid), t_ns and sampling_rate_hz of one recording.
+
+    Placements without an IMU are left out; ``quat`` only holds placements with orientation rows.
+    """
+    series, quat_t = {}, {}
+    ori = {r["placement"]: r for r in orientation_rows if r["content_hash"] == rec["content_hash"]}
+    rate = None
+    for p in placements:
+        imu = rec["sensors"].get(p, {}).get("imu")
+        if imu is None:
+            continue
+        series[p] = read_imu_files(inp.root, imu["series_path"], None, imu["sampling_rate_hz"])
+        rate = rate or float(imu["sampling_rate_hz"])
+        if p in ori:
+            t = read_table(inp.root, ori[p]["series_path"])
+            quat_t[p] = (t.column("t_ns").to_numpy(),
+                         np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")]))
+    grid = common_grid({p: s.t_ns for p, s in series.items()})
+
+    def on_grid(t, x):
+        return x[np.searchsorted(t, grid)]
+
+    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}}
+    for p, s in series.items():
+        out["acc"][p], out["gyr"][p] = on_grid(s.t_ns, s.acc), on_grid(s.t_ns, s.gyr)
+        if p in quat_t and np.isin(grid, quat_t[p][0]).all():
+            out["quat"][p] = on_grid(*quat_t[p])
+    return out
+
+
+def manual_windows(params: dict, session_id: str, sampling_rate_hz: float):
+    """CalibrationWindows from the manifest (``None`` = detect automatically)."""
+    from estimators.calibration import CalibrationWindows
+    w = params.get("windows") or {}
+    if session_id in w:
+        w = w[session_id]
+    w = {k: v for k, v in w.items() if k in WINDOW_KEYS}
+    if not w:
+        return None
+    return CalibrationWindows.from_seconds(sampling_rate_hz=sampling_rate_hz, **w)
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _windows_s(win, fs: float) -> dict:
+    def s(w):
+        return None if w is None else [round(w[0] / fs, 3), round(w[1] / fs, 3)]
+    return {"standing": s(win.standing), "hip_fe": {k: s(v) for k, v in sorted(win.hip_fe.items())},
+            "walking": s(win.walking), "source": win.source}
+
+
+def calibration_rows(session_id: str, content_hash: str | None, cal, fs: float | None, params: dict) -> list[dict]:
+    """Catalog rows of a :class:`SessionCalibration` (one per IMU)."""
+    rows = []
+    for p, c in sorted(cal.imus.items()):
+        q = c.quat_sensor_af
+        d = c.as_dict()
+        quality = {k: _num(d[k]) for k in ("planarity", "gamma_deg", "standing_s", "gravity_m_s2",
+                                           "gravity_spread_deg", "axis_tilt_deg", "x_vertical_deg")}
+        rows.append({"session_id": session_id, "placement": p, "content_hash": content_hash, "status": c.status,
+                     "reasons": json.dumps(list(c.reasons)), "method": c.method, "quality": canonical_json(quality),
+                     "n_reps": int(c.n_cycles), **{f"q{k}": _num(v) for k, v in zip("wxyz", q)},
+                     "session_status": cal.status, "session_reasons": json.dumps(list(cal.reasons)),
+                     "windows": canonical_json(_windows_s(cal.windows, fs) if fs else {"source": "none"}),
+                     "params": canonical_json(params), "stage_version": STAGE.version})
+    return rows
+
+
+def compute(inp: SessionInput, params: dict) -> StageOutput:
+    from estimators.calibration import calibrate_session, missing_calibration
+    from estimators.calibration._session import DEFAULT_PLACEMENTS
+    cp = calibration_params(params)
+    sid = inp.session["session_id"]
+    rec = find_calibration_recording(inp.recordings)
+    if rec is None:
+        cal = missing_calibration(DEFAULT_PLACEMENTS, params=cp)
+        return StageOutput(rows={"calibration": calibration_rows(sid, None, cal, None, params)},
+                           note="calibration trial missing")
+    data = read_recording(inp, rec, inp.upstream.get("orientation", []), DEFAULT_PLACEMENTS)
+    fs = data["sampling_rate_hz"]
+    if fs is None:
+        cal = missing_calibration(DEFAULT_PLACEMENTS, reason="calibration trial has no lower-limb IMU", params=cp)
+        return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, None, params)},
+                           note="calibration trial has no lower-limb IMU")
+    cal = calibrate_session(data["acc"], data["gyr"], sampling_rate_hz=fs,
+                            windows=manual_windows(params, sid, fs), params=cp,
+                            quats=data["quat"] or None, placements=DEFAULT_PLACEMENTS)
+    bad = sorted(p for p, c in cal.imus.items() if c.status != "pass")
+    note = f"calibration {cal.status}" + (f" ({', '.join(bad)})" if bad else "")
+    return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, fs, params)}, note=note)
+
+
+STAGE = Stage(name="calibration", version="1", needs=("orientation",), tables=("calibration",),
+              session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)
