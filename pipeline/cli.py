@@ -79,19 +79,28 @@ def _print_summary(summary, as_json: bool) -> None:
 
 
 def _run_with_progress(**kw):
-    """Run the pipeline with a spinner that shows the latest committed step."""
+    """Run the pipeline with a progress bar per phase (ingest, then each stage) on stderr."""
     import duckdb
     from pipeline import runner
-    from pipeline.console import err_console, UserError
+    from pipeline.console import UserError, err_console, progress
     from pipeline.runner import StorageError
     from warehouse.lock import WarehouseBusy
     try:
-        with err_console.status("starting…") as status:
+        with progress() as bar:
+            current = {"task": None}
+
+            def on_phase(name: str, total: int) -> None:
+                if total:
+                    current["task"] = bar.add_task(name, total=total)
+
             def on_progress(msg: str) -> None:
-                status.update(msg)
-                if not err_console.is_terminal:
+                if current["task"] is not None:
+                    bar.advance(current["task"])
+                if bar.disable:
                     err_console.print(msg, markup=False, highlight=False)
-            return runner.run(on_progress=on_progress, **kw)
+                elif "quarantined" in msg or "FAILED" in msg or "warning" in msg:
+                    bar.console.print(msg, markup=False, highlight=False)
+            return runner.run(on_progress=on_progress, on_phase=on_phase, **kw)
     except WarehouseBusy as e:
         raise UserError(str(e)) from None
     except (StorageError, OSError, duckdb.Error) as e:
@@ -274,6 +283,7 @@ def _serve(wh: Path, port: int, address: str = "localhost") -> None:
     err_console.print(f"dashboard on http://{address}:{port}  (Ctrl+C to stop)")
     cmd = [sys.executable, "-m", "streamlit", "run", str(app), "--server.port", str(port),
            "--server.address", address, "--server.headless", "true", "--browser.gatherUsageStats", "false",
+           "--client.toolbarMode", "minimal",
            "--", "--warehouse", str(wh)]
     raise SystemExit(subprocess.call(cmd))
 
