@@ -109,8 +109,13 @@ def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[Stage
 
 # ---- coordinator ---------------------------------------------------------------------------
 
+def _no_phase(name: str, total: int) -> None:
+    return None
+
+
 def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
-                 on_progress: Callable[[str], None] = lambda m: None) -> None:
+                 on_progress: Callable[[str], None] = lambda m: None,
+                 on_phase: Callable[[str, int], None] = _no_phase) -> None:
     todo = []
     for f in files:
         f = Path(f)
@@ -120,9 +125,9 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
         h = ingest_mod.known_hash(wh, f)
         if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
             summary.duplicates.append(f.name)
-            on_progress(f"{f.name}: unchanged since last ingest")
             continue
         todo.append((str(f), str(wh.root)))
+    on_phase("ingest", len(todo))
 
     def done(item, res):
         if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
@@ -181,7 +186,8 @@ def _input_hash(wh: Warehouse, session_id: str, stage: Stage) -> str:
 
 
 def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
-               on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None) -> None:
+               on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None,
+               on_phase: Callable[[str, int], None] = _no_phase) -> None:
     sessions = wh.con.execute("SELECT session_id, study, kind FROM sessions ORDER BY session_id").fetchall()
     if only_sessions is not None:
         sessions = [s for s in sessions if s[0] in only_sessions]
@@ -234,6 +240,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                 on_progress(f"{stage.name} {sid}: ok in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
             wh.publish_snapshot()
 
+        on_phase(stage.name, len(items))
         ex.run_all(_stage_task_4, items, done)
 
 
@@ -243,8 +250,13 @@ def _stage_task_4(stage_name, inp, params, st):
 
 def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | None = None, stages: bool = True,
         command: str = "run", engine: str = "local", scheduler: str | None = None,
-        on_progress: Callable[[str], None] = lambda m: None) -> RunSummary:
-    """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout."""
+        on_progress: Callable[[str], None] = lambda m: None,
+        on_phase: Callable[[str, int], None] = _no_phase) -> RunSummary:
+    """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout.
+
+    ``on_phase(name, total)`` announces a phase (ingest, then each stage) and its number of tasks;
+    ``on_progress(message)`` reports each completed task (a committed file or session).
+    """
     t0 = time.perf_counter()
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
@@ -263,9 +275,9 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                 todo = list(files or [])
                 if inbox is not None and Path(inbox).is_dir():
                     todo += sorted(p for p in Path(inbox).rglob("*.mcap") if not p.name.startswith("."))
-                ingest_files(wh, todo, ex, summary, on_progress)
+                ingest_files(wh, todo, ex, summary, on_progress, on_phase)
                 if stages:
-                    run_stages(wh, run_id, ex, summary, on_progress)
+                    run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
                 status = "failed" if summary.failed else "ok"
             except BaseException:
                 status = "failed"
