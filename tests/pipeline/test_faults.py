@@ -38,56 +38,41 @@ READ_COUNT = f"{sys.executable} -c \"import sys; from warehouse.read import conn
              f"c = connect_snapshot(sys.argv[1]); print('RECORDINGS', c.execute('SELECT count(*) FROM recordings').fetchall()[0][0])\""
 
 
-def _base_warehouse(tmp_path: Path) -> Path:
+def _ingest_on_small_tmpfs(tmp_path: Path, break_fs: str, new_seconds: float) -> tuple[str, list[str]]:
+    """Copy a one-recording warehouse onto a private tmpfs, break the filesystem with the shell lines
+    ``break_fs``, ingest a new file there, then read the newest snapshot; returns (all output, error lines)."""
     f = write_recording(small_recording(seconds=5), tmp_path / "first.mcap")
     runner.run(tmp_path / "wh", None, files=[f], stages=False)
-    return tmp_path / "wh"
-
-
-@needs_mount
-def test_disk_full_stops_the_run_with_a_clear_error_and_keeps_the_snapshot(tmp_path):
-    wh = _base_warehouse(tmp_path)
-    new = write_recording(small_recording(seconds=120, session="S2", trial="long", seed=3), tmp_path / "new.mcap")
+    new = write_recording(small_recording(seconds=new_seconds, session="S2", trial="new", seed=3), tmp_path / "new.mcap")
     mnt = tmp_path / "mnt"
     mnt.mkdir()
     r = _in_namespace(textwrap.dedent(f"""
         set -e
         mount -t tmpfs -o size=48m tmpfs {mnt}
-        cp -a {wh} {mnt}/wh
-        # leave about 20 kB free: the new recording's series cannot be written
-        avail=$(df --output=avail -B1 {mnt} | tail -1)
-        fallocate -l $((avail - 20000)) {mnt}/filler
+        cp -a {tmp_path / "wh"} {mnt}/wh
+        {break_fs.replace("MNT", str(mnt))}
         set +e
         cd {os.getcwd()} && {sys.executable} -m pipeline ingest {new} --warehouse {mnt}/wh
         echo "EXIT $?"
         {READ_COUNT} {mnt}/wh
     """))
-    out = r.stdout + r.stderr
+    return r.stdout + r.stderr, [line for line in r.stderr.splitlines() if line.startswith("error:")]
+
+
+@needs_mount
+def test_disk_full_stops_the_run_with_a_clear_error_and_keeps_the_snapshot(tmp_path):
+    # leave about 20 kB free: the new recording's series cannot be written
+    out, err = _ingest_on_small_tmpfs(tmp_path, "avail=$(df --output=avail -B1 MNT | tail -1); "
+                                                "fallocate -l $((avail - 20000)) MNT/filler", new_seconds=120)
     assert "EXIT 2" in out, out
-    err = [line for line in r.stderr.splitlines() if line.startswith("error:")]
     assert err and "No space left on device" in err[0] and "previous snapshot is still readable" in err[0], out
     assert "RECORDINGS 1" in out, out
 
 
 @needs_mount
 def test_read_only_warehouse_stops_with_a_clear_error_and_stays_readable(tmp_path):
-    wh = _base_warehouse(tmp_path)
-    new = write_recording(small_recording(seconds=5, session="S2", trial="x", seed=3), tmp_path / "new.mcap")
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    r = _in_namespace(textwrap.dedent(f"""
-        set -e
-        mount -t tmpfs -o size=64m tmpfs {mnt}
-        cp -a {wh} {mnt}/wh
-        mount -o remount,ro {mnt}
-        set +e
-        cd {os.getcwd()} && {sys.executable} -m pipeline ingest {new} --warehouse {mnt}/wh
-        echo "EXIT $?"
-        {READ_COUNT} {mnt}/wh
-    """))
-    out = r.stdout + r.stderr
+    out, err = _ingest_on_small_tmpfs(tmp_path, "mount -o remount,ro MNT", new_seconds=5)
     assert "EXIT 2" in out, out
-    err = [line for line in r.stderr.splitlines() if line.startswith("error:")]
     assert err and "Read-only file system" in err[0], out
     assert "RECORDINGS 1" in out, out
 
