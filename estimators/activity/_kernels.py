@@ -1,0 +1,118 @@
+"""Numba kernels: one pass over the samples for calibration, per-second statistics and rotation."""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def second_sums(acc, fs, n_sec):
+    """Per-second sum and sum of squares of each axis (n_sec, 3) and per-axis min/max plus how many samples
+    sit at them (saturation check)."""
+    s = np.zeros((n_sec, 3))
+    s2 = np.zeros((n_sec, 3))
+    cnt = np.zeros(n_sec)
+    mn = np.full(3, np.inf)
+    mx = np.full(3, -np.inf)
+    inv = 1.0 / fs
+    for i in range(acc.shape[0]):
+        k = int(i * inv)
+        cnt[k] += 1.0
+        for j in range(3):
+            v = acc[i, j]
+            s[k, j] += v
+            s2[k, j] += v * v
+            if v < mn[j]:
+                mn[j] = v
+            if v > mx[j]:
+                mx[j] = v
+    n_at = 0
+    for i in range(acc.shape[0]):
+        for j in range(3):
+            v = acc[i, j]
+            if v == mn[j] or v == mx[j]:
+                n_at += 1
+                break
+    return s, s2, cnt, mn, mx, n_at
+
+
+@njit(cache=True)
+def calibrate_norm(acc, scale, offset, gain, fs, n_sec):
+    """acc_g = (acc · scale − offset) · gain (new array); ‖acc_g‖ − 1 per sample; per-second mean/std of ‖acc_g‖."""
+    n = acc.shape[0]
+    out = np.empty((n, 3))
+    mag = np.empty(n)
+    s = np.zeros(n_sec)
+    s2 = np.zeros(n_sec)
+    c = np.zeros(n_sec)
+    inv = 1.0 / fs
+    for i in range(n):
+        q = 0.0
+        for j in range(3):
+            v = (acc[i, j] * scale - offset[j]) * gain[j]
+            out[i, j] = v
+            q += v * v
+        m = np.sqrt(q)
+        mag[i] = m - 1.0
+        k = int(i * inv)
+        s[k] += m
+        s2[k] += m * m
+        c[k] += 1.0
+    mean = s / np.maximum(c, 1.0)
+    std = np.sqrt(np.maximum(s2 / np.maximum(c, 1.0) - mean * mean, 0.0))
+    return out, mag, mean, std
+
+
+@njit(cache=True)
+def rotate_inplace(x, R, i0, i1):
+    """x[i0:i1] = x[i0:i1] @ R.T in place."""
+    for i in range(i0, i1):
+        a, b, c = x[i, 0], x[i, 1], x[i, 2]
+        x[i, 0] = R[0, 0] * a + R[0, 1] * b + R[0, 2] * c
+        x[i, 1] = R[1, 0] * a + R[1, 1] * b + R[1, 2] * c
+        x[i, 2] = R[2, 0] * a + R[2, 1] * b + R[2, 2] * c
+
+
+@njit(cache=True)
+def second_mean3(x, fs, n_sec):
+    """Per-second mean of (N, 3)."""
+    s = np.zeros((n_sec, 3))
+    c = np.zeros(n_sec)
+    inv = 1.0 / fs
+    for i in range(x.shape[0]):
+        k = int(i * inv)
+        c[k] += 1.0
+        for j in range(3):
+            s[k, j] += x[i, j]
+    for k in range(n_sec):
+        if c[k] > 0:
+            for j in range(3):
+                s[k, j] /= c[k]
+    return s
+
+
+@njit(cache=True)
+def theta_deg(gv, dc):
+    """Eq. 54 per sample: degrees(arccos(clip(GA_v / dc, −1, 1)))."""
+    out = np.empty(gv.shape[0])
+    r = 180.0 / np.pi
+    for i in range(gv.shape[0]):
+        v = gv[i] / dc
+        if v > 1.0:
+            v = 1.0
+        elif v < -1.0:
+            v = -1.0
+        out[i] = np.arccos(v) * r
+    return out
+
+
+@njit(cache=True)
+def second_mean1(x, fs, n_sec):
+    s = np.zeros(n_sec)
+    c = np.zeros(n_sec)
+    inv = 1.0 / fs
+    for i in range(x.shape[0]):
+        k = int(i * inv)
+        c[k] += 1.0
+        s[k] += x[i]
+    return s / np.maximum(c, 1.0)

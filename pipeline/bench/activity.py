@@ -1,0 +1,164 @@
+"""``stridelab bench activity``: chest-accelerometer activity classes on the UCI chest set, and the speed of a
+24 h, 100 Hz day.
+
+UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (uncalibrated 12-bit counts, 52 Hz,
+unknown sensor orientation; reader ``pipeline.formats.uci_chest``). Each participant file is classified as one
+continuous recording by ``estimators.activity.classify_day``; the per-second classes are mapped to four classes
+(lying/sitting -> sitting, standing/non-wear -> standing, level walking -> walking, stairs up/down -> stairs)
+and scored on non-overlapping 10-s windows lying wholly inside one reference label (majority of the window's
+seconds). Reference: label 1 sitting, 3 and 7 standing, 4 and 6 walking, 5 stairs; 2 and 0 excluded.
+
+Protocol: no component is learned from UCI labels. Parameters are the thesis values and defaults set on
+synthetic data; participants 1-4 were looked at while developing (``development``), 5 and above were not
+(``held_out``). Both groups are reported separately, plus all participants together.
+Speed: ``classify_day`` + ``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a
+warm-up call (numba JIT).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from pipeline.console import UserError, emit_json, err_console, progress
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_UCI = PROJECT_ROOT.parent / "shared" / "data" / "uci_chest"
+BENCH_CLASSES = ("sitting", "standing", "walking", "stairs")
+LABEL_TO_CLASS = {1: 0, 3: 1, 7: 1, 4: 2, 6: 2, 5: 3}
+#: estimators.activity.CLASSES -> BENCH_CLASSES
+CLASS_MAP = np.array([0, 0, 1, 2, 3, 3, 1])
+DEVELOPMENT = ("1", "2", "3", "4")
+WINDOW_S = 10.0
+
+
+def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, window_s: float = WINDOW_S) -> np.ndarray:
+    """(4, 4) confusion (rows reference, columns predicted) over 10-s windows inside one scored label."""
+    n = labels.shape[0]
+    w = int(round(window_s * fs))
+    sec = (np.arange(n) / fs).astype(np.int64)
+    sec = np.minimum(sec, second_class.shape[0] - 1)
+    C = np.zeros((4, 4), dtype=np.int64)
+    for i in range(0, n - w + 1, w):
+        lab = labels[i:i + w]
+        if (lab != lab[0]).any() or int(lab[0]) not in LABEL_TO_CLASS:
+            continue
+        pred = np.bincount(CLASS_MAP[second_class[sec[i:i + w]]], minlength=4).argmax()
+        C[LABEL_TO_CLASS[int(lab[0])], pred] += 1
+    return C
+
+
+def scores(C: np.ndarray) -> dict:
+    """Accuracy and balanced accuracy (mean recall over the reference classes present)."""
+    tot = C.sum()
+    present = C.sum(axis=1) > 0
+    rec = np.diag(C)[present] / C.sum(axis=1)[present]
+    return {"accuracy": float(np.trace(C) / tot) if tot else None,
+            "balanced_accuracy": float(rec.mean()) if rec.size else None,
+            "windows": int(tot), "confusion": C.tolist()}
+
+
+def synthetic_day(hours: float = 24.0, fs: float = 100.0, seed: int = 0) -> np.ndarray:
+    """A synthetic chest day (m/s², sensor y up): blocks of lying, sitting, standing and 2 Hz walking."""
+    rng = np.random.default_rng(seed)
+    n = int(hours * 3600 * fs)
+    acc = np.empty((n, 3))
+    i = 0
+    g = 9.80665
+    while i < n:
+        kind = rng.integers(4)
+        m = min(n - i, int(rng.uniform(60, 1800) * fs))
+        t = np.arange(m) / fs
+        if kind == 0:
+            acc[i:i + m] = [g, 0.0, 0.0]
+        elif kind == 1:
+            acc[i:i + m] = [-g * np.sin(0.15), g * np.cos(0.15), 0.0]
+        elif kind == 2:
+            acc[i:i + m] = [-g * np.sin(0.05), g * np.cos(0.05), 0.0]
+        else:
+            acc[i:i + m, 0] = -g * np.sin(0.07) + 2.0 * np.sin(2 * np.pi * 1.9 * t)
+            acc[i:i + m, 1] = g * np.cos(0.07) + 3.0 * np.sin(2 * np.pi * 1.9 * t + 0.5)
+            acc[i:i + m, 2] = 1.0 * np.sin(np.pi * 1.9 * t)
+        i += m
+    acc += rng.normal(0.0, 0.03, acc.shape)
+    return acc
+
+
+def speed_24h(fs: float = 100.0) -> float:
+    """Seconds for classify_day + daily_summaries on a synthetic 24 h day at ``fs`` (after a JIT warm-up)."""
+    from estimators.activity import classify_day, daily_summaries
+    acc = synthetic_day(24.0, fs)
+    classify_day(acc[: int(600 * fs)], sampling_rate_hz=fs, t0_ns=0, timezone="Europe/Zurich")
+    t0 = time.perf_counter()
+    r = classify_day(acc, sampling_rate_hz=fs, t0_ns=1_700_000_000_000_000_000, timezone="Europe/Zurich")
+    daily_summaries(r)
+    return time.perf_counter() - t0
+
+
+def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = True) -> dict:
+    """Run the benchmark; returns the JSON-able result (see module docstring)."""
+    from estimators.activity import PRESETS, classify_day
+    from pipeline.formats.uci_chest import load_uci_chest
+    try:
+        parts = load_uci_chest(directory)
+    except ValueError as e:
+        raise UserError(str(e)) from e
+    methods = {}
+    with progress(show_progress) as p:
+        task = p.add_task("activity", total=len(parts) * 2 + (1 if speed else 0))
+        for name in ("thesis", "default"):
+            params = PRESETS[name]
+            per, groups = {}, {"all": np.zeros((4, 4), np.int64), "development": np.zeros((4, 4), np.int64),
+                               "held_out": np.zeros((4, 4), np.int64)}
+            for u in parts:
+                p.update(task, description=f"{name}: participant {u.participant}")
+                r = classify_day(u.acc, sampling_rate_hz=u.sampling_rate_hz, params=params)
+                C = window_confusion(r.second_class, u.labels, u.sampling_rate_hz)
+                per[u.participant] = {**scores(C), "calibration": r.calibration.status, "bouts": len(r.bouts),
+                                      "transitions": len(r.transitions)}
+                groups["all"] += C
+                groups["development" if u.participant in DEVELOPMENT else "held_out"] += C
+                p.advance(task)
+            overall = scores(groups["all"])
+            methods[name] = {**overall, "development": scores(groups["development"]),
+                             "held_out": scores(groups["held_out"]), "per_participant": per}
+        out = {"dataset": str(directory), "classes": list(BENCH_CLASSES), "window_s": WINDOW_S,
+               "protocol": ("no parameter learned from UCI labels; thesis values + defaults set on synthetic data; "
+                            "participants 1-4 inspected during development, the others held out"),
+               "development_participants": list(DEVELOPMENT), "methods": methods, "default": "default",
+               "reference_random_forest_loso_balanced_accuracy": 0.59}
+        if speed:
+            p.update(task, description="speed: 24 h at 100 Hz")
+            out["seconds_24h_100hz"] = speed_24h()
+            p.advance(task)
+    return out
+
+
+@click.command("activity")
+@click.option("--uci-chest", "uci", type=click.Path(path_type=Path), default=DEFAULT_UCI, show_default=True,
+              help="folder of the UCI chest CSV files (<n>.csv: seq,x,y,z,label)")
+@click.option("--no-speed", is_flag=True, help="skip the 24 h x 100 Hz speed measurement")
+@click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
+def command(uci: Path, no_speed: bool, as_json: bool) -> None:
+    """Daily-activity classes (sitting/standing/walking/stairs) on the UCI chest set, thesis vs default.
+
+    \b
+    Examples:
+      stridelab bench activity
+      stridelab bench activity --uci-chest ../shared/data/uci_chest --json
+    """
+    if not uci.is_dir():
+        raise UserError(f"UCI chest data not found at {uci}; pass --uci-chest DIR (see DESIGN.md 'Real data')")
+    result = run_benchmark(uci, show_progress=not as_json or err_console.is_terminal, speed=not no_speed)
+    if as_json:
+        emit_json(result)
+        return
+    for name, m in result["methods"].items():
+        err_console.print(f"{name}: accuracy {m['accuracy']:.3f}, balanced accuracy {m['balanced_accuracy']:.3f} "
+                          f"(held out {m['held_out']['balanced_accuracy']:.3f})")
+        for row, c in zip(BENCH_CLASSES, m["confusion"]):
+            err_console.print(f"  {row:9s} {c}")
+    if "seconds_24h_100hz" in result:
+        err_console.print(f"24 h at 100 Hz: {result['seconds_24h_100hz']:.2f} s")
