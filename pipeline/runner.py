@@ -228,9 +228,14 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                 out, secs = res
                 with wh.transaction() as con:
                     for t in stage.tables:
-                        con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
+                        rows = out.rows.get(t, [])
+                        if _has_column(con, t, "producer"):      # a table several stages write
+                            con.execute(f'DELETE FROM "{t}" WHERE session_id = ? AND producer = ?', [sid, stage.name])
+                            rows = [dict(r, producer=stage.name) for r in rows]
+                        else:
+                            con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
                         _fault_injection("STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT")
-                        wh.insert(t, out.rows.get(t, []))
+                        wh.insert(t, rows)
                     con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
                     wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
                                               "stage_version": stage.version, "params_hash": ph, "stamp": st,
@@ -242,6 +247,11 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
 
         on_phase(stage.name, len(items))
         ex.run_all(_stage_task_4, items, done)
+
+
+def _has_column(con, table: str, column: str) -> bool:
+    return bool(con.execute("SELECT 1 FROM information_schema.columns WHERE table_name = ? AND column_name = ?",
+                            [table, column]).fetchall())
 
 
 def _stage_task_4(stage_name, inp, params, st):

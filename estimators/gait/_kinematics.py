@@ -29,7 +29,7 @@ from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_
 from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
-           "STRIDE_COLUMNS"]
+           "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
 
 STRIDE_COLUMNS = ("start", "end", "tc", "ic", "pre_ic")
 PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_time_s", "stance_pct", "swing_pct",
@@ -174,8 +174,9 @@ class SessionGait:
 
     cadence_steps_min, gait_speed_m_s, stride_length_m, stride_time_s: session means (both feet).
     double_support_pct: mean over strides of both feet (S2).
-    per_foot: {"left"|"right": {param: mean}};  symmetry_index_pct: {param: SI} (S3).
-    n_strides: {"left": int, "right": int}.
+    per_foot: {"left"|"right": {param: mean, "double_support_pct", "cadence_steps_min"}};
+    symmetry_index_pct: {param: SI} (S3).  n_strides: {"left": int, "right": int}.
+    pooled: {param: mean over the strides of both feet} for every ``PARAM_COLUMNS`` entry.
     """
     cadence_steps_min: float
     gait_speed_m_s: float
@@ -185,6 +186,7 @@ class SessionGait:
     per_foot: dict
     symmetry_index_pct: dict
     n_strides: dict
+    pooled: dict = field(default_factory=dict)
 
 
 def _stance_mask(fk: FootKinematics, n: int) -> np.ndarray:
@@ -200,33 +202,71 @@ def gait_session(left: FootKinematics, right: FootKinematics) -> SessionGait:
     """Session parameters of a recording with both feet on the same sample grid (S1–S3)."""
     if left.sampling_rate_hz != right.sampling_rate_hz:
         raise ValueError("left and right feet must share one sample grid (resample first)")
-    n = max(len(left.pitch), len(right.pitch))
-    both = _stance_mask(left, n) & _stance_mask(right, n)
-    per_foot, ds_all = {}, []
-    for side, fk in (("left", left), ("right", right)):
-        st = fk.strides
-        ds_foot = []
-        per_foot[side] = {c: (float(np.nanmean(st.column(c))) if len(st) and np.isfinite(st.column(c)).any()
-                              else float("nan")) for c in PARAM_COLUMNS}
-        for pre, ic in zip(st.column("pre_ic"), st.column("ic")):
-            if pre >= 0:
-                ds_foot.append(100.0 * both[pre:ic].mean())
-        per_foot[side]["double_support_pct"] = float(np.mean(ds_foot)) if ds_foot else float("nan")
-        ds_all += ds_foot
-    allst = [fk.strides for fk in (left, right) if len(fk.strides)]
+    return gait_session_pooled([(left, right)])
+
+
+def gait_session_pooled(trials) -> SessionGait:
+    """Session parameters (S1–S3) pooled over several trials (walking trials of one lab session, or the
+    contiguous segments of one recording).
+
+    ``trials``: sequence of ``(left, right)`` pairs of :class:`FootKinematics`; either may be ``None`` (foot
+    missing). Per-foot means pool the strides of every trial; double support (S2) is only computed for pairs
+    with both feet (same sample grid). Equals :func:`gait_session` for a single pair.
+    """
+    feet = {"left": [], "right": []}
+    ds = {"left": [], "right": []}
+    for left, right in trials:
+        if left is not None and right is not None:
+            if left.sampling_rate_hz != right.sampling_rate_hz:
+                raise ValueError("left and right feet of a trial must share one sample grid (resample first)")
+            n = max(len(left.pitch), len(right.pitch))
+            both = _stance_mask(left, n) & _stance_mask(right, n)
+            for side, fk in (("left", left), ("right", right)):
+                for pre, ic in zip(fk.strides.column("pre_ic"), fk.strides.column("ic")):
+                    if pre >= 0:
+                        ds[side].append(100.0 * both[pre:ic].mean())
+        for side, fk in (("left", left), ("right", right)):
+            if fk is not None and len(fk.strides):
+                feet[side].append(fk.strides)
+
+    def values(tables, c):
+        v = np.concatenate([t.column(c) for t in tables]) if tables else np.zeros(0)
+        return v[np.isfinite(v)]
+
+    per_foot = {}
+    for side in ("left", "right"):
+        per_foot[side] = {}
+        for c in PARAM_COLUMNS:
+            v = values(feet[side], c)
+            per_foot[side][c] = float(v.mean()) if len(v) else float("nan")
+        per_foot[side]["double_support_pct"] = float(np.mean(ds[side])) if ds[side] else float("nan")
+        t = per_foot[side]["stride_time_s"]
+        per_foot[side]["cadence_steps_min"] = 120.0 / t if np.isfinite(t) and t > 0 else float("nan")
+    allst = feet["left"] + feet["right"]
 
     def pooled(c):
-        v = np.concatenate([s.column(c) for s in allst]) if allst else np.zeros(0)
-        v = v[np.isfinite(v)]
+        v = values(allst, c)
         return float(v.mean()) if len(v) else float("nan")
     stride_t = pooled("stride_time_s")
     si = {}
     for c in ("stride_length_m", "stride_time_s", "stance_pct", "swing_time_s", "clearance_m"):
         a, b = per_foot["left"][c], per_foot["right"][c]
         si[c] = float(200.0 * abs(a - b) / (a + b)) if np.isfinite(a) and np.isfinite(b) and (a + b) else float("nan")
+    ds_all = ds["left"] + ds["right"]
     return SessionGait(cadence_steps_min=120.0 / stride_t if np.isfinite(stride_t) else float("nan"),
                        gait_speed_m_s=pooled("gait_speed_m_s"), stride_length_m=pooled("stride_length_m"),
                        stride_time_s=stride_t,
                        double_support_pct=float(np.mean(ds_all)) if ds_all else float("nan"),
                        per_foot=per_foot, symmetry_index_pct=si,
-                       n_strides={"left": len(left.strides), "right": len(right.strides)})
+                       n_strides={s: int(sum(len(t) for t in feet[s])) for s in ("left", "right")},
+                       pooled={c: pooled(c) for c in PARAM_COLUMNS})
+
+
+def foot_params_from_dict(d: dict) -> FootParams:
+    """:class:`FootParams` from its ``dataclasses.asdict`` form (nested dicts; e.g. a stage's JSON params).
+    Unknown keys raise ``TypeError`` (a misspelt manifest key must not be silently ignored)."""
+    from estimators.trajectory import ZuptParams
+    d = dict(d)
+    traj = dict(d.pop("trajectory", {}))
+    zupt = ZuptParams(**traj.pop("zupt", {}))
+    return FootParams(trajectory=EskfParams(**traj, zupt=zupt), events=IcTcParams(**d.pop("events", {})), **d)

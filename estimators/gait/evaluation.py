@@ -11,7 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["EventMatch", "match_events", "StrideMatch", "match_strides"]
+__all__ = ["EventMatch", "match_events", "StrideMatch", "match_strides", "EventAccuracy", "event_accuracy",
+           "EVENT_TOLERANCE_S", "reference_stride_lengths", "paired_errors"]
+
+#: default event matching tolerance (±0.5 s, as the gaitmap bench; thesis §3.5 matches within a stride)
+EVENT_TOLERANCE_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -97,3 +101,80 @@ def match_strides(det_start_end: np.ndarray, ref_start_end: np.ndarray, *, toler
     order = np.argsort(rj)
     return StrideMatch(np.array(di, np.int64)[order], np.array(rj, np.int64)[order],
                        np.array([j for j in range(len(r)) if j not in ur], np.int64))
+
+
+@dataclass(frozen=True)
+class EventAccuracy:
+    """Event detection accuracy pooled over trials: Se/Pr as fractions (NaN when undefined), timing error
+    detected − reference in ms (positive = late; NaN without matches), counts, and the matched pairs
+    ``pairs_s`` (K, 2) [detected, reference] in the seconds the caller used."""
+    sensitivity: float
+    precision: float
+    timing_mae_ms: float
+    timing_mean_ms: float
+    tp: int
+    fp: int
+    fn: int
+    pairs_s: np.ndarray
+
+
+def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERANCE_S) -> EventAccuracy:
+    """Match detected to reference events per trial (:func:`match_events` on a 1 µs grid) and pool the counts.
+
+    ``detected_s`` / ``reference_s``: sequences (one entry per trial) of 1-D arrays of event times in seconds
+    (any common origin per trial). Detections more than ``tolerance_s`` outside the span the reference annotates
+    in that trial ([first − tol, last + tol]) are not counted (the reference says nothing there); a trial
+    without reference events contributes nothing.
+    """
+    if tolerance_s < 0:
+        raise ValueError(f"tolerance_s must be >= 0, got {tolerance_s}")
+    if len(detected_s) != len(reference_s):
+        raise ValueError("detected_s and reference_s need one entry per trial")
+    tp = fp = fn = 0
+    pairs = []
+    us = 1e6
+    for det, ref in zip(detected_s, reference_s):
+        det = np.asarray(det, float).ravel()
+        ref = np.asarray(ref, float).ravel()
+        if not len(ref):
+            continue
+        det = det[(det >= ref.min() - tolerance_s) & (det <= ref.max() + tolerance_s)]
+        m = match_events(np.rint(det * us).astype(np.int64), np.rint(ref * us).astype(np.int64),
+                         tolerance_samples=int(round(tolerance_s * us)))
+        tp, fp, fn = tp + m.tp, fp + len(m.fp), fn + len(m.fn)
+        pairs.append(m.pairs / us)
+    p = np.vstack(pairs) if pairs else np.zeros((0, 2))
+    err_ms = (p[:, 0] - p[:, 1]) * 1000.0
+    nan = float("nan")
+    return EventAccuracy(sensitivity=tp / (tp + fn) if tp + fn else nan, precision=tp / (tp + fp) if tp + fp else nan,
+                         timing_mae_ms=float(np.abs(err_ms).mean()) if len(err_ms) else nan,
+                         timing_mean_ms=float(err_ms.mean()) if len(err_ms) else nan, tp=tp, fp=fp, fn=fn, pairs_s=p)
+
+
+def reference_stride_lengths(ref_t_s: np.ndarray, ref_pos: np.ndarray, start_s: np.ndarray,
+                             end_s: np.ndarray) -> np.ndarray:
+    """(S,) m: horizontal displacement of a reference point (optical marker or segment origin; ``ref_pos`` (M, 3),
+    ``ref_t_s`` (M,) increasing) between stride borders ``start_s`` / ``end_s`` (mid-stances: the foot is flat
+    and still, so any foot point moves by the same amount up to foot yaw × lever arm). Linear interpolation;
+    NaN where a border is outside the reference or the reference is missing (occluded marker)."""
+    t = np.asarray(ref_t_s, float)
+    p = np.asarray(ref_pos, float)
+    out = np.full(len(start_s), np.nan)
+    if len(t) < 2:
+        return out
+
+    def at(x):
+        xy = np.column_stack([np.interp(x, t, p[:, k], left=np.nan, right=np.nan) for k in range(2)])
+        return xy
+    a, b = at(np.asarray(start_s, float)), at(np.asarray(end_s, float))
+    return np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1])
+
+
+def paired_errors(estimate: np.ndarray, reference: np.ndarray) -> dict:
+    """Summary of estimate − reference over pairs where both are finite: ``mae``, ``mean``, ``rmse``, ``n``
+    (NaN statistics when n = 0)."""
+    e = np.asarray(estimate, float) - np.asarray(reference, float)
+    e = e[np.isfinite(e)]
+    nan = float("nan")
+    return {"mae": float(np.abs(e).mean()) if len(e) else nan, "mean": float(e.mean()) if len(e) else nan,
+            "rmse": float(np.sqrt(np.mean(e ** 2))) if len(e) else nan, "n": int(len(e))}

@@ -127,22 +127,61 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
                                                    "tc_timing_mean_ms": 16.0}}
 
 
+def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) -> dict:
+    """Stride-length MAE of ``foot_kinematics`` on the platform simulator (``studies.simulator``, walking trials of
+    ``participants`` participants) for several c_a (``EskfParams.acc_noise_rel``): parameters chosen on data that is not
+    the evaluation walk. Truth = horizontal displacement of the simulated sensor between the detected mid-stances."""
+    import warnings
+    from dataclasses import replace
+
+    from estimators.gait import FootParams, foot_kinematics
+    from estimators.gait.evaluation import paired_errors
+    from estimators.trajectory import EskfParams
+    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from studies.simulator import simulate_lab_session, study_participants
+    m = load_manifest(DEFAULT_MANIFEST)
+    m = replace(m, lab=replace(m.lab, walking_trials=2, distance_sensors=False, optical_reference=False))
+    feet = []
+    for i, part in enumerate(study_participants(m, participants)):
+        for rec, truth in list(simulate_lab_session(m, part, i))[1:]:
+            feet += [(rec.imu[p].gyr, rec.imu[p].acc, truth.sensor_pos[p]) for p in ("foot_left", "foot_right")]
+    out = {}
+    for ca in acc_noise_rel:
+        fp = FootParams(trajectory=EskfParams(acc_noise_rel=ca))
+        est, ref = [], []
+        for gyr, acc, pos in feet:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fk = foot_kinematics(gyr, acc, sampling_rate_hz=m.sampling_rate_hz, params=fp)
+            a, b = fk.strides.column("start"), fk.strides.column("end")
+            est.append(fk.strides.column("stride_length_m"))
+            ref.append(np.hypot(*(pos[b, :2] - pos[a, :2]).T))
+        e = paired_errors(np.concatenate(est), np.concatenate(ref))
+        out[str(ca)] = {"stride_length_mae_m": e["mae"], "stride_length_mean_error_m": e["mean"], "strides": e["n"]}
+    return {"participants": participants, "foot_trials": len(feet), "by_acc_noise_rel": out}
+
+
 @click.command("gait")
 @click.option("--gaitmap", "gaitmap", type=click.Path(path_type=Path), default=DEFAULT_GAITMAP, show_default=True,
               help="folder of the gaitmap example walk (imu_sample.csv, mocap_sample.csv, stride_events_sample.csv)")
 @click.option("--no-speed", is_flag=True, help="skip the 2 feet x 10 min speed measurement")
+@click.option("--simulator-scan", is_flag=True,
+              help="also scan c_a (acceleration-proportional noise) on the platform simulator (not the evaluation walk)")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
-def command(gaitmap: Path, no_speed: bool, as_json: bool) -> None:
+def command(gaitmap: Path, no_speed: bool, simulator_scan: bool, as_json: bool) -> None:
     """Gait events (IC/TC sensitivity, precision, timing) and stride length vs the gaitmap mocap reference.
 
     \b
     Examples:
       stridelab bench gait
       stridelab bench gait --gaitmap ../shared/data/gaitmap_example --json
+      stridelab bench gait --no-speed --simulator-scan --json
     """
     if not gaitmap.is_dir():
         raise UserError(f"gaitmap example not found at {gaitmap}; pass --gaitmap DIR (see DESIGN.md 'Real data')")
     result = run_benchmark(gaitmap, show_progress=not as_json or err_console.is_terminal, speed=not no_speed)
+    if simulator_scan:
+        result["simulator_scan"] = globals()["simulator_scan"]()
     if as_json:
         emit_json(result)
         return

@@ -44,14 +44,10 @@ def test_filters_restrict_rows(con):
 def test_datasets_absent_then_resolved(ingested_wh, full_wh):
     c = connect_snapshot(ingested_wh)
     try:
-        # stage tables may exist (created by migrations) but hold nothing before the stages ran
-        for name, ok in Q.available(c).items():
-            if ok:
-                table = Q.resolve(c, name).table
-                assert c.execute(f'SELECT count(*) FROM "{table}"').fetchall()[0][0] == 0, name
-        s = Q.strides(c, "P001")
+        # the fixture ran the registered stages on short trials: whatever exists resolves, activity
+        # (no free-living recording here) has nothing
         a = Q.activity_daily(c, "P001")
-        assert (s is None or len(s) == 0) and (a is None or len(a) == 0)
+        assert a is None or len(a) == 0
         assert "stridelab run" in Q.missing_hint("strides")
     finally:
         c.close()

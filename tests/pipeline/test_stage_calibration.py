@@ -27,15 +27,15 @@ def _fake_gait(inp, params):
         for e in inp.events if e["type"] == "IC"]})
 
 
-GAIT = Stage(name="gait_events", version="1", needs=("orientation",), tables=("gait_events",),
+GAIT = Stage(name="gait", version="1", needs=("orientation",), tables=("gait_events",),
              session_kinds=("lab", "calibration"), compute=_fake_gait, default_params=dict)
 
 
 def _registry(with_gait: bool):
     if not with_gait:
-        return [ori_stage.STAGE, cal_stage.STAGE, ja_stage.STAGE]
-    return [ori_stage.STAGE, cal_stage.STAGE, GAIT,
-            replace(ja_stage.STAGE, needs=ja_stage.STAGE.needs + ("gait_events",))]
+        return [ori_stage.STAGE, cal_stage.STAGE,
+                replace(ja_stage.STAGE, needs=tuple(n for n in ja_stage.STAGE.needs if n != "gait"))]
+    return [ori_stage.STAGE, cal_stage.STAGE, GAIT, ja_stage.STAGE]
 
 
 def _patch(monkeypatch, reg):
@@ -66,7 +66,7 @@ def warehouse(lab_files, tmp_path_factory):
     mp = pytest.MonkeyPatch()
     try:
         with Warehouse.open(root) as wh:
-            wh.con.execute("CREATE TABLE gait_events (session_id VARCHAR, side VARCHAR, type VARCHAR, t_ns BIGINT)")
+            wh.con.execute("CREATE TABLE IF NOT EXISTS gait_events (session_id VARCHAR, side VARCHAR, type VARCHAR, t_ns BIGINT)")
         _patch(mp, _registry(with_gait=True))
         summary = runner.run(root, None, files=files)
         assert not summary.failed, summary.failed
