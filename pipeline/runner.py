@@ -151,16 +151,17 @@ def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInpu
     cols = [d[0] for d in con.execute("SELECT * FROM sessions LIMIT 0").description]
     session = dict(zip(cols, first(con.execute("SELECT * FROM sessions WHERE session_id = ?", [session_id]))))
     recs = []
-    for h, trial, start, end in con.execute(
-            "SELECT content_hash, trial, start_ns, end_ns FROM recordings WHERE session_id = ? AND status = 'ingested' "
-            "ORDER BY start_ns, content_hash", [session_id]).fetchall():
+    for h, trial, start, end, meta in con.execute(
+            "SELECT content_hash, trial, start_ns, end_ns, metadata FROM recordings "
+            "WHERE session_id = ? AND status = 'ingested' ORDER BY start_ns, content_hash", [session_id]).fetchall():
         sensors: dict = {}
         for pl, kind, path, rate, n in con.execute(
                 "SELECT placement, kind, series_path, sampling_rate_hz, n_samples FROM sensors WHERE content_hash = ? "
                 "ORDER BY topic", [h]).fetchall():
             sensors.setdefault(pl, {})[kind if kind != "range" else f"range:{path}"] = {
                 "series_path": path, "sampling_rate_hz": rate, "n_samples": n}
-        recs.append({"content_hash": h, "trial": trial, "start_ns": start, "end_ns": end, "sensors": sensors})
+        recs.append({"content_hash": h, "trial": trial, "start_ns": start, "end_ns": end, "sensors": sensors,
+                     "metadata": json.loads(meta) if meta else {}})
     upstream = {}
     stages = {s.name: s for s in registry()}
     for need in stage.needs:

@@ -62,8 +62,8 @@ def stamp(stage: Stage, params: dict, input_hash: str) -> str:
 
 def registry() -> list[Stage]:
     """All stages in topological order."""
-    from pipeline.stages import calibration, gait, joint_angles, orientation
-    stages = [orientation.STAGE, gait.STAGE, calibration.STAGE, joint_angles.STAGE]
+    from pipeline.stages import activity, calibration, gait, joint_angles, orientation
+    stages = [orientation.STAGE, gait.STAGE, calibration.STAGE, joint_angles.STAGE, activity.STAGE]
     names = set()
     for s in stages:
         missing = [n for n in s.needs if n not in names]

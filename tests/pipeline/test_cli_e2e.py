@@ -29,6 +29,13 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
     placements = {p for (p,) in con.execute("SELECT DISTINCT placement FROM sensors WHERE kind = 'imu'").fetchall()}
     assert placements == {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left",
                           "foot_right", "chest"}
+    # every registered stage ran on every session it applies to, and wrote its tables
+    ok = dict(con.execute("SELECT stage, count(*) FROM stage_runs WHERE status = 'ok' GROUP BY 1").fetchall())
+    assert ok == {"orientation": 4, "gait": 2, "calibration": 2, "joint_angles": 2, "activity": 2}
+    for table in ("gait_events", "strides", "calibration", "joint_angles", "activity_bouts", "activity_daily"):
+        assert first(con.execute(f"SELECT count(*) FROM {table}"))[0] > 0, table
+    day = con.execute("SELECT session_id, sum(end_ns - start_ns) / 1e9 FROM activity_bouts GROUP BY 1").fetchall()
+    assert all(abs(sec - 360.0) < 2 for _, sec in day)       # every second of the 0.1 h recording has a class
     # the simulator's reference is in the warehouse too
     assert first(con.execute("SELECT count(*) FROM reference_events WHERE type = 'IC'"))[0] > 10
     assert first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'reference_pose'"))[0] > 0
