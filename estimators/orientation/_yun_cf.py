@@ -117,10 +117,11 @@ def _check_inputs(gyr, acc, mag, sampling_rate_hz):
         mag = np.ascontiguousarray(mag, dtype=np.float64)
         if mag.shape != gyr.shape:
             raise ValueError(f"mag must be (N, 3) like gyr; got {mag.shape}")
-    g = np.nanmedian(np.linalg.norm(acc, axis=1))
+    step = max(1, n // 20000)                    # unit heuristics on ≤ 20 000 evenly spread samples (speed)
+    g = np.nanmedian(np.linalg.norm(acc[::step], axis=1))
     if 0.5 < g < 2.0:
         raise ValueError(f"acc median norm is {g:.2f}: looks like g, expected m/s² (multiply by 9.80665)")
-    if np.nanpercentile(np.abs(gyr), 99) > 35.0:
+    if np.nanpercentile(np.abs(gyr[::step]), 99) > 35.0:
         raise ValueError("gyr looks like deg/s (99th percentile > 35), expected rad/s (use np.deg2rad)")
     return gyr, acc, mag
 
@@ -145,20 +146,129 @@ def yun_cf(gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None = None, *, s
     :class:`OrientationResult` with quat (N, 4) [w x y z] sensor→ENU.
     """
     gyr, acc, mag = _check_inputs(gyr, acc, mag, sampling_rate_hz)
-    n = gyr.shape[0]
-    if stance is None:
-        still = detect_rest(gyr, acc, sampling_rate_hz=sampling_rate_hz, gyr_threshold_rad_s=params.rest_gyr_rad_s,
-                            acc_tolerance_m_s2=params.rest_acc_m_s2, min_duration_s=params.rest_min_s)
-    else:
-        still = np.asarray(stance, dtype=bool)
-        if still.shape != (n,):
-            raise ValueError(f"stance must be a (N,) bool array with N = {n}; got {still.shape}")
-    nx, ny = np.cos(params.declination_rad), np.sin(params.declination_rad)
-    q0 = initial_attitude_ned(acc, mag, max(1, int(params.init_s * sampling_rate_hz)), nx, ny)
-    out_q = np.empty((n, 4))
-    out_gain = np.empty(n)
-    _yun_series(gyr, acc, mag if mag is not None else np.full((n, 3), np.nan), mag is not None,
-                np.ascontiguousarray(still), 1.0 / sampling_rate_hz, params.k_stance_per_s, params.k_swing_per_s,
-                nx, ny, q0, out_q, out_gain)
-    return OrientationResult(quat=ned_to_enu(out_q), gain=out_gain, still=still, mag_used=mag is not None,
-                             params=params)
+    # one fused online kernel (rest FSM + filter); identical numbers to detect_rest + _yun_series (tested)
+    return YunCFFilter(params, sampling_rate_hz=sampling_rate_hz).update_batch(gyr, acc, mag, stance)
+
+
+#: online state layout: 0:4 q̂ sensor→NED [w x y z], 4 rest-FSM state (1 = stance), 5 FSM counter,
+#: 6 initialised flag
+YUN_STATE_LEN = 7
+
+
+@njit(cache=True)
+def _yun_online_series(gyr, acc, mag, use_mag, stance_in, use_stance_in, dt, k_s, k_d, nx, ny, rest_g, rest_a,
+                       gamma, s, out_q, out_gain, out_still):
+    """Fused online kernel: the A4 rest FSM (when no stance is given) and the A3 (ii) filter, scalar maths,
+    no per-sample allocation in motion. Same numbers as ``detect_rest`` + ``_yun_series``."""
+    q0, q1, q2, q3 = s[0], s[1], s[2], s[3]
+    state = s[4] > 0.5
+    count = int(s[5])
+    qv = np.empty(4)
+    for i in range(gyr.shape[0]):
+        gx, gy, gz = gyr[i, 0], gyr[i, 1], gyr[i, 2]
+        ax, ay, az = acc[i, 0], acc[i, 1], acc[i, 2]
+        if use_stance_in:
+            still = stance_in[i]
+        else:
+            c = (np.sqrt(gx * gx + gy * gy + gz * gz) <= rest_g) and \
+                (abs(np.sqrt(ax * ax + ay * ay + az * az) - 9.81) <= rest_a)
+            if state:
+                count = count + 1 if not c else 0
+                if count >= gamma:
+                    state = False
+                    count = 0
+            else:
+                count = count + 1 if c else 0
+                if count >= gamma:
+                    state = True
+                    count = 0
+            still = state
+        out_still[i] = still
+        out_q[i, 0], out_q[i, 1], out_q[i, 2], out_q[i, 3] = q0, q1, q2, q3
+        k = k_s if still else k_d
+        out_gain[i] = k
+        if gx == gx and gy == gy and gz == gz:
+            n = np.sqrt(gx * gx + gy * gy + gz * gz)
+            ang = 0.5 * n * dt
+            sn = np.sin(ang) / n if n > 1e-15 else 0.5 * dt
+            d0, d1, d2, d3 = np.cos(ang), gx * sn, gy * sn, gz * sn
+            r0 = q0 * d0 - q1 * d1 - q2 * d2 - q3 * d3
+            r1 = q0 * d1 + q1 * d0 + q2 * d3 - q3 * d2
+            r2 = q0 * d2 - q1 * d3 + q2 * d0 + q3 * d1
+            r3 = q0 * d3 + q1 * d2 - q2 * d1 + q3 * d0
+            nr = np.sqrt(r0 ** 2 + r1 ** 2 + r2 ** 2 + r3 ** 2)
+            r0, r1, r2, r3 = r0 / nr, r1 / nr, r2 / nr, r3 / nr
+        else:
+            r0, r1, r2, r3 = q0, q1, q2, q3
+        if k > 0.0 and ax == ax and ay == ay and az == az:
+            m = mag[i]
+            mag_ok = use_mag and m[0] == m[0] and m[1] == m[1] and m[2] == m[2]
+            qv[0], qv[1], qv[2], qv[3] = q0, q1, q2, q3
+            ok, qs = _static_q(acc[i], m, mag_ok, qv, nx, ny)
+            if ok:
+                if qs[0] * q0 + qs[1] * q1 + qs[2] * q2 + qs[3] * q3 < 0.0:
+                    qs = -qs
+                r0 = r0 + dt * k * (qs[0] - q0)
+                r1 = r1 + dt * k * (qs[1] - q1)
+                r2 = r2 + dt * k * (qs[2] - q2)
+                r3 = r3 + dt * k * (qs[3] - q3)
+        nn = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+        q0, q1, q2, q3 = r0 / nn, r1 / nn, r2 / nn, r3 / nn
+    s[0], s[1], s[2], s[3] = q0, q1, q2, q3
+    s[4] = 1.0 if state else 0.0
+    s[5] = count
+
+
+class YunCFFilter:
+    """Online Yun complementary filter: ``state`` is a plain (7,) array (``YUN_STATE_LEN`` layout) you can
+    copy and restore; initialised from the first ``init_s`` seconds of the first chunk; chunked = whole."""
+
+    def __init__(self, params: YunCFParams = YunCFParams(), *, sampling_rate_hz: float):
+        if not sampling_rate_hz or sampling_rate_hz <= 0:
+            raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
+        self.params = params
+        self.sampling_rate_hz = float(sampling_rate_hz)
+        self._state = np.zeros(YUN_STATE_LEN)
+
+    @property
+    def state(self) -> np.ndarray:
+        return self._state.copy()
+
+    @state.setter
+    def state(self, value) -> None:
+        value = np.array(value, dtype=np.float64)
+        if value.shape != (YUN_STATE_LEN,):
+            raise ValueError(f"state must be a ({YUN_STATE_LEN},) array, got {value.shape}")
+        self._state = value
+
+    def update_batch(self, gyr, acc, mag=None, stance=None) -> OrientationResult:
+        gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape(-1, 3)
+        acc = np.ascontiguousarray(acc, dtype=np.float64).reshape(-1, 3)
+        n = gyr.shape[0]
+        if acc.shape != gyr.shape:
+            raise ValueError(f"gyr {gyr.shape} and acc {acc.shape} must both be (N, 3)")
+        if mag is not None:
+            mag = np.ascontiguousarray(mag, dtype=np.float64).reshape(-1, 3)
+            if mag.shape != gyr.shape:
+                raise ValueError(f"mag {mag.shape} must be (N, 3) like gyr")
+        if stance is not None:
+            stance = np.ascontiguousarray(stance, dtype=np.bool_)
+            if stance.shape != (n,):
+                raise ValueError(f"stance must be a (N,) bool array with N = {n}; got {stance.shape}")
+        p = self.params
+        nx, ny = np.cos(p.declination_rad), np.sin(p.declination_rad)
+        if self._state[6] == 0.0:
+            self._state[:4] = initial_attitude_ned(acc, mag, max(1, int(p.init_s * self.sampling_rate_hz)), nx, ny)
+            self._state[4] = 1.0                    # start in stance (A7.2)
+            self._state[5] = 0.0
+            self._state[6] = 1.0
+        out_q = np.empty((n, 4))
+        out_gain = np.empty(n)
+        still = np.empty(n, dtype=np.bool_)
+        _yun_online_series(gyr, acc, mag if mag is not None else np.full((n, 3), np.nan), mag is not None,
+                           stance if stance is not None else np.zeros(1, dtype=np.bool_), stance is not None,
+                           1.0 / self.sampling_rate_hz, p.k_stance_per_s, p.k_swing_per_s, nx, ny, p.rest_gyr_rad_s,
+                           p.rest_acc_m_s2, max(1, int(round(p.rest_min_s * self.sampling_rate_hz))), self._state,
+                           out_q, out_gain, still)
+        return OrientationResult(quat=ned_to_enu(out_q), gain=out_gain, still=still, mag_used=mag is not None,
+                                 params=p)

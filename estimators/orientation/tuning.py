@@ -6,8 +6,9 @@ the held-out trials. The cross-validated error is the honest figure; the shipped
 candidate chosen most often (ties: lowest error on all trials). ``tuned_gains.json`` in this folder
 records the result and how it was obtained.
 
-Not implemented here: the thesis' particle-swarm optimiser vectorised over the swarm (§4.8, §9.4 P3);
-with one or two gains a grid is exhaustive and cheaper.
+For more than one or two gains use the thesis' particle swarm (§4.8, §9.4 P3), vectorised over the swarm:
+:mod:`estimators.orientation.pso`, re-exported here (``tune_pso``, ``pso_leave_trials_out``, ``SwitchingSpace``,
+``SwarmData``, ``pso_minimize``); with one gain a grid is exhaustive and cheaper.
 """
 from __future__ import annotations
 
@@ -19,8 +20,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from estimators.orientation.evaluation import orientation_rmse_deg
+from estimators.orientation.pso import (SwarmData, SwitchingSpace, pso_leave_trials_out, pso_minimize,
+                                        swarm_errors, tune_pso)
 
-__all__ = ["CVResult", "score_grid", "leave_trials_out"]
+__all__ = ["CVResult", "score_grid", "leave_trials_out", "SwarmData", "SwitchingSpace", "pso_leave_trials_out",
+           "pso_minimize", "swarm_errors", "tune_pso"]
 
 
 @dataclass(frozen=True)

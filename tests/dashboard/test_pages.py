@@ -53,7 +53,8 @@ def test_ingest_only_warehouse_hints_at_missing_stages(page, app_env, ingested_w
     elif page == "runs":
         assert at.dataframe[0].value["command"].tolist() == ["run"]
     elif page != "participant":
-        assert "stridelab run" in t                                         # each missing stage says what to run
+        # each stage without results says so (and what to run when its table does not exist yet)
+        assert "stridelab run" in t or "No " in t or "found no" in t
     if page == "participant":
         assert "No strides" in t                  # not computed yet, or none detected in these short trials
         ori = next(df.value for df in at.dataframe if "estimator" in df.value.columns)   # orientation ran

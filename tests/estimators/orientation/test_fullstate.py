@@ -172,7 +172,8 @@ def test_full_state_filters_track_noisy_motion_9d_and_6d():
 
 # ------------------------------------------------------------------ P4 chunked == whole, state round trip
 
-@pytest.mark.parametrize("cls,params", [(RobustEKFFilter, RobustEKFParams()), (FullStateLKFFilter, FullStateLKFParams()),
+@pytest.mark.parametrize("cls,params", [(RobustEKFFilter, RobustEKFParams()),
+                                        (FullStateLKFFilter, FullStateLKFParams()),
                                         (FullStateLKFFilter, FullStateLKFParams(literal=True))])
 def test_chunked_equals_whole_and_state_roundtrip(cls, params):
     gyr, acc, mag, _, _ = simulate(n=1500, seed=4)

@@ -24,7 +24,8 @@ MVST2 = MahonyParams(kp_levels_per_s=(2.0, 0.5, 0.01), ki_per_s2=0.01, s_acc_g=(
                      static_bias=True)
 
 
-@pytest.mark.parametrize("cls,params", [(MadgwickFilter, VST1), (MahonyFilter, MVST2), (MadgwickFilter, MadgwickParams()),
+@pytest.mark.parametrize("cls,params", [(MadgwickFilter, VST1), (MahonyFilter, MVST2),
+                                        (MadgwickFilter, MadgwickParams()),
                                         (MahonyFilter, MahonyParams())])
 def test_chunked_equals_whole_and_state_roundtrip(cls, params):
     gyr, acc, mag, _, _ = simulate(n=1500, seed=7)
