@@ -51,17 +51,40 @@ class ImuSeries:
     sampling_rate_hz: float
 
 
+def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
+    """Read named column groups of a series file into preallocated arrays, one row group at a time, so the
+    peak memory is the arrays themselves plus one row group (not a whole Arrow table beside them)."""
+    import pyarrow.parquet as pq
+    f = pq.ParquetFile(Path(root) / relpath)
+    n = f.metadata.num_rows
+    out = {g: (np.empty(n, dtype=np.int64) if len(cols) == 1 else np.empty((n, len(cols))))
+           for g, cols in groups.items()}
+    names = [c for cols in groups.values() for c in cols]
+    i = 0
+    for rg in range(f.num_row_groups):
+        b = f.read_row_group(rg, columns=names, use_threads=False)
+        k = b.num_rows
+        for g, cols in groups.items():
+            for j, c in enumerate(cols):
+                v = b.column(c).to_numpy()
+                if out[g].ndim == 1:
+                    out[g][i:i + k] = v
+                else:
+                    out[g][i:i + k, j] = v
+        i += k
+        del b
+    return out
+
+
 def read_imu_files(root: str | Path, imu_path: str, mag_path: str | None, sampling_rate_hz: float) -> ImuSeries:
     """Load an IMU series (and its magnetometer, resampled onto the IMU stamps if they differ)."""
-    t = read_table(root, imu_path)
-    t_ns = t.column("t_ns").to_numpy()
-    acc = np.column_stack([t.column(c).to_numpy() for c in ("acc_x", "acc_y", "acc_z")])
-    gyr = np.column_stack([t.column(c).to_numpy() for c in ("gyr_x", "gyr_y", "gyr_z")])
+    d = _read_columns(root, imu_path, {"t_ns": ("t_ns",), "acc": ("acc_x", "acc_y", "acc_z"),
+                                       "gyr": ("gyr_x", "gyr_y", "gyr_z")})
+    t_ns, acc, gyr = d["t_ns"], d["acc"], d["gyr"]
     mag = None
     if mag_path:
-        m = read_table(root, mag_path)
-        mt = m.column("t_ns").to_numpy()
-        mv = np.column_stack([m.column(c).to_numpy() for c in ("mag_x", "mag_y", "mag_z")])
+        m = _read_columns(root, mag_path, {"t_ns": ("t_ns",), "mag": ("mag_x", "mag_y", "mag_z")})
+        mt, mv = m["t_ns"], m["mag"]
         if len(mt) == len(t_ns) and np.array_equal(mt, t_ns):
             mag = mv
         elif len(mt) >= 2:

@@ -167,6 +167,26 @@ def _zero_phase_lp(x: np.ndarray, tau_s: float, sampling_rate_hz: float) -> np.n
     return sosfiltfilt(sos, x, axis=0, padtype="even", padlen=min(len(x) - 1, int(3 * tau_s * sampling_rate_hz)))
 
 
+def keep_long_runs(mask: np.ndarray, min_len: int) -> np.ndarray:
+    """The runs of True of at least ``min_len`` samples (a 1-D morphological opening with a flat
+    structure of that length, as ``scipy.ndimage.binary_opening``, in O(N) instead of O(N·min_len))."""
+    mask = np.asarray(mask, dtype=bool)
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    out = np.zeros_like(mask)
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a >= min_len:
+            out[a:b] = True
+    return out
+
+
+def dilate(mask: np.ndarray, m: int) -> np.ndarray:
+    """True wherever a True lies within ± m samples (``binary_dilation`` with ``ones(2m+1)``), O(N)."""
+    c = np.r_[0, np.cumsum(np.asarray(mask, dtype=np.int64))]
+    n = len(mask)
+    idx = np.arange(n)
+    return c[np.minimum(idx + m + 1, n)] - c[np.maximum(idx - m, 0)] > 0
+
+
 def _fill_nan(x: np.ndarray) -> np.ndarray:
     """Linear interpolation over NaN rows (edges held); all-NaN columns become 0."""
     x = x.copy()
@@ -258,11 +278,9 @@ def dcf_offline(gyr, acc, mag=None, *, sampling_rate_hz: float,
         if ok.any():
             ok &= np.abs(dip - np.nanmedian(dip[ok])) <= np.radians(params.mag_dip_deg)
         if params.mag_margin_s > 0 and (~ok).any():   # widen each rejected stretch: its edges are disturbed too
-            from scipy.ndimage import binary_dilation
-            from scipy.ndimage import binary_opening
             m = max(1, int(params.mag_margin_s * fs))
-            long_rej = binary_opening(~ok, structure=np.ones(max(1, int(0.5 * fs)), dtype=bool))   # ≥ 0.5 s
-            ok &= ~binary_dilation(long_rej, structure=np.ones(2 * m + 1, dtype=bool))
+            long_rej = keep_long_runs(~ok, max(1, int(0.5 * fs)))      # ≥ 0.5 s
+            ok &= ~dilate(long_rej, m)
         rej = ~ok
         if ok.sum() >= 2:
             d = np.full(n, np.nan)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
+from estimators.orientation.blockwise import blockwise
 from estimators.timebase import contiguous_segments
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
 from warehouse.read import read_imu_files
@@ -12,7 +13,9 @@ from warehouse.store import series_relpath, write_table
 
 def default_params() -> dict:
     from estimators.orientation import DEFAULT_OFFLINE
-    return {"estimator": DEFAULT_OFFLINE, "use_magnetometer": True}
+    # long recordings in 1-h blocks with 5 min of context each side: bounded memory per worker
+    # (estimators/orientation/blockwise.py); block_s = 0 estimates every recording in one piece
+    return {"estimator": DEFAULT_OFFLINE, "use_magnetometer": True, "block_s": 3600.0, "block_margin_s": 300.0}
 
 
 def compute(inp: SessionInput, params: dict) -> StageOutput:
@@ -21,6 +24,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     if name not in ESTIMATORS:
         raise ValueError(f"unknown orientation estimator '{name}'; choose one of {', '.join(sorted(ESTIMATORS))}")
     estimate = ESTIMATORS[name]
+    block_s, margin_s = float(params.get("block_s", 0.0)), float(params.get("block_margin_s", 300.0))
     s = inp.session
     rows, notes = [], []
     for rec in inp.recordings:
@@ -35,8 +39,9 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
             for a, b in contiguous_segments(data.t_ns):
                 if b - a < data.sampling_rate_hz:      # < 1 s between gaps: too short to converge
                     continue
-                res = estimate(data.gyr[a:b], data.acc[a:b], None if data.mag is None else data.mag[a:b],
-                               sampling_rate_hz=data.sampling_rate_hz)
+                res = blockwise(estimate, data.gyr[a:b], data.acc[a:b], None if data.mag is None else data.mag[a:b],
+                                sampling_rate_hz=data.sampling_rate_hz, block_s=block_s, margin_s=margin_s,
+                                fade_s=min(60.0, margin_s))
                 quat[a:b] = res.quat
             key = f"orientation-{rec['content_hash'][:12]}-{params_hash(params)[:12]}"
             rel = series_relpath(s["study"], s["participant_id"], s["session_id"], placement, key)
@@ -51,5 +56,5 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     return StageOutput(rows={"orientation": rows}, note="; ".join(notes))
 
 
-STAGE = Stage(name="orientation", version="1", needs=(), tables=("orientation",),
+STAGE = Stage(name="orientation", version="2", needs=(), tables=("orientation",),
               session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params)
