@@ -12,6 +12,16 @@ Rules at sample k (candidate extremum j = k − 1, look-ahead 1 sample, Algorith
     IC at k:  flag = 1,  k − IC_last > N_ref,  s_k > T,  local max at k−1                                   (R3)
 with T = −0.2, N_ref = N_w = round(0.15 f_s) (15 at 100 Hz), strict TC → IC → TC alternation (flag).
 
+Extension when a stance mask is given (batch ``foot_kinematics`` passes its zero-velocity samples; not in the
+thesis, off without a mask):
+    (R4) a foot lifted *flat* (turning, side or shuffling step) has no push-off, so s never passes below T and
+    (R2) finds no TC; strict alternation then also blocks the next heel strike. If, while flag = 0, the foot has
+    stood still for ≥ N_ref samples in a stance run that began after the last IC and then left it (sample e,
+    first moving sample), a local maximum at j = k − 1 (R1, reversed) with s_k > T and
+    s_j > s_e + M_ic (M_ic = 0.05 ≈ 3° toes up above the pitch held at the lift: a few times the stance pitch noise,
+    σ ≈ 0.01, so that the normal heel-off → push-off fall of s can never satisfy it) is a heel strike: TC at e
+    (foot-off without push-off, reported late, at k) then IC at j. Causal; the alternation is kept.
+
 One numba step function works on a state vector; :class:`GaitEventDetector` calls it per pushed sample and
 :func:`detect_ic_tc` calls it in a compiled loop, so streaming and batch are identical by construction (tested).
 """
@@ -34,11 +44,13 @@ class IcTcParams:
     refractory_s: same-type events must be more than this apart (0.15 s = 15 samples at 100 Hz).
     lookback_s: look-back window N_w for the extremum (0.15 s).
     trend_fraction: share of monotone pairs required in the look-back window (0.8).
+    flat_lift_margin: M_ic of (R4), only used with a stance mask.
     """
     threshold: float = -0.2
     refractory_s: float = 0.15
     lookback_s: float = 0.15
     trend_fraction: float = 0.8
+    flat_lift_margin: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -55,8 +67,9 @@ class GaitEvents:
     params: IcTcParams
 
 
-# state layout: [k, flag, last_tc, last_ic, n_filled, head]; ring buffer of length n_w + 3 kept separately
-_K, _FLAG, _LTC, _LIC, _FILL, _HEAD = range(6)
+# state layout: [k, flag, last_tc, last_ic, n_filled, head, stance_run, stance_start, exit_k];
+# ring buffer of length n_w + 3 and the float state [s at exit] kept separately
+_K, _FLAG, _LTC, _LIC, _FILL, _HEAD, _RUN, _RSTART, _EXIT = range(9)
 
 
 @njit(cache=True)
@@ -77,13 +90,24 @@ def _is_ext(buf, head, L, n_w, need, sign):
 
 
 @njit(cache=True)
-def _step(state, buf, s, thr, n_ref, n_w, need):
-    """Push one sample; returns 0 (none), 1 (TC at k) or 2 (IC at k). Rules (R2), (R3)."""
+def _step(state, fstate, buf, s, stance, thr, n_ref, n_w, need, margin):
+    """Push one sample; returns 0 (none), 1 (TC at k), 2 (IC at k) or 3 (TC at ``state[_EXIT]`` and IC at k).
+    Rules (R2), (R3); (R4) when ``stance`` (−1 = unknown, 0 = moving, 1 = still) is ever ≥ 0."""
     L = buf.shape[0]
     state[_K] += 1
     k = state[_K]
     buf[state[_HEAD]] = s
     state[_HEAD] = (state[_HEAD] + 1) % L
+    # (R4) bookkeeping: a stance run of >= n_ref samples that began after the last IC, then left at k
+    if stance == 1:
+        if state[_RUN] == 0:
+            state[_RSTART] = k
+        state[_RUN] += 1
+    elif stance == 0:
+        if state[_RUN] >= n_ref and state[_LIC] >= 0 and state[_RSTART] > state[_LIC] - 1 and state[_FLAG] == 0:
+            state[_EXIT] = k
+            fstate[0] = s
+        state[_RUN] = 0
     if state[_FILL] < L:
         state[_FILL] += 1
         if state[_FILL] < L:
@@ -95,19 +119,28 @@ def _step(state, buf, s, thr, n_ref, n_w, need):
             _is_ext(buf, head, L, n_w, need, 1.0):
         state[_LTC] = k
         state[_FLAG] = 1
+        state[_EXIT] = -1
         return 1
     if state[_FLAG] == 1 and (state[_LIC] < 0 or k - state[_LIC] > n_ref) and s > thr and \
             _is_ext(buf, head, L, n_w, need, -1.0):
         state[_LIC] = k
         state[_FLAG] = 0
+        state[_EXIT] = -1
         return 2
+    if state[_FLAG] == 0 and state[_EXIT] > state[_LIC] and k - state[_EXIT] > n_ref and s > thr and \
+            buf[(head - 2) % L] > fstate[0] + margin and _is_ext(buf, head, L, n_w, need, -1.0):
+        state[_LTC] = state[_EXIT]
+        state[_LIC] = k
+        return 3
     return 0
 
 
 @njit(cache=True)
-def _run(sig, state, buf, thr, n_ref, n_w, need, out):
+def _run(sig, stance, state, fstate, buf, thr, n_ref, n_w, need, margin, out, exit_k):
     for i in range(sig.shape[0]):
-        out[i] = _step(state, buf, sig[i], thr, n_ref, n_w, need)
+        out[i] = _step(state, fstate, buf, sig[i], stance[i], thr, n_ref, n_w, need, margin)
+        if out[i] == 3:
+            exit_k[i] = state[_LTC]
 
 
 def _coeffs(params: IcTcParams, sampling_rate_hz: float) -> tuple[int, int, int]:
@@ -121,35 +154,57 @@ def _coeffs(params: IcTcParams, sampling_rate_hz: float) -> tuple[int, int, int]
 class GaitEventDetector:
     """Streaming IC/TC detector of one foot: ``push(s_k)`` → ``None`` or ``("TC"|"IC", k_detect, k_extremum)``.
 
-    The state (``state``, ``buf``) is plain arrays that can be copied and restored (chunked = whole).
+    ``push(s_k, stance)`` with ``stance`` True/False (foot still at k) also applies (R4); then a push can return
+    two events ``[("TC", k, e), ("IC", k, k − 1)]`` (the flat-lift TC at the lift sample e, known only now).
+    The state (``state``, ``fstate``, ``buf``) is plain arrays that can be copied and restored (chunked = whole).
     """
 
     def __init__(self, *, sampling_rate_hz: float, params: IcTcParams = IcTcParams()):
         self.params = params
         self._n_ref, self._n_w, self._need = _coeffs(params, sampling_rate_hz)
-        self.state = np.array([-1, 0, -1, -1, 0, 0], dtype=np.int64)
+        self.state = np.array([-1, 0, -1, -1, 0, 0, 0, -1, -1], dtype=np.int64)
+        self.fstate = np.zeros(1)
         self.buf = np.zeros(self._n_w + 3)
 
-    def push(self, s: float):
-        """Feed one sample of s = −sin(pitch); returns the event detected at this sample, if any."""
-        r = _step(self.state, self.buf, float(s), self.params.threshold, self._n_ref, self._n_w, self._need)
+    def push(self, s: float, stance: bool | None = None):
+        """Feed one sample of s = −sin(pitch) (and optionally whether the foot is still); returns the event(s)
+        detected at this sample, if any."""
+        st = -1 if stance is None else int(bool(stance))
+        r = _step(self.state, self.fstate, self.buf, float(s), st, self.params.threshold, self._n_ref, self._n_w,
+                  self._need, self.params.flat_lift_margin)
         if r == 0:
             return None
         k = int(self.state[_K])
+        if r == 3:
+            return [("TC", k, int(self.state[_LTC])), ("IC", k, k - 1)]
         return ("TC" if r == 1 else "IC", k, k - 1)
 
 
-def detect_ic_tc(s: np.ndarray, *, sampling_rate_hz: float, params: IcTcParams = IcTcParams()) -> GaitEvents:
-    """Batch Algorithm 1 over the whole pitch signal ``s`` (N,); equals :class:`GaitEventDetector` sample by sample."""
+def detect_ic_tc(s: np.ndarray, *, sampling_rate_hz: float, params: IcTcParams = IcTcParams(),
+                 stance: np.ndarray | None = None) -> GaitEvents:
+    """Batch Algorithm 1 over the whole pitch signal ``s`` (N,); equals :class:`GaitEventDetector` sample by sample.
+
+    ``stance`` (N,) bool (foot still, e.g. the zero-velocity samples) enables (R4); None = thesis Algorithm 1 only.
+    """
     s = np.ascontiguousarray(s, dtype=float)
     if s.ndim != 1:
         raise ValueError(f"s must be a 1-D pitch signal, got shape {s.shape}")
+    if stance is None:
+        st = np.full(len(s), -1, dtype=np.int8)
+    else:
+        st = np.asarray(stance, dtype=bool)
+        if st.shape != s.shape:
+            raise ValueError(f"stance must have the shape of s {s.shape}, got {st.shape}")
+        st = st.astype(np.int8)
     det = GaitEventDetector(sampling_rate_hz=sampling_rate_hz, params=params)
     out = np.zeros(len(s), dtype=np.int8)
-    _run(s, det.state, det.buf, params.threshold, det._n_ref, det._n_w, det._need, out)
-    tc = np.flatnonzero(out == 1)
-    ic = np.flatnonzero(out == 2)
-    return GaitEvents(ic_idx=ic - 1, tc_idx=tc - 1, ic_detect_idx=ic, tc_detect_idx=tc, params=params)
+    exit_k = np.full(len(s), -1, dtype=np.int64)
+    _run(s, st, det.state, det.fstate, det.buf, params.threshold, det._n_ref, det._n_w, det._need,
+         params.flat_lift_margin, out, exit_k)
+    tc_det = np.flatnonzero((out == 1) | (out == 3))
+    tc = np.where(out[tc_det] == 3, exit_k[tc_det], tc_det - 1)
+    ic = np.flatnonzero((out == 2) | (out == 3))
+    return GaitEvents(ic_idx=ic - 1, tc_idx=tc, ic_detect_idx=ic, tc_detect_idx=tc_det, params=params)
 
 
 def pitch_signal(quat: np.ndarray, anterior_axis_sensor: np.ndarray) -> np.ndarray:

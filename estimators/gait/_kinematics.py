@@ -3,7 +3,7 @@
 Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.trajectory) → stance runs and their
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
-→ IC/TC by Algorithm 1 → strides.
+→ IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → strides.
 
     K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
         (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
@@ -134,7 +134,7 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         u = np.array([1.0, 0.0, 0.0])
         notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
     s = pitch_signal(traj.quat, u)
-    ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events)
+    ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt)
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None

@@ -9,6 +9,8 @@ Model (error = truth − estimate, world-frame attitude error ``R_true = (I + [�
               σ_a,k = σ_a + c_a·| |f_k| − g | ,  σ_g,k = σ_g + c_g·|ω_k|   (signal-proportional error:      (E4b)
               scale factor, cross-axis, clipped or under-sampled impacts; the smoother then puts the
               velocity correction where the error was made — at heel-strike impacts — not spread over the swing)
+              | |f_k| − g | in (E4b) is the maximum over ±w/2 around k, w = 30 ms (heel-strike transient     (E4c)
+              duration): an under-sampled impact's integration error is not only on its peak sample
     ZUPT      z = 0 − v̂_k = H δx + n ,  H = [0 I 0 0 0] ,  R = σ_z,k² I  (at detected stance samples) (E5)
               σ_z,k = σ_z + r_lever·|ω_k|: a foot point r_lever from the rolling contact moves at |ω|·r (E5b)
     update    Joseph form; inject p,v,b additively, q ← quat(δθ) ⊗ q ; reset δx = 0          (E6)

@@ -98,3 +98,60 @@ def test_rate_scaling_params():
     ev = detect_ic_tc(s200, sampling_rate_hz=200.0, params=p)
     m = match_events(ev.ic_idx / 2.0, ic_true, tolerance_samples=50)
     assert m.sensitivity == 1.0 and np.abs(m.error_samples).max() <= 1
+
+
+def _flat_lift_walk(noise=0.002, seed=1):
+    """Two normal strides, then a flat-footed lift (turning step: the foot leaves a 0.6 s still stance without
+    pitching toes-down) landing with a heel strike, then normal strides again. Returns s, stance mask, lift
+    sample, heel-strike peak sample."""
+    s, _ = synthetic_s(n=2, noise=0.0)
+    stance = np.zeros(len(s), bool)
+    # still foot-flat after the last IC of the template: the template is ≈ 0 there
+    end_flat = len(s)
+    flat = np.zeros(60)                                   # 0.6 s standing still
+    lift = np.zeros(35)                                   # flat lift: s stays at 0 ± tiny wobble
+    t = np.arange(40) / 40.0
+    strike = 0.35 * np.sin(np.pi * t)                     # toes up to +0.35 (heel strike) and back
+    tail, _ = synthetic_s(n=2, noise=0.0)
+    tail = tail[300:]                                     # no second standing period
+    s2 = np.concatenate([s, flat, lift, strike, np.zeros(30), tail])
+    stance2 = np.concatenate([stance, np.ones(60, bool), np.zeros(35 + 40, bool), np.ones(30, bool),
+                              np.zeros(len(tail), bool)])
+    stance2[:300] = True                                  # initial standing
+    rng = np.random.default_rng(seed)
+    s2 = s2 + noise * rng.standard_normal(len(s2))
+    lift_k = end_flat + 60
+    peak = lift_k + 35 + int(np.argmax(strike))
+    return s2, stance2, lift_k, peak
+
+
+def test_flat_lift_rule_finds_the_heel_strike_after_a_flat_lift():
+    s, stance, lift_k, peak = _flat_lift_walk()
+    plain = detect_ic_tc(s, sampling_rate_hz=FS)
+    ev = detect_ic_tc(s, sampling_rate_hz=FS, stance=stance)
+    # thesis Algorithm 1 alone: no TC in the flat lift, so strict alternation blocks that heel strike
+    assert not np.any(np.abs(plain.ic_idx - peak) <= 3)
+    # (R4): TC at the lift (first moving sample), IC at the heel-strike maximum
+    assert np.any(ev.tc_idx == lift_k)
+    assert np.any(np.abs(ev.ic_idx - peak) <= 3)
+    allev = sorted([(i, "I") for i in ev.ic_idx] + [(i, "T") for i in ev.tc_idx])
+    kinds = "".join(k for _, k in allev)
+    assert kinds.startswith("T") and "TT" not in kinds and "II" not in kinds
+    # streaming with the stance flag gives the same events (the flat-lift TC reported late, at the IC)
+    det = GaitEventDetector(sampling_rate_hz=FS)
+    ic, tc = [], []
+    for x, st in zip(s, stance):
+        r = det.push(x, bool(st))
+        for e in ([] if r is None else (r if isinstance(r, list) else [r])):
+            (ic if e[0] == "IC" else tc).append(e[2])
+    assert np.array_equal(ic, ev.ic_idx) and np.array_equal(tc, ev.tc_idx)
+
+
+def test_stance_mask_changes_nothing_in_normal_gait():
+    """(R4) must never fire in ordinary strides (stance = foot-flat part of the template)."""
+    for stride_s in (0.8, 1.1, 1.6):
+        s, _ = synthetic_s(stride_s=stride_s, noise=0.002, seed=3)
+        stance = np.abs(s) < 0.02
+        a = detect_ic_tc(s, sampling_rate_hz=FS)
+        b = detect_ic_tc(s, sampling_rate_hz=FS, stance=stance)
+        assert np.array_equal(a.ic_idx, b.ic_idx) and np.array_equal(a.tc_idx, b.tc_idx)
