@@ -124,8 +124,10 @@ def _run_with_progress(**kw):
               help="Override the number of participants.")
 @click.option("--hours", type=click.FloatRange(0.01, 48), default=None,
               help="Override the free-living recording length in hours (default from the manifest: 24).")
+@click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None,
+              help="Participants simulated in parallel [default: number of cores].")
 @click.option("--json", "as_json", is_flag=True, help="Print the files written as JSON.")
-def simulate(directory: Path, manifest, seed, participants, hours, as_json) -> None:
+def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json) -> None:
     """Write a synthetic study (MCAP recordings with reference) into DIRECTORY.
 
     \b
@@ -133,11 +135,12 @@ def simulate(directory: Path, manifest, seed, participants, hours, as_json) -> N
       stridelab simulate stridelab-home/inbox
       stridelab simulate /tmp/inbox --participants 2 --hours 1 --seed 7
     """
+    import os
     from pipeline.console import UserError, emit_json, err_console
     from pipeline.simulate import simulate_to_dir
     try:
         files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
-                                on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
+                                jobs=jobs or os.cpu_count() or 1, on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
     except ValueError as e:
         raise UserError(str(e).splitlines()[0]) from None
     if as_json:
@@ -265,7 +268,8 @@ def demo(no_serve, home, port, jobs) -> None:
         err_console.print(f"using the {len(existing)} recordings already in {inbox}")
     else:
         err_console.print(f"simulating the demo study into {inbox} …")
-        simulate_to_dir(inbox, on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
+        simulate_to_dir(inbox, jobs=jobs or os.cpu_count() or 1,
+                        on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
     summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo")
     summary.reports = _write_reports(wh, summary.run_id, None)
     _print_summary(summary, False)

@@ -70,7 +70,7 @@ def command(participants, hours, jobs, scaling_participants, engine, workdir, as
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
-        files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours)
+        files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs)
         sim_s = time.perf_counter() - t0
         err_console.print(f"simulated {len(files)} recordings of {participants} participants in {sim_s:.0f} s")
         k = min(scaling_participants, participants)
