@@ -10,6 +10,13 @@ into a rotation about ENU z (heading) and the rest (inclination):
 Errors are RMS over a mask (BROAD: ``movement``) in degrees; samples where either quaternion is NaN
 are left out. No alignment or heading offset is removed: a 9D estimate is scored against the ENU
 reference as it stands.
+
+Lab sessions (optical segment poses, :func:`segment_alignment`): the reference gives the *segment*
+(marker cluster) orientation in the *lab* frame, the IMU estimate the *sensor* orientation in ENU. Two
+constant rotations separate them — the sensor's mounting on the segment and the lab frame's heading in
+ENU (the lab's z axis is vertical) — and both are estimated from the whole trial before scoring, as in
+the BROAD paper's evaluation of sensors with an unknown mounting. Inclination errors are unaffected by the
+heading offset; total and heading errors are relative to the trial's mean heading offset.
 """
 from __future__ import annotations
 
@@ -17,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.quaternion import quat_conj, quat_mul
+from estimators.quaternion import quat_conj, quat_mul, quat_normalize
 
-__all__ = ["OrientationError", "orientation_error_deg", "orientation_rmse_deg"]
+__all__ = ["OrientationError", "orientation_error_deg", "orientation_rmse_deg", "segment_alignment",
+           "align_reference"]
 
 
 def orientation_error_deg(q_est: np.ndarray, q_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -67,3 +75,39 @@ def orientation_rmse_deg(q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray 
         return float(np.sqrt(np.mean(x[ok] ** 2)))
 
     return OrientationError(rms(total), rms(heading), rms(incl), n)
+
+
+def _mean_quat(q: np.ndarray) -> np.ndarray:
+    """Chordal L2 mean of unit quaternions (eigenvector of Σ q qᵀ with the largest eigenvalue)."""
+    q = q[np.all(np.isfinite(q), axis=1)]
+    if len(q) == 0:
+        raise ValueError("no finite quaternion to average")
+    w, v = np.linalg.eigh(q.T @ q)
+    m = v[:, -1]
+    return m if m[0] >= 0 else -m
+
+
+def segment_alignment(q_est: np.ndarray, q_ref: np.ndarray, *, iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """The two constant rotations between an IMU estimate and an optical segment reference.
+
+    q_est (N, 4): sensor→ENU; q_ref (N, 4): segment→lab (both [w x y z], NaN rows ignored). Model
+    ``q_est ≈ q_heading ⊗ q_ref ⊗ q_mount`` with ``q_heading`` a rotation about the vertical (lab→ENU) and
+    ``q_mount`` the sensor's orientation on the segment (sensor→segment). Alternating chordal-mean least
+    squares, starting from ``q_heading`` = identity. Returns ``(q_heading, q_mount)``.
+    """
+    q_est = np.asarray(q_est, float)
+    q_ref = np.asarray(q_ref, float)
+    if q_est.shape != q_ref.shape or q_est.shape[-1] != 4:
+        raise ValueError(f"q_est {q_est.shape} and q_ref {q_ref.shape} must both be (N, 4) [w x y z]")
+    h = np.array([1.0, 0.0, 0.0, 0.0])
+    for _ in range(iterations):
+        mount = _mean_quat(quat_mul(quat_conj(quat_mul(h, q_ref)), q_est))
+        g = _mean_quat(quat_mul(q_est, quat_conj(quat_mul(q_ref, mount))))
+        h = quat_normalize(np.array([g[0], 0.0, 0.0, g[3]]))            # its twist about the vertical
+    return h, mount
+
+
+def align_reference(q_est: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
+    """The reference mapped onto the estimate's frames (sensor→ENU), ready for :func:`orientation_rmse_deg`."""
+    h, mount = segment_alignment(q_est, q_ref)
+    return quat_mul(quat_mul(np.broadcast_to(h, q_ref.shape), q_ref), np.broadcast_to(mount, q_ref.shape))

@@ -5,10 +5,41 @@ import numpy as np
 import pyarrow as pa
 
 from estimators.orientation.blockwise import blockwise
+from estimators.orientation.evaluation import align_reference, orientation_error_deg
 from estimators.timebase import contiguous_segments
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
 from warehouse.read import read_imu_files
-from warehouse.store import series_relpath, write_table
+from warehouse.store import read_table, series_relpath, write_table
+
+
+def _reference_on(t_ns: np.ndarray, inp: SessionInput, ref: dict) -> np.ndarray:
+    """Optical segment orientation (segment→lab) at the IMU stamps: the nearest reference sample within half a
+    reference period, NaN elsewhere (occlusions, before/after the capture)."""
+    t = read_table(inp.root, ref["series_path"], columns=["t_ns", "qw", "qx", "qy", "qz"])
+    rt = t.column("t_ns").to_numpy()
+    rq = np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")])
+    out = np.full((len(t_ns), 4), np.nan)
+    if len(rt) < 2:
+        return out
+    half = 0.5 * float(np.median(np.diff(rt)))
+    j = np.clip(np.searchsorted(rt, t_ns), 1, len(rt) - 1)
+    j -= (t_ns - rt[j - 1]) < (rt[j] - t_ns)
+    ok = np.abs(rt[j] - t_ns) <= half
+    out[ok] = rq[j[ok]]
+    return out
+
+
+def _accuracy_rows(sid: str, name: str, errors: dict) -> list[dict]:
+    """Per placement, RMS errors pooled over the session's recordings (after per-recording alignment)."""
+    rows = []
+    for placement, parts in sorted(errors.items()):
+        tot, hea, inc = (np.concatenate([p[k] for p in parts]) for k in range(3))
+        for metric, e in (("total_rmse_deg", tot), ("heading_rmse_deg", hea), ("inclination_rmse_deg", inc)):
+            rows.append({"session_id": sid, "stage": "orientation", "estimator": name, "placement": placement,
+                         "metric": metric, "value": float(np.sqrt(np.mean(e ** 2))), "unit": "deg"})
+        rows.append({"session_id": sid, "stage": "orientation", "estimator": name, "placement": placement,
+                     "metric": "n_scored", "value": float(len(tot)), "unit": "samples"})
+    return rows
 
 
 def default_params() -> dict:
@@ -26,7 +57,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     estimate = ESTIMATORS[name]
     block_s, margin_s = float(params.get("block_s", 0.0)), float(params.get("block_margin_s", 300.0))
     s = inp.session
-    rows, notes = [], []
+    rows, notes, errors = [], [], {}
     for rec in inp.recordings:
         for placement, kinds in sorted(rec["sensors"].items()):
             if "imu" not in kinds:
@@ -51,10 +82,18 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                          "estimator": name, "estimator_version": STAGE.version, "params": canonical_json(params),
                          "n_samples": len(data.t_ns), "sampling_rate_hz": data.sampling_rate_hz,
                          "mag_used": data.mag is not None, "series_path": rel})
+            ref = kinds.get("reference_pose")
+            if ref is not None:          # optical segment pose: score after aligning mounting and lab heading
+                q_ref = _reference_on(data.t_ns, inp, ref)
+                ok = np.isfinite(q_ref[:, 0]) & np.isfinite(quat[:, 0])
+                if ok.sum() >= data.sampling_rate_hz:
+                    e = orientation_error_deg(quat[ok], align_reference(quat[ok], q_ref[ok]))
+                    errors.setdefault(placement, []).append(e)
             if np.isnan(quat[:, 0]).any():
                 notes.append(f"{placement}: {int(np.isnan(quat[:, 0]).sum())} samples without orientation")
-    return StageOutput(rows={"orientation": rows}, note="; ".join(notes))
+    return StageOutput(rows={"orientation": rows, "accuracy_metrics": _accuracy_rows(s["session_id"], name, errors)},
+                       note="; ".join(notes))
 
 
-STAGE = Stage(name="orientation", version="2", needs=(), tables=("orientation",),
+STAGE = Stage(name="orientation", version="2", needs=(), tables=("orientation", "accuracy_metrics"),
               session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params)

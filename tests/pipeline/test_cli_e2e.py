@@ -39,6 +39,11 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
     # the simulator's reference is in the warehouse too
     assert first(con.execute("SELECT count(*) FROM reference_events WHERE type = 'IC'"))[0] > 10
     assert first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'reference_pose'"))[0] > 0
+    # ... and scored: orientation against the optical segment poses (7 lab placements + chest per lab session)
+    acc = con.execute("SELECT placement, value FROM accuracy_metrics WHERE stage = 'orientation' "
+                      "AND producer = 'orientation' AND metric = 'inclination_rmse_deg'").fetchall()
+    assert len(acc) == 2 * 8 and all(0.0 < v < 10.0 for _, v in acc)
+    assert first(con.execute("SELECT count(*) FROM accuracy_metrics WHERE producer = 'gait'"))[0] > 0
 
 
 def test_simulate_refuses_a_bad_manifest_with_one_line(tmp_path):
