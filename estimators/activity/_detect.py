@@ -109,12 +109,14 @@ def detect_transitions(theta_deg, ga, acc, sec_static, sec_ga, fs: float, p: Act
         t_e = _walk_to_minimum(theta_deg, b - 1, 1, limit, p.minima_tolerance_deg)
         if t_e - t_s < 3:
             continue
-        if a_v is None:
-            g = ga[t_s:t_e + 1]
-            av = np.einsum("ij,ij->i", acc[t_s:t_e + 1], g) / np.linalg.norm(g, axis=1)
-        else:
-            av = a_v[t_s:t_e + 1]
-        dy, _ = chest_height_change_m(av, fs)
+        dy = _window_dy(acc, ga, a_v, t_s, t_e, fs)
+        pad = int(round(p.dy_pad_s * fs))
+        if pad > 0:                 # the θ minima can cut the chest motion (e.g. a window starting mid-rise)
+            i0, i1 = max(0, t_s - pad), min(n - 1, t_e + pad)
+            if _quiet(acc, i0, t_s, p.static_std_g) and _quiet(acc, t_e, i1, p.static_std_g):
+                dy2 = _window_dy(acc, ga, a_v, i0, i1, fs)
+                if abs(dy2) > abs(dy):
+                    dy = dy2
         if abs(dy) < p.dy_fraction * p.thigh_length_m:
             continue                                     # bowing, squat, reaching: not a sit/stand
         svm = np.linalg.norm(ga[t_s:t_e + 1], axis=1) - 1.0
@@ -127,12 +129,44 @@ def detect_transitions(theta_deg, ga, acc, sec_static, sec_ga, fs: float, p: Act
     return Transitions(t_s=f(ts), kind=f(kinds, np.int8), start_s=f(t0s), end_s=f(t1s), dy_m=f(dys))
 
 
+def _quiet(acc, i0, i1, std_g):
+    """No walking-like movement in samples [i0, i1): std of ‖a‖ below ``std_g`` (the ΔY padding must
+    start and end at rest, or the mean-removed double integral drifts)."""
+    if i1 - i0 < 2:
+        return True
+    return float(np.linalg.norm(acc[i0:i1], axis=1).std()) < std_g
+
+
+def _window_dy(acc, ga, a_v, i0, i1, fs):
+    """ΔY (Eq. 56) over samples [i0, i1]: a_vg from GA (Eq. 55, ``a_v`` given) or raw acc projected on the GA
+    direction (``a_v`` None)."""
+    if a_v is None:
+        g = ga[i0:i1 + 1]
+        av = np.einsum("ij,ij->i", acc[i0:i1 + 1], g) / np.linalg.norm(g, axis=1)
+    else:
+        av = a_v[i0:i1 + 1]
+    return chest_height_change_m(av, fs)[0]
+
+
 def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
                 mag: np.ndarray | None = None) -> np.ndarray:
-    """SVM used for steps: thesis Eq. 57 on GA (``svm_walk_source="ga"``) or ‖a‖ − 1 g low-passed at
-    ``step_lowpass_hz`` (``"raw"``; orientation-free, used before the frame is known)."""
+    """Signal whose positive peaks are steps (in g).
+
+    ``svm_walk_source="ga"``: thesis Eq. 57, SVM = ‖GA‖ − g. ``"raw"``: ‖a‖ − 1 g low-passed at
+    ``step_lowpass_hz``. ``"vertical"`` (default): the raw acceleration projected on the GA gravity direction
+    (the raw-component form of Eq. 55, a_v = a·GA/‖GA‖ − 1 g), band-passed ``step_highpass_hz``–
+    ``step_lowpass_hz`` (2nd-order Butterworth, causal): orientation-free like ‖a‖, free of the horizontal
+    sway at the stride frequency and of static offsets (an imperfect auto-calibration)."""
     if p.svm_walk_source == "ga":
         return np.sqrt(np.einsum("ij,ij->i", ga, ga)) - 1.0
+    if p.svm_walk_source == "vertical":
+        from estimators.activity._kernels import vertical_projection
+        x = vertical_projection(np.ascontiguousarray(acc_g), np.ascontiguousarray(ga))
+        if x.size == 0:
+            return x
+        hi = min(p.step_lowpass_hz, 0.45 * fs)
+        sos = signal.butter(2, [p.step_highpass_hz, hi], btype="bandpass", fs=fs, output="sos")
+        return signal.sosfilt(sos, x - x[0])            # zero state = steady state of a constant start
     if mag is None:
         mag = np.sqrt(np.einsum("ij,ij->i", acc_g, acc_g)) - 1.0
     sos = signal.butter(2, min(p.step_lowpass_hz, 0.45 * fs), fs=fs, output="sos")
@@ -140,11 +174,25 @@ def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
     return signal.sosfilt(sos, mag, zi=zi)[0] if mag.size else mag
 
 
+def step_threshold(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray | float:
+    """Step peak height threshold: ``step_threshold_g`` (thesis: one predefined threshold), or with
+    ``step_relative > 0`` (extension) the larger of it and ``step_relative`` × the local step amplitude
+    √2 · RMS(step signal) over ``step_rms_window_s`` — adapts to a slow, weak or asymmetric gait."""
+    if p.step_relative <= 0 or svm.size == 0:
+        return p.step_threshold_g
+    from scipy.ndimage import uniform_filter1d
+    w = max(3, int(round(p.step_rms_window_s * fs)))
+    rms = np.sqrt(np.maximum(uniform_filter1d(svm * svm, w, mode="nearest"), 0.0))
+    return np.maximum(p.step_threshold_g, p.step_relative * np.sqrt(2.0) * rms)
+
+
 def detect_steps(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray:
-    """Positive SVM peaks above ``step_threshold_g`` at least ``step_min_interval_s`` apart (sample indices)."""
+    """Positive step-signal peaks above the (fixed or adaptive, ``step_threshold``) threshold, at least
+    ``step_min_interval_s`` apart (sample indices)."""
     if svm.size < 3:
         return np.zeros(0, dtype=np.int64)
-    pk, _ = signal.find_peaks(svm, height=p.step_threshold_g, distance=max(1, int(p.step_min_interval_s * fs)),
+    h = step_threshold(svm, fs, p)
+    pk, _ = signal.find_peaks(svm, height=h, distance=max(1, int(p.step_min_interval_s * fs)),
                               prominence=0.5 * p.step_threshold_g)
     return pk.astype(np.int64)
 
@@ -192,15 +240,17 @@ def classify_bouts(groups: list[np.ndarray], theta_deg: np.ndarray, ga: np.ndarr
     else:
         all_int = np.concatenate([np.diff(g) for g in kept]) / fs
         ref_int = float(np.median(all_int))
-        all_pk = np.concatenate(kept)
-        ref_lean = float(np.median(lean[all_pk]))
+        ref_lean = float(np.median(np.concatenate([lean[g[0]:g[-1] + 1] for g in kept])))
         for g in kept:
             d = np.diff(g) / fs
             dd = np.concatenate([d[:1], d])                  # interval ending at each step (first: next one)
             k = min(5, dd.size)
             loc = _rolling_median(dd, k)
             stairs = ref_int / loc < p.stairs_cadence_ratio
-            lean_loc = _rolling_median(lean[g], k)
+            cl = np.concatenate([[0.0], np.cumsum(lean[g[0]:g[-1] + 1])])
+            j = g - g[0]                                      # mean lean over each step interval (not at the
+            ls = (cl[j[1:]] - cl[j[:-1]]) / np.maximum(np.diff(j), 1)   # peak: the lean oscillates per step)
+            lean_loc = _rolling_median(np.concatenate([ls[:1], ls]), k)
             mod = np.where(stairs, np.where(lean_loc - ref_lean > p.stairs_lean_deg, UP, DOWN), LEVEL)
             mod = _smooth_labels(mod.astype(np.int8), 5)
             cut = np.flatnonzero(np.diff(mod)) + 1

@@ -116,3 +116,17 @@ def second_mean1(x, fs, n_sec):
         c[k] += 1.0
         s[k] += x[i]
     return s / np.maximum(c, 1.0)
+
+
+@njit(cache=True)
+def vertical_projection(acc, ga):
+    """a_v = acc · GA / ‖GA‖ − 1 per sample (raw form of Eq. 55, in g)."""
+    n = acc.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        q = ga[i, 0] * ga[i, 0] + ga[i, 1] * ga[i, 1] + ga[i, 2] * ga[i, 2]
+        if q > 1e-12:
+            out[i] = (acc[i, 0] * ga[i, 0] + acc[i, 1] * ga[i, 1] + acc[i, 2] * ga[i, 2]) / np.sqrt(q) - 1.0
+        else:
+            out[i] = 0.0
+    return out

@@ -188,24 +188,40 @@ def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
 
 
-def nonwear_seconds(sec_std_xyz: np.ndarray, sec_incl_deg: np.ndarray, *, std_g: float, min_s: float,
-                    lying_deg: float) -> np.ndarray:
-    """Non-wear (extension): runs of ≥ ``min_s`` seconds in which every axis' 60-s std stays below ``std_g``
-    and the sensor is not in a lying orientation (θ < lying_deg in the analysis frame).
+def nonwear_seconds(sec_sum_g: np.ndarray, sec_sumsq_g2: np.ndarray, counts: np.ndarray, *, std_g: float,
+                    noise_factor: float, min_s: float) -> tuple[np.ndarray, float]:
+    """Non-wear (extension; after van Hees et al. 2013, doi:10.1371/journal.pone.0061691): runs of at least
+    ``min_s`` seconds made of whole minutes in which **every** axis' standard deviation over the minute is
+    below a threshold, in any orientation. Inputs: per-second sums and sums of squares of each axis (S, 3),
+    in g and g², and the samples per second (S,).
 
-    A still sleeper in the simulator is as motionless as a sensor on a table, and a real one breathes only a
-    few mg, so lying orientations are never non-wear (documented limitation: a sensor put down flat on its
-    face reads as lying)."""
-    n = sec_std_xyz.shape[0]
+    Threshold: ``std_g`` if ``noise_factor`` is 0, else ``noise_factor`` × the recording's own noise floor
+    (5th percentile over minutes of the smallest-axis std), capped at ``std_g``. On the sternum breathing tilts
+    the sensor by about a degree, which a worn sensor shows on at least one axis even in a still sleeper or
+    sitter, while a sensor put down shows only its noise. The minute-aligned edges are refined to the second
+    (a second joins when every axis' 1-s std is below the threshold). Returns (mask (S,), threshold g)."""
+    n = sec_sum_g.shape[0]
     if n == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=bool), float(std_g)
     k = 60
-    nb = -(-n // k)
-    pad = np.full((nb * k - n, 3), np.nan)
-    s = np.vstack([sec_std_xyz, pad]).reshape(nb, k, 3)
-    still_min = np.all(np.nanmax(s, axis=1) < std_g, axis=1)
-    still = np.repeat(still_min, k)[:n] & (sec_incl_deg < lying_deg)
-    sec_still = np.all(sec_std_xyz < std_g, axis=1)
+    nb = n // k
+    if nb == 0:
+        return np.zeros(n, dtype=bool), float(std_g)
+    c = counts[: nb * k].reshape(nb, k).sum(axis=1)[:, None]
+    m1 = sec_sum_g[: nb * k].reshape(nb, k, 3).sum(axis=1) / c
+    m2 = sec_sumsq_g2[: nb * k].reshape(nb, k, 3).sum(axis=1) / c
+    sd_min = np.sqrt(np.maximum(m2 - m1 * m1, 0.0))                   # (nb, 3) per-minute std
+    thr = float(std_g)
+    if noise_factor > 0:
+        floor = float(np.percentile(sd_min.min(axis=1), 5))
+        thr = min(thr, noise_factor * floor) if floor > 0 else thr
+    still_min = np.all(sd_min < thr, axis=1)
+    still = np.zeros(n, dtype=bool)
+    still[: nb * k] = np.repeat(still_min, k)
+    cs = np.maximum(counts, 1.0)[:, None]
+    mu = sec_sum_g / cs
+    sd_sec = np.sqrt(np.maximum(sec_sumsq_g2 / cs - mu * mu, 0.0))
+    sec_still = np.all(sd_sec < thr, axis=1)
     out = np.zeros(n, dtype=bool)
     for a, b in zip(*runs(still)):
         if b - a >= min_s:
@@ -214,4 +230,4 @@ def nonwear_seconds(sec_std_xyz: np.ndarray, sec_incl_deg: np.ndarray, *, std_g:
             while b < n and sec_still[b]:
                 b += 1
             out[a:b] = True
-    return out
+    return out, thr

@@ -84,13 +84,14 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     Steps: (1) units check, clipping check; (2) auto-calibration from still periods; (3) GA = elliptic
     low-pass, steady-state start (§4.2); (4) step peaks on the orientation-free SVM, bouts of ≥ 3 peaks;
     (5) per wear period the upright reference = median GA direction while walking, and a rotation of it
-    onto +y; non-wear = ≥ 20 min motionless and not lying; (6) θ (Eq. 54), lying, SiLy/LySi, StSi/SiSt with
+    onto +y; non-wear = ≥ 30 min with every axis motionless; (6) θ (Eq. 54), lying, SiLy/LySi, StSi/SiSt with
     ΔY (Eq. 55-56) and the cumulative SVM sign (Eq. 57); (7) upright check and modality of the bouts;
     (8) the timeline state machine (§4.5) gives every second a class.
 
     Deviations (project default, see ``PRESETS["thesis"]`` for the literal method and docs/activity.md):
     frame alignment to the walking posture (thesis: none, the mounting tilt stays in θ); ΔY from raw acc
-    projected on the GA direction (thesis: GA, Eq. 55); steps on the 3 Hz low-passed raw ‖a‖ (thesis: GA SVM);
+    projected on the GA direction (thesis: GA, Eq. 55), also over a quiet-padded window; steps on the
+    0.5-3 Hz band-passed vertical raw acc with an adaptive threshold (thesis: GA SVM, Eq. 57, fixed threshold);
     stairs by cadence and lean relative to the participant's own walking (thesis: var(GA_v) and GA_f area
     with unspecified thresholds); side lying accepted; hybrid timeline (lying from θ, static lean when no
     transition decides sit vs stand).
@@ -123,9 +124,10 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     counts = np.maximum(cnt, 1.0)
     acc_g, mag, _, norm_std = K.calibrate_norm(acc, 1.0 / STANDARD_GRAVITY, cal.offset_g, cal.gain, fs, n_sec)
     sec_static = norm_std < p.static_std_g
-    m_sec = s1 / counts[:, None]
-    sd = np.sqrt(np.maximum(s2 / counts[:, None] - m_sec ** 2, 0.0))
-    sec_std_xyz = sd * cal.gain[None, :] / STANDARD_GRAVITY
+    gk = cal.gain[None, :] / STANDARD_GRAVITY
+    cand, _ = nonwear_seconds(s1 * gk, s2 * gk ** 2, cnt, std_g=p.nonwear_std_g, noise_factor=p.nonwear_noise_factor,
+                              min_s=p.nonwear_min_s)
+    segs = [(int(a), int(b)) for a, b in zip(*runs(~cand))] or [(0, n_sec)]
     ga = gravitational_component(acc_g, fs, mode=p.ga_mode, cutoff_hz=p.ga_cutoff_hz, ripple_db=p.ga_ripple_db,
                                  stop_db=p.ga_stop_db)
     svm_steps = step_signal(acc_g, ga, fs, p, mag=mag)   # ‖·‖-based: independent of the sensor orientation
@@ -138,20 +140,11 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
         bout_sec[int(g[0] / fs):int(g[-1] / fs) + 1] = True
     # ---- wear periods, upright reference, non-wear -------------------------------------------------
     if p.align == "none":
-        segs = [(0, n_sec)]
         refs = [np.array([0.0, 1.0, 0.0])]
     else:
-        fb = _fallback_ref(sec_ga_unit)
-        cand = nonwear_seconds(sec_std_xyz, np.zeros(n_sec), std_g=p.nonwear_std_g, min_s=p.nonwear_min_s,
-                               lying_deg=np.inf)
-        segs = [(int(a), int(b)) for a, b in zip(*runs(~cand))] or [(0, n_sec)]
-        refs, walked = _upright_refs(segs, sec_ga_unit, bout_sec, fb)
+        refs, walked = _upright_refs(segs, sec_ga_unit, bout_sec, _fallback_ref(sec_ga_unit))
         if not walked:
             warn.append("no walking found: upright reference from the most upright still posture")
-    if p.align == "none":
-        cand = nonwear_seconds(sec_std_xyz, np.zeros(n_sec), std_g=p.nonwear_std_g, min_s=p.nonwear_min_s,
-                               lying_deg=np.inf)
-        segs = [(int(a), int(b)) for a, b in zip(*runs(~cand))] or [(0, n_sec)]
     bounds = [int(np.ceil(a * fs)) for a, _ in segs[1:]]
     edges = [0] + bounds + [n]
     if p.align != "none":
@@ -165,14 +158,13 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     theta = K.theta_deg(np.ascontiguousarray(ga[:, 1]), dc)
     lying = lying_state(theta, p)
     tr = detect_transitions(theta, ga, acc_g, sec_static, sec_ga, fs, p, lying)
-    groups = [g for g in groups if not cand[int(g[0] / fs):int(g[-1] / fs) + 1].any()]
+    groups = [g for g in groups if cand[int(g[0] / fs):int(g[-1] / fs) + 1].mean() < 0.5]
     bouts, steps, smod = classify_bouts(groups, theta, ga, fs, p)
     if len(bouts) == 0:
         warn.append("no walking bout in this recording: step counts are 0")
     theta_sec = K.second_mean1(theta, fs, n_sec)
     lying_sec = K.second_mean1(lying.astype(np.float64), fs, n_sec) > 0.5
-    cls0 = _timeline(n_sec, _drop(tr, cand), bouts, cand, lying_sec, theta_sec, p, [])
-    nonwear = _confirm_nonwear(cand, cls0, theta_sec, p)
+    nonwear = cand
     tr = _drop(tr, nonwear)
     cls = _timeline(n_sec, tr, bouts, nonwear, lying_sec, theta_sec, p, warn)
     return ActivityResult(second_t_ns=np.int64(t0_ns) + np.arange(n_sec, dtype=np.int64) * 1_000_000_000,
@@ -188,31 +180,6 @@ def _drop(tr: Transitions, mask: np.ndarray) -> Transitions:
         return tr
     keep = ~mask[np.minimum(tr.t_s.astype(np.int64), mask.shape[0] - 1)]
     return Transitions(*(getattr(tr, f)[keep] for f in ("t_s", "kind", "start_s", "end_s", "dy_m")))
-
-
-def _confirm_nonwear(cand: np.ndarray, cls0: np.ndarray, theta_sec: np.ndarray, p: ActivityParams) -> np.ndarray:
-    """A motionless run (every axis std < nonwear_std_g for ≥ nonwear_min_s) is non-wear unless the person
-    was sitting or lying just before it started (sitting or sleeping still is plausible, standing still for
-    20 min is not; a < 60 s "lying" right after standing is the sensor being put down); a run at the
-    recording start is non-wear unless its orientation is lying or sitting-like."""
-    out = cand.copy()
-    for a, b in zip(*runs(cand)):
-        if a == 0:
-            med = float(np.median(theta_sec[a:b]))
-            if med > p.sit_lean_deg:
-                out[a:b] = False
-            continue
-        j = a - 1
-        if cls0[j] == SITTING:
-            out[a:b] = False
-        elif cls0[j] == LYING:         # a short lying run right after standing is the sensor being taken off
-            k = j
-            while k > 0 and cls0[k - 1] == LYING:
-                k -= 1
-            before = cls0[k - 1] if k > 0 else LYING
-            if a - k >= 60 or before in (SITTING, LYING) or (before == NON_WEAR and not out[k - 1]):
-                out[a:b] = False
-    return out
 
 
 def _timeline(n_sec, tr: Transitions, bouts, nonwear, lying_sec, theta_sec, p: ActivityParams, warn) -> np.ndarray:

@@ -53,15 +53,27 @@ class ActivityParams:
     thigh_length_m: participant thigh length for the ΔY check, m (spec: 0.245 × height if unknown).
     dy_fraction: reject a candidate if |ΔY| < this × thigh length (thesis 0.5; default 0.35 because the
         mean-removed double integral over the θ-minima window recovers only 55-85 % of a synthetic chest drop).
+    dy_pad_s: ΔY is also integrated over the θ-minima window widened by this on both sides (still posture
+        at both ends, so the mean-removed double integral sees the whole chest motion) and the larger |ΔY| is
+        kept, s (extension; thesis 0 = θ-minima window only).
     sitstand_sign: StSi vs SiSt from ``"ci"`` (thesis: sign of the dominant extremum of the cumulative SVM
         integral) or ``"dy"`` (sign of ΔY: the thesis's "alternative method"; default, because the GA-based CI
         had the StSi sign for sit-to-stand too on the synthetic days).
     dy_source: ``"ga"`` (thesis Eq. 55 on GA) or ``"raw"`` (raw acc projected on the GA gravity direction).
-    svm_walk_source: ``"ga"`` (thesis Eq. 57 SVM) or ``"raw"`` (‖a‖ − 1 g low-passed at step_lowpass_hz).
-    step_lowpass_hz: low-pass of the raw SVM used for steps, Hz (CHOICE).
-    step_threshold_g: SVM peak height for a step, g (spec low threshold 0.015 g for GA; raw default 0.1 g).
-    step_min_interval_s: shortest step interval, s (spec 0.25).
-    step_max_interval_s: longest step interval inside a bout, s (spec 1.5).
+    svm_walk_source: ``"ga"`` (thesis Eq. 57 SVM), ``"raw"`` (‖a‖ − 1 g low-passed at step_lowpass_hz) or
+        ``"vertical"`` (default, extension: raw acc projected on the GA gravity direction, i.e. the raw form of
+        Eq. 55, band-passed step_highpass_hz-step_lowpass_hz; orientation-free and insensitive to the
+        calibration offsets left by a ``gain_only`` auto-calibration).
+    step_highpass_hz: high-pass edge of the ``"vertical"`` step signal, Hz (cadence range 0.5-2.5 Hz).
+    step_lowpass_hz: low-pass of the raw / vertical step signal, Hz (CHOICE).
+    step_threshold_g: SVM peak height for a step, g (spec low threshold 0.015 g for GA; with step_relative > 0
+        the absolute floor of the adaptive threshold).
+    step_relative: adaptive step threshold (extension): a peak must also exceed this fraction of the local
+        step amplitude √2 × RMS of the step signal over ±step_rms_window_s / 2 (0 = fixed threshold, thesis).
+        Follows the participant's own gait: slow, weak and asymmetric steps of a hemiparetic walker count.
+    step_rms_window_s: window of the local RMS of the adaptive threshold, s.
+    step_min_interval_s: shortest step interval, s (spec 0.25; default 0.35 = cadence ≤ 2.9 Hz).
+    step_max_interval_s: longest step interval inside a bout, s (spec 1.5; default 2.0 = cadence ≥ 0.5 Hz).
     min_bout_steps: fewest successive peaks making a walking bout (thesis 3).
     upright_deg: reject a bout whose mean θ exceeds this, deg (spec 30).
     stairs_var_g2: var(GA_v) above which a bout is non-level, g² (thesis-unspecified; fitted, see docs).
@@ -76,8 +88,13 @@ class ActivityParams:
         reference when no transition decides).
     sit_lean_deg: hybrid mode, static lean relative to the upright reference above which a still period
         with no deciding transition is sitting, deg.
-    nonwear_std_g: a minute is motionless if every axis has std < this, g (CHOICE: 0.006 g ≈ 2× noise).
-    nonwear_min_s: motionless for at least this long, not lying, is non-wear, s (CHOICE: 20 min).
+    nonwear_std_g: a minute is motionless if every axis' std over the minute is below the threshold, g: this
+        value when nonwear_noise_factor = 0, else the cap of the adaptive threshold (van Hees 2013: 13 mg).
+    nonwear_noise_factor: adaptive non-wear threshold = this × the recording's own noise floor (5th percentile
+        of the per-minute smallest-axis std); a worn chest sensor shows breathing on at least one axis, a
+        sensor on a table only its noise (extension).
+    nonwear_min_s: motionless (all three axes) for at least this long is non-wear, s (CHOICE: 30 min; any
+        orientation, no context rule).
     clip_fraction_warn: warn when more than this fraction of samples sits at the range limit.
     """
     ga_mode: str = "lfilter"
@@ -98,13 +115,17 @@ class ActivityParams:
     minima_tolerance_deg: float = 0.0
     thigh_length_m: float = 0.43
     dy_fraction: float = 0.35
+    dy_pad_s: float = 1.0
     sitstand_sign: str = "dy"
     dy_source: str = "raw"
-    svm_walk_source: str = "raw"
+    svm_walk_source: str = "vertical"
+    step_highpass_hz: float = 0.5
     step_lowpass_hz: float = 3.0
-    step_threshold_g: float = 0.1
-    step_min_interval_s: float = 0.25
-    step_max_interval_s: float = 1.5
+    step_threshold_g: float = 0.03
+    step_relative: float = 0.5
+    step_rms_window_s: float = 4.0
+    step_min_interval_s: float = 0.35
+    step_max_interval_s: float = 2.0
     min_bout_steps: int = 3
     upright_deg: float = 30.0
     stairs_var_g2: float = 4e-4
@@ -114,13 +135,14 @@ class ActivityParams:
     stairs_lean_deg: float = 4.0
     timeline: str = "hybrid"
     sit_lean_deg: float = 18.0
-    nonwear_std_g: float = 0.006
-    nonwear_min_s: float = 1200.0
+    nonwear_std_g: float = 0.013
+    nonwear_noise_factor: float = 1.4
+    nonwear_min_s: float = 1800.0
     clip_fraction_warn: float = 0.001
 
     def __post_init__(self):
         for name, allowed in (("ga_mode", ("lfilter", "filtfilt")), ("align", ("none", "upright_reference")),
-                              ("dy_source", ("ga", "raw")), ("sitstand_sign", ("ci", "dy")), ("svm_walk_source", ("ga", "raw")),
+                              ("dy_source", ("ga", "raw")), ("sitstand_sign", ("ci", "dy")), ("svm_walk_source", ("ga", "raw", "vertical")),
                               ("stairs_mode", ("thesis", "relative")), ("timeline", ("events", "hybrid"))):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"ActivityParams.{name} must be one of {allowed}, got {getattr(self, name)!r}")
@@ -132,7 +154,8 @@ class ActivityParams:
 #: project default (extensions switched on). Stair thresholds of the thesis preset are thesis-unspecified.
 PRESETS = MappingProxyType({
     "thesis": ActivityParams(align="none", autocalibrate=False, side_lying=False, dy_source="ga",
-                             svm_walk_source="ga", step_threshold_g=0.015, dy_fraction=0.5, sitstand_sign="ci", minima_tolerance_deg=0.0, stairs_mode="thesis",
+                             svm_walk_source="ga", step_threshold_g=0.015, step_relative=0.0,
+                             step_min_interval_s=0.25, step_max_interval_s=1.5, dy_fraction=0.5, dy_pad_s=0.0, sitstand_sign="ci", minima_tolerance_deg=0.0, stairs_mode="thesis",
                              timeline="events"),
     "default": ActivityParams(),
 })

@@ -6,7 +6,9 @@ angles (forward lean λ, lateral bend β, axial roll ρ, heading ψ) and the che
 join continuously with zero velocity at the joins. Trunk frame (spec §0.2 chest): x anterior, y up,
 z right; R_trunk = H(ψ) · Rz(-λ) · Rx(β) · Ry(ρ) (λ = -90° is supine, ρ = ±90° side lying).
 Sensor frame = trunk frame · mounting rotation (redrawn when the sensor is put back on after a
-non-wear period). Static bouts are filled in bulk; dynamic bouts are differentiated numerically
+non-wear period). Static bouts are filled in bulk with breathing (the sternum tilts ≈ 1° at 12-20
+breaths/min; a worn sensor is never as still as one on a table); hemiparetic walking has a severity-scaled
+step asymmetry (longer, weaker paretic step). Dynamic bouts are differentiated numerically
 (central differences, h = 0.25 ms). Vectorised per bout: a 24 h day at 100 Hz takes a few seconds.
 
 Labels: ``lying, sitting, standing, level_walking, stairs_up, stairs_down, transition`` plus
@@ -107,9 +109,10 @@ class _Script:
         dz = rise * f * (dur - ramp)
         e = Posture(D(5.0), 0.0, 0.0, self.pos.psi + float(turn_a.sum()), self.pos.z + dz)
         speed = (0.65 if self.slow else 1.0) * self.p.speed_m_s * (1.0 if rise == 0 else 0.45)
+        sev = float(self.p.severity) if self.slow else 0.0
         b = self._add(label, dur, "walk", e, f=f, rise=rise, turn_t=turn_t, turn_a=turn_a, ramp=ramp, speed=speed,
                       lean=D({"level_walking": 4.0, "stairs_up": 12.0, "stairs_down": 1.0}[label]),
-                      amp=0.5 if self.slow else 1.0)
+                      amp=0.5 if self.slow else 1.0, asym=0.35 * sev, phase_mod=0.35 * sev)
         b.steps = steps
 
     def nonwear(self, dur):
@@ -208,17 +211,22 @@ def _angles_pos(b: Bout, tau: np.ndarray):
     for tt, aa in zip(P["turn_t"], P["turn_a"]):
         psi = psi + aa * smoothstep((tau - tt) / 1.8)
     ph = 2.0 * np.pi * f * tau
+    # hemiparetic asymmetry (severity-scaled): the paretic step takes longer (phase modulated at the stride
+    # frequency, the stride period is unchanged, so is the step count) and has a smaller vertical excursion
+    beta = P.get("phase_mod", 0.0)
+    phs = ph + beta * (np.cos(0.5 * ph) - 1.0)
+    step_amp = 1.0 + P.get("asym", 0.0) * np.cos(0.5 * ph)
     amp = P["amp"] * env
     lean = a.lean + (P["lean"] - a.lean) * smoothstep(tau / ramp) + (e.lean - P["lean"]) * smoothstep((tau - (dur - ramp)) / ramp)
-    lean = lean + amp * D(1.5 if P["rise"] == 0 else 5.0) * np.sin(ph + 0.4)
+    lean = lean + amp * D(1.5 if P["rise"] == 0 else 5.0) * np.sin(phs + 0.4)
     bend = amp * D(2.0) * np.sin(0.5 * ph)
     roll = amp * D(3.0) * np.sin(0.5 * ph + 0.3)
     # vertical: oscillation at the step frequency; stairs add the pulsed rise (monotone)
-    vert = amp * 0.025 * np.cos(ph) * (0.6 if P["rise"] != 0 else 1.0)
+    vert = amp * step_amp * 0.025 * np.cos(phs) * (0.6 if P["rise"] != 0 else 1.0)
     phi_steps = f * (tau - _ramp_lag(tau, ramp, dur))
     rise = P["rise"] * (phi_steps - np.sin(2.0 * np.pi * phi_steps) / (2.0 * np.pi)) if P["rise"] != 0 else 0.0
     lat = amp * 0.02 * np.sin(0.5 * ph)
-    ap = amp * 0.012 * np.sin(ph + 1.2)
+    ap = amp * step_amp * 0.012 * np.sin(phs + 1.2)
     hx, hy = np.cos(psi), np.sin(psi)
     pos = np.column_stack([(ap) * hx - lat * hy, (ap) * hy + lat * hx, a.z + vert + rise])
     return lean, bend, roll, psi, pos
@@ -277,7 +285,7 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     seed = manifest.seed if seed is None else int(seed)
     rate = manifest.sampling_rate_hz
     ss = np.random.SeedSequence([seed, index, 2, session])
-    s_script, s_dev, s_noise, s_mount = ss.spawn(4)
+    s_script, s_dev, s_noise, s_mount, s_breath = ss.spawn(5)      # the first four as before
     rng_script = np.random.default_rng(s_script)
     hh, mm = (int(x) for x in manifest.free_living.start_local.split(":"))
     start_s = hh * 3600 + mm * 60
@@ -288,6 +296,7 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     acc = np.empty((n, 3))
     gyr = np.empty((n, 3))
     rng_mount = np.random.default_rng(s_mount)
+    rng_breath = np.random.default_rng(s_breath)
     lo, hi = spec.mounting_misalignment_deg
     mount = random_rotation(rng_mount, 0.3 * lo, 0.5 * hi)
     day = manifest.first_lab_date + _dt.timedelta(days=index + 1)
@@ -310,9 +319,8 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
             continue
         tau = start_s + t_rel[i0:i1] - b.t0
         if b.kind == "static":
-            R = _trunk_R(*(np.array([x]) for x in (b.start.lean, b.start.bend, b.start.roll, b.start.psi)))[0] @ mount
-            acc[i0:i1] = R.T @ gz
-            gyr[i0:i1] = 0.0
+            R_t = _trunk_R(*(np.array([x]) for x in (b.start.lean, b.start.bend, b.start.roll, b.start.psi)))[0]
+            acc[i0:i1], gyr[i0:i1] = _breathing(R_t, mount, tau, rng_breath)
             continue
         if b.kind == "nonwear":
             new_mount = random_rotation(rng_mount, 0.3 * lo, 0.5 * hi)
@@ -362,6 +370,31 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     rec = Recording(metadata=md, imu={"chest": ImuData(t_ns=t_ns, acc=acc_m, gyr=gyr_m, mag=None)},
                     events=events, name=f"{pid}_free{session}_day-{session}")
     return rec, truth
+
+
+#: breathing tilts the sternum about an axis that is mostly the trunk's lateral (z) axis, with smaller
+#: components about the long (y) and frontal (x) axes, so it shows in every posture including side lying
+BREATH_AXIS = np.array([0.5, 0.6, 1.0]) / np.linalg.norm([0.5, 0.6, 1.0])
+
+
+def _breathing(R_trunk, mount, tau, rng):
+    """Specific force and rate of a worn sensor during a still posture: the sternum tilts with breathing
+    (tidal tilt 0.8-1.5° peak, 12-20 breaths/min, drawn per bout; a still body is never as still as a
+    sensor on a table). Exact rotation R_trunk · Rot(BREATH_AXIS, α(t)) · mount; translation (≈ 1 mg) ignored."""
+    amp = D(rng.uniform(0.8, 1.5))
+    f = rng.uniform(0.2, 0.33)
+    ph0 = rng.uniform(0.0, 2.0 * np.pi)
+    w = 2.0 * np.pi * f
+    alpha = amp * np.sin(w * tau + ph0)
+    alpha_d = amp * w * np.cos(w * tau + ph0)
+    g_t = R_trunk.T @ np.array([0.0, 0.0, G])          # gravity in the trunk frame (constant in the bout)
+    k = BREATH_AXIS
+    c, s_ = np.cos(alpha)[:, None], np.sin(alpha)[:, None]
+    # Rot(k, α)^T g_t (Rodrigues with −α)
+    g_rot = g_t[None, :] * c - s_ * np.cross(k, g_t)[None, :] + (1.0 - c) * float(k @ g_t) * k[None, :]
+    acc = g_rot @ mount                                 # mount^T · v for each row
+    gyr = alpha_d[:, None] * (mount.T @ k)[None, :]
+    return acc, gyr
 
 
 def _merge_labels(bouts):
