@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["IcTcParams", "GaitEvents", "GaitEventDetector", "detect_ic_tc", "pitch_signal"]
+__all__ = ["IcTcParams", "GaitEvents", "GaitEventDetector", "detect_ic_tc", "pitch_signal", "refine_toe_off"]
 
 
 @dataclass(frozen=True)
@@ -59,12 +59,15 @@ class GaitEvents:
 
     ic_idx, tc_idx: (K,) int64 event = the extremum sample k−1 (best estimate of the contact instant).
     ic_detect_idx, tc_detect_idx: (K,) int64 detection sample k (when a streaming detector knows it; +1).
+    tc_pitch_min_idx: None for Algorithm 1's own events; when ``foot_kinematics`` refined the TCs to the toe-off
+        (batch step T1, ``refine_toe_off``) ``tc_idx`` holds the refined TCs and this the thesis' plain TCs.
     """
     ic_idx: np.ndarray
     tc_idx: np.ndarray
     ic_detect_idx: np.ndarray
     tc_detect_idx: np.ndarray
     params: IcTcParams
+    tc_pitch_min_idx: np.ndarray | None = None
 
 
 # state layout: [k, flag, last_tc, last_ic, n_filled, head, stance_run, stance_start, exit_k];
@@ -215,3 +218,57 @@ def pitch_signal(quat: np.ndarray, anterior_axis_sensor: np.ndarray) -> np.ndarr
     w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     # third row of R(q)
     return 2 * (x * z - w * y) * u[0] + 2 * (y * z + w * x) * u[1] + (1 - 2 * (x * x + y * y)) * u[2]
+
+
+@njit(cache=True)
+def _toe_off_kernel(w_ml, tc, lo, fs, n_win, frac, out):
+    n = w_ml.shape[0]
+    for e in range(tc.shape[0]):
+        j = tc[e]
+        out[e] = j
+        a = max(lo[e], j - n_win, 1)
+        if j - a < 2 or j + 1 >= n:
+            continue
+        # plantarflexion deceleration -dω_ml/dt (central difference) over [a, j]
+        pk = 0.0
+        ip = -1
+        for k in range(a, j + 1):
+            d = -(w_ml[k + 1] - w_ml[k - 1]) * 0.5 * fs
+            if np.isfinite(d) and d > pk:
+                pk = d
+                ip = k
+        if ip < 0:
+            continue
+        k = ip
+        while k > a and -(w_ml[k + 1] - w_ml[k - 1]) * 0.5 * fs > frac * pk:
+            k -= 1
+        out[e] = k
+
+
+def refine_toe_off(gyr: np.ndarray, tc_idx: np.ndarray, mediolateral_axis: np.ndarray, *, sampling_rate_hz: float,
+                   onset_fraction: float = 0.2, window_s: float = 0.15,
+                   lower_bound: np.ndarray | None = None) -> np.ndarray:
+    """Batch toe-off refinement (T1) of Algorithm 1's TCs (pitch minima); returns the refined TC samples.
+
+        ω_ml = ω · m_S   (m_S = foot mediolateral axis in sensor coordinates, pointing left: + = toes-down rotation)
+        a_k = −(ω_ml,k+1 − ω_ml,k−1) f_s / 2   (plantarflexion deceleration)
+        TC' = last sample k ≤ argmax a over [j − W, j] with a_k ≤ f · max a   (onset of the deceleration)     (T1)
+
+    Biomechanics: while the toe is on the ground the ankle plantarflexors rotate the foot about the forefoot
+    (heel rise, forefoot rocker) and the plantarflexion rate stays high; at toe-off the ground contact that drives it
+    ends and the swinging leg dorsiflexes the foot, so the plantarflexion rate collapses to zero within a few tens of
+    ms, and the pitch minimum j (Algorithm 1's TC) is the *end* of that deceleration. Toe-off = the last sample of
+    contact = the onset of the deceleration. f = 0.2 (a conventional onset fraction of the peak, a priori) and
+    W = 0.15 s (Algorithm 1's look-back window). ``lower_bound`` (per TC) keeps TC' after e.g. the previous IC.
+    Uses only the raw gyroscope and the axis (no lever arm, no integrated velocity).
+    """
+    gyr = np.asarray(gyr, dtype=float)
+    tc = np.ascontiguousarray(tc_idx, dtype=np.int64)
+    m = np.asarray(mediolateral_axis, dtype=float)
+    m = m / np.linalg.norm(m)
+    w_ml = np.ascontiguousarray(gyr @ m)
+    lo = np.zeros(len(tc), np.int64) if lower_bound is None else np.ascontiguousarray(lower_bound, dtype=np.int64)
+    out = np.empty(len(tc), np.int64)
+    _toe_off_kernel(w_ml, tc, lo, float(sampling_rate_hz), int(round(window_s * sampling_rate_hz)),
+                    float(onset_fraction), out)
+    return out

@@ -3,7 +3,8 @@
 Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.trajectory) → stance runs and their
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
-→ IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → strides.
+→ IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → TCs refined from the pitch
+minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → strides.
 
     K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
         (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
@@ -25,7 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal
+from dataclasses import replace
+
+from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_toe_off
 from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
@@ -43,11 +46,17 @@ class FootParams:
     trajectory: ESKF/ZUPT/RTS parameters.  events: Algorithm 1 parameters.
     min_stride_length_m: strides shorter than this are not used to find the anterior axis (K1).
     max_stride_time_s: strides longer than this are dropped (spec §3.8: 3 s).
+    toe_off_refine: move each Algorithm-1 TC (pitch minimum, thesis) back to the toe-off (T1 in ``_events``:
+        onset of the plantarflexion deceleration); False = the thesis' plain TC. Flat-lift TCs (R4) are kept.
+    toe_off_onset_fraction, toe_off_window_s: f and W of (T1) (0.2 of the peak deceleration; 0.15 s), a priori.
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams()
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
+    toe_off_refine: bool = True
+    toe_off_onset_fraction: float = 0.2
+    toe_off_window_s: float = 0.15
 
 
 @dataclass(frozen=True)
@@ -103,6 +112,27 @@ def _empty_strides() -> StrideTable:
     return StrideTable(np.zeros((0, 5), np.int64), np.zeros((0, len(PARAM_COLUMNS))))
 
 
+def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float, params: FootParams) -> GaitEvents:
+    """(T1) on the Algorithm-1 TCs (pitch minima: detection = extremum + 1); flat-lift TCs (R4) stay. The
+    mediolateral axis m_S = up_S × u_S, up_S = mean sensor-frame vertical over the mid-stances."""
+    ups = np.array([_rot_T(traj.quat[m], np.array([0.0, 0.0, 1.0])) for m in mids])
+    up = ups.mean(axis=0)
+    up /= np.linalg.norm(up)
+    ml = np.cross(up, u)
+    if not np.linalg.norm(ml) > 0.1:
+        return ev
+    alg1 = ev.tc_detect_idx == ev.tc_idx + 1
+    still = np.flatnonzero(traj.zupt)
+    i_ic = np.searchsorted(ev.ic_idx, ev.tc_idx) - 1                 # last IC before each TC
+    i_st = np.searchsorted(still, ev.tc_idx, side="right") - 1      # last still sample at or before it
+    lo = np.maximum(np.where(i_ic >= 0, ev.ic_idx[np.maximum(i_ic, 0)] + 1, 0),
+                    np.where(i_st >= 0, still[np.maximum(i_st, 0)] + 1, 0)).astype(np.int64)
+    ref = refine_toe_off(gyr, ev.tc_idx, ml, sampling_rate_hz=fs, onset_fraction=params.toe_off_onset_fraction,
+                         window_s=params.toe_off_window_s, lower_bound=lo)
+    tc = np.where(alg1, ref, ev.tc_idx)
+    return replace(ev, tc_idx=tc, tc_pitch_min_idx=ev.tc_idx.copy())
+
+
 def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
                     params: FootParams = FootParams()) -> FootKinematics:
     """All kinematics of one foot IMU (module docstring K1–K3). gyr rad/s, acc m/s², any mounting."""
@@ -135,6 +165,8 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
     s = pitch_signal(traj.quat, u)
     ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt)
+    if params.toe_off_refine and len(ev.tc_idx):
+        ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None

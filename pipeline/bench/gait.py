@@ -98,6 +98,9 @@ def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
     for name in ("ic", "tc"):
         out[f"_{name}_err"] = out.pop(f"{name}__err")
     out["_by_tolerance"] = by_tol
+    if fk.events.tc_pitch_min_idx is not None:          # the thesis' plain TC (pitch minimum), before toe-off (T1)
+        em = _event_metrics(fk.events.tc_pitch_min_idx, ref[:, 3], fs, EVENT_TOL_S, lo, hi, spans)
+        out["tc_pitch_min_timing_mae_ms"], out["tc_pitch_min_timing_mean_ms"] = em["timing_mae_ms"], em["timing_mean_ms"]
     heel = foot.markers["FCC"]
     mi = lambda i: int(round(i / fs * mocap_fs))  # noqa: E731 - IMU sample -> mocap sample (both start together)
     ref_len = np.array([np.hypot(*(heel[mi(e), :2] - heel[mi(s), :2])) for s, e in ref[:, :2]])

@@ -155,3 +155,53 @@ def test_stance_mask_changes_nothing_in_normal_gait():
         a = detect_ic_tc(s, sampling_rate_hz=FS)
         b = detect_ic_tc(s, sampling_rate_hz=FS, stance=stance)
         assert np.array_equal(a.ic_idx, b.ic_idx) and np.array_equal(a.tc_idx, b.tc_idx)
+
+
+def _push_off_gyr(n, tc, dec_len, fs, axis):
+    """Sagittal rate about ``axis``: plantarflexion rate ramps up to 8 rad/s, then (toe-off at ``tc``) falls
+    linearly to 0 over ``dec_len`` samples (pitch minimum at tc + dec_len) and goes on to −3 rad/s."""
+    w = np.zeros(n)
+    w[tc - 40:tc + 1] = np.linspace(2.0, 8.0, 41)
+    w[tc:tc + dec_len + 1] = np.linspace(8.0, 0.0, dec_len + 1)
+    w[tc + dec_len:] = np.linspace(0.0, -3.0, n - tc - dec_len)
+    return np.outer(w, axis)
+
+
+def test_refine_toe_off_finds_the_onset_of_the_plantarflexion_deceleration():
+    from estimators.gait import refine_toe_off
+    fs = 200.0
+    axis = np.array([0.3, 0.9, 0.1])
+    axis /= np.linalg.norm(axis)
+    for dec_len in (4, 6, 10):
+        gyr = _push_off_gyr(400, 200, dec_len, fs, axis)
+        pmin = 200 + dec_len                                   # Algorithm 1's TC: pitch minimum (rate zero)
+        out = refine_toe_off(gyr, np.array([pmin]), axis, sampling_rate_hz=fs)
+        assert abs(int(out[0]) - 200) <= 1, (dec_len, out)
+        # the other sign of the axis (toes-up rotation) finds no deceleration: TC unchanged
+        assert refine_toe_off(gyr, np.array([pmin]), -axis, sampling_rate_hz=fs)[0] != 200
+        # a lower bound (previous IC / last still sample) is respected
+        assert refine_toe_off(gyr, np.array([pmin]), axis, sampling_rate_hz=fs,
+                              lower_bound=np.array([pmin - 2]))[0] >= pmin - 2
+    # no deceleration at all (constant rate): nothing to refine
+    g = np.outer(np.full(300, 5.0), axis)
+    assert refine_toe_off(g, np.array([150]), axis, sampling_rate_hz=fs)[0] == 150
+
+
+def test_foot_kinematics_toe_off_refinement_is_optional_and_only_moves_tcs_earlier():
+    from dataclasses import replace
+
+    from estimators.gait import FootParams, foot_kinematics
+    from estimators.gait._sim import simulate_yun_walk
+    sim = simulate_yun_walk(12, noise_scale=1.0, seed=3, sampling_rate_hz=100)
+    plain = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100, params=replace(FootParams(), toe_off_refine=False))
+    ref = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100)
+    assert plain.events.tc_pitch_min_idx is None
+    assert np.array_equal(ref.events.tc_pitch_min_idx, plain.events.tc_idx)
+    assert np.array_equal(ref.events.ic_idx, plain.events.ic_idx)
+    d = ref.events.tc_idx - plain.events.tc_idx
+    assert np.all(d <= 0) and np.all(d >= -15)
+    # never before the previous IC
+    for tc in ref.events.tc_idx:
+        prev = ref.events.ic_idx[ref.events.ic_idx < tc]
+        nxt_plain = plain.events.ic_idx[plain.events.ic_idx < tc]
+        assert len(prev) == len(nxt_plain)
