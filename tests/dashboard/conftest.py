@@ -4,6 +4,8 @@
 * ``empty_wh``: a migrated warehouse whose snapshot has no data;
 * ``ingested_wh``: recordings ingested by a real run (two participants, a quarantined file) with the
   stages registered today (orientation), none of the later ones;
+* ``demo_wh``: the demo study made small (2 participants, 6-min free-living days) simulated and run through
+  every stage by the real pipeline — what a newcomer's ``stridelab demo`` shows;
 * ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write
   (strides, calibration QC, joint-angle cycles, activity bouts with reference labels, accuracy,
   foot trajectories), added through the pipeline's writer by ``pipeline.bench.dashboard``.
@@ -78,6 +80,17 @@ def full_wh(tmp_path_factory, ingested_wh) -> Path:
                                       "error": "ValueError: no stance phase detected"}])
         wh.publish_snapshot()
     return root
+
+
+@pytest.fixture(scope="session")
+def demo_wh(tmp_path_factory) -> Path:
+    from pipeline import runner
+    from pipeline.simulate import simulate_to_dir
+    base = tmp_path_factory.mktemp("demo")
+    simulate_to_dir(base / "inbox", participants=2, hours=0.1, jobs=2)
+    summary = runner.run(base / "warehouse", base / "inbox", jobs=2, command="run")
+    assert not summary.failed and not summary.quarantined, summary.as_dict()
+    return base / "warehouse"
 
 
 @pytest.fixture()

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 import urllib.request
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -29,6 +30,14 @@ EXPECT = {      # the default page (Overview) lives at the root URL
     "activity": ["Daily activity", "Posture transitions", "Daily totals"],
     "runs": ["Pipeline runs", "Stage runs", "no stance phase detected"],
 }
+# the real pipeline's output on the (small) demo study: every stage's results, including accuracy
+EXPECT_DEMO = {
+    "": ["StrideLab overview", "Participants", "P001", "P002"],
+    "accuracy": ["Accuracy against references", "orientation", "inclination_rmse_deg", "gait"],
+    "participant": ["Participant", "P001", "Sessions", "Gait parameters"],
+    "activity": ["Daily activity", "Daily totals"],
+    "runs": ["Pipeline runs", "Stage runs", "joint_angles"],
+}
 
 
 def _free_port() -> int:
@@ -37,17 +46,17 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture(scope="module")
-def server(full_wh):
+@contextmanager
+def _serve(wh: Path):
     if not Path(CHROMIUM).exists():
         pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
     pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")
     port = _free_port()
-    env = {**os.environ, "STRIDELAB_WAREHOUSE": str(full_wh)}
+    env = {**os.environ, "STRIDELAB_WAREHOUSE": str(wh)}
     proc = subprocess.Popen([sys.executable, "-m", "streamlit", "run", str(APP), "--server.port", str(port),
                              "--server.address", "localhost", "--server.headless", "true",
                              "--browser.gatherUsageStats", "false", "--server.fileWatcherType", "none",
-                             "--", "--warehouse", str(full_wh)],
+                             "--", "--warehouse", str(wh)],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     url = f"http://localhost:{port}"
     try:
@@ -70,30 +79,54 @@ def server(full_wh):
             proc.kill()
 
 
+@pytest.fixture(scope="module")
+def server(full_wh):
+    with _serve(full_wh) as url:
+        yield url
+
+
+def _open_every_page(browser, server: str, expect: dict, shots: Path, errors: list) -> None:
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    for path, texts in expect.items():
+        name = path or "overview"
+        page.goto(f"{server}/{path}", wait_until="domcontentloaded")
+        page.wait_for_selector("h1", timeout=30_000)
+        # Streamlit renders in steps: wait until the script run finished (no 'running' status widget)
+        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                               timeout=30_000)
+        for t in texts:      # table cells live in a canvas grid: present in the DOM, not "visible"
+            page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
+        assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {name}"
+        assert page.get_by_text("Page not found").count() == 0, f"{name}: page not found"
+        if path in ("participant", "accuracy", "activity", "runs"):
+            page.locator(".js-plotly-plot").first.wait_for(timeout=30_000)
+        page.screenshot(path=str(shots / f"{name}.png"), full_page=True)
+        assert (shots / f"{name}.png").stat().st_size > 10_000
+
+
+def test_every_page_of_the_demo_pipeline_warehouse_in_chromium(demo_wh, tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+    shots = tmp_path_factory.mktemp("screenshots_demo")
+    errors: list[str] = []
+    with _serve(demo_wh) as url, sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        try:
+            _open_every_page(browser, url, EXPECT_DEMO, shots, errors)
+        finally:
+            browser.close()
+    assert not errors, errors
+    print(f"screenshots in {shots}")
+
+
 def test_every_page_in_chromium(server, tmp_path_factory):
     from playwright.sync_api import sync_playwright
     shots = tmp_path_factory.mktemp("screenshots")
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
             errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            for path, texts in EXPECT.items():
-                name = path or "overview"
-                page.goto(f"{server}/{path}", wait_until="domcontentloaded")
-                page.wait_for_selector("h1", timeout=30_000)
-                # Streamlit renders in steps: wait until the script run finished (no 'running' status widget)
-                page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                                       timeout=30_000)
-                for t in texts:      # table cells live in a canvas grid: present in the DOM, not "visible"
-                    page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
-                assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {name}"
-                assert page.get_by_text("Page not found").count() == 0, f"{name}: page not found"
-                if path in ("participant", "accuracy", "activity", "runs"):
-                    page.locator(".js-plotly-plot").first.wait_for(timeout=30_000)
-                page.screenshot(path=str(shots / f"{name}.png"), full_page=True)
-                assert (shots / f"{name}.png").stat().st_size > 10_000
+            _open_every_page(browser, server, EXPECT, shots, errors)
             # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
             page.on("pageerror", lambda e: errors.append(str(e)))
