@@ -16,15 +16,8 @@ from typing import Callable
 
 import numpy as np
 
+from estimators.orientation._dcf import _blend
 from estimators.orientation._types import OrientationResult
-
-
-def _blend(q_old: np.ndarray, q_new: np.ndarray, w_new: np.ndarray) -> np.ndarray:
-    """Sign-aligned, normalised weighted average of two quaternion series (w_new for q_new)."""
-    sgn = np.where(np.sum(q_old * q_new, axis=1) < 0, -1.0, 1.0)[:, None]
-    q = (1.0 - w_new[:, None]) * q_old + w_new[:, None] * q_new * sgn
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q * np.where(q[:, :1] < 0, -1.0, 1.0)
 
 
 def blockwise(estimate: Callable[..., OrientationResult], gyr: np.ndarray, acc: np.ndarray,
@@ -62,7 +55,7 @@ def blockwise(estimate: Callable[..., OrientationResult], gyr: np.ndarray, acc: 
         if a > 0 and half > 0:         # fade from the previous block over [a - half, a + half)
             f0, f1 = a - half, min(n, a + half)
             w = (np.arange(f0, f1) - f0 + 0.5) / (f1 - f0)
-            quat[f0:f1] = _blend(quat[f0:f1], r.quat[f0 - lo:f1 - lo], w)
+            quat[f0:f1] = _blend(r.quat[f0 - lo:f1 - lo], quat[f0:f1], w)     # weight w on the new block
             quat[f1:s1] = seg[f1 - s0:]
         else:
             quat[s0:s1] = seg
