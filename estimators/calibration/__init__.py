@@ -14,7 +14,8 @@ from estimators.calibration._s2s import (CalibrationError, calibrate_imu, headin
 from estimators.calibration._session import calibrate_session, missing_calibration, motion_plausibility
 from estimators.calibration._types import (LEG_PLACEMENTS, PRESETS, CalibrationParams, CalibrationWindows,
                                            ImuCalibration, SessionCalibration)
-from estimators.calibration._windows import count_cycles, detect_calibration_windows, first_quiet_standing
+from estimators.calibration._windows import (count_cycles, count_repetitions, detect_calibration_windows,
+                                             first_quiet_standing)
 from estimators.calibration.alignment import (body_rate_from_quat, constant_offset_rotation,
                                               imu_to_cluster_rotation, sync_by_angular_rate)
 from estimators.calibration.evaluation import helical_angle_deg
@@ -22,5 +23,5 @@ from estimators.calibration.evaluation import helical_angle_deg
 __all__ = ["CalibrationError", "calibrate_imu", "heading_calibration", "pelvis_from_sway", "pelvis_from_thighs",
            "vertical_calibration", "calibrate_session", "missing_calibration", "motion_plausibility",
            "LEG_PLACEMENTS", "PRESETS", "CalibrationParams", "CalibrationWindows", "ImuCalibration",
-           "SessionCalibration", "count_cycles", "detect_calibration_windows", "first_quiet_standing", "body_rate_from_quat",
+           "SessionCalibration", "count_cycles", "count_repetitions", "detect_calibration_windows", "first_quiet_standing", "body_rate_from_quat",
            "constant_offset_rotation", "imu_to_cluster_rotation", "sync_by_angular_rate", "helical_angle_deg"]

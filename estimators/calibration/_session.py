@@ -13,12 +13,14 @@ from dataclasses import replace
 from typing import Mapping
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from estimators.calibration._s2s import (CalibrationError, calibrate_imu, pelvis_from_sway, pelvis_from_thighs,
                                          vertical_calibration)
 from estimators.calibration._types import (LEG_PLACEMENTS, LEG_SEGMENTS, SIDES, STATUS_ORDER, CalibrationParams,
                                            CalibrationWindows, ImuCalibration, SessionCalibration)
-from estimators.calibration._windows import count_cycles, detect_calibration_windows, smoothed_norm
+from estimators.calibration._windows import (count_cycles, count_repetitions, detect_calibration_windows,
+                                             smoothed_norm)
 from estimators.quaternion import quat_to_matrix
 
 DEFAULT_PLACEMENTS = ("pelvis",) + LEG_PLACEMENTS
@@ -144,14 +146,20 @@ def calibrate_session(acc: Mapping[str, np.ndarray] | None, gyr: Mapping[str, np
         ev, evec = np.linalg.eigh(gc.T @ gc)
         axis_tilt = float(np.degrees(np.arcsin(np.clip(abs(evec[:, -1] @ R_S_VF[:, 1]), 0, 1))))
         z_S = R_S_AF[:, 2]
-        g_count = g_move
-        if method == "walking":
-            # gait initiation / termination steps move one leg only and fall outside the both-legs-moving
-            # window: count swings up to 1 s beyond it (never into a hip FE window)
-            lo = max([int(mw[0] - fs)] + [int(b) for a, b in win.hip_fe.values() if b <= mw[0]])
-            g_count = gyr_S[p][max(lo, 0):int(min(mw[1] + fs, len(gyr_S[p])))]
-        cycles = count_cycles(g_count, z_S, sampling_rate_hz=fs, prominence_rad_s=params.peak_prominence_rad_s,
-                              min_peak_fraction=params.min_peak_fraction)
+        # the detected window starts and ends where the smoothed angular rate crosses its threshold: the
+        # gait initiation / termination steps (one leg moving) and a slow lift into the first hip FE
+        # repetition fall partly outside it; count up to 1 s beyond it, never into another movement window
+        others = [w for s_, w in win.hip_fe.items() if not (method == "hip_fe" and s_ == side)]
+        if method == "hip_fe" and win.walking is not None:
+            others.append(win.walking)
+        lo = max([int(mw[0] - fs), 0] + [int(b) for a, b in others if b <= mw[0]])
+        hi = min([int(mw[1] + fs), len(gyr_S[p])] + [int(a) for a, b in others if a >= mw[1]])
+        g_count = gyr_S[p][lo:hi]
+        if method == "hip_fe":
+            cycles = count_repetitions(g_count, z_S, sampling_rate_hz=fs)
+        else:
+            cycles = count_cycles(g_count, z_S, sampling_rate_hz=fs, prominence_rad_s=params.peak_prominence_rad_s,
+                                  min_peak_fraction=params.min_peak_fraction)
         if method == "walking":
             walk_cycles[p] = cycles
         cal = ImuCalibration(R_sensor_af=P[p].T @ R_S_AF, status="pass", planarity=planarity, gamma_deg=gamma,
@@ -206,7 +214,7 @@ def calibrate_session(acc: Mapping[str, np.ndarray] | None, gyr: Mapping[str, np
         imus["pelvis"] = _calibrate_pelvis(acc_S, gyr_S, P, win, imus, quats, fs, params)
 
     # ---- wrong segment / side from motion ---------------------------------------------------------
-    for p, reason in motion_plausibility(gyr_S, win, sampling_rate_hz=fs, params=params).items():
+    for p, reason in motion_plausibility(gyr_S, win, sampling_rate_hz=fs, params=params, acc_S=acc_S).items():
         if p in imus:
             imus[p] = imus[p].with_status("fail", reason)
         session_reasons.append(f"{p}: {reason}")
@@ -253,13 +261,18 @@ def _calibrate_pelvis(acc_S, gyr_S, P, win, imus, quats, fs, params) -> ImuCalib
 
 
 def motion_plausibility(gyr_S: Mapping[str, np.ndarray], win: CalibrationWindows, *, sampling_rate_hz: float,
-                        params: CalibrationParams = CalibrationParams()) -> dict[str, str]:
+                        params: CalibrationParams = CalibrationParams(),
+                        acc_S: Mapping[str, np.ndarray] | None = None) -> dict[str, str]:
     """placement -> reason for leg / pelvis sensors whose motion does not fit their label.
 
     * hip FE of one leg: that leg's thigh, shank and foot move, the other leg stands still;
     * walking: a leg sensor moves in phase with the segments of its own leg (gyro-norm envelopes
-      correlate more with the ipsilateral than with the contralateral segments), the thigh moves
-      less than the shank, and the pelvis less than either thigh.
+      correlate more with the ipsilateral than with the contralateral segments), the pelvis rotates
+      less than either thigh, and the thigh moves less than the shank: lower angular rate (95th
+      percentile of |ω|) and, when ``acc_S`` is given, lower dynamic acceleration (95th percentile of
+      |a − 1-s moving mean|; the shank sensor sits two to three times farther from the hip). Both
+      must point the other way to flag a thigh/shank swap: in stiff-knee (e.g. hemiparetic) gait the
+      paretic thigh may rotate faster than its shank, but its sensor still accelerates less.
     """
     fs = sampling_rate_hz
     bad: dict[str, str] = {}
@@ -296,9 +309,17 @@ def motion_plausibility(gyr_S: Mapping[str, np.ndarray], win: CalibrationWindows
                 if same and opp and np.mean(opp) > np.mean(same) + params.swap_margin:
                     bad[p] = f"moves in phase with the {other} leg while walking: left/right swapped?"
         amp = {p: float(np.percentile(np.linalg.norm(np.nan_to_num(gyr_S[p][sl]), axis=1), 95)) for p in gyr_S}
+        dyn = {}
+        if acc_S is not None:
+            for p in acc_S:
+                a = np.nan_to_num(np.asarray(acc_S[p], float)[sl])
+                if a.shape[0]:
+                    d = a - uniform_filter1d(a, size=max(int(round(fs)), 1), axis=0, mode="nearest")
+                    dyn[p] = float(np.percentile(np.linalg.norm(d, axis=1), 95))
         for side in SIDES:
             t, s = f"thigh_{side}", f"shank_{side}"
-            if t in amp and s in amp and amp[t] > amp[s] * 1.1 and t not in bad and s not in bad:
+            acc_says = t not in dyn or s not in dyn or dyn[t] > dyn[s]
+            if t in amp and s in amp and amp[t] > amp[s] * 1.1 and acc_says and t not in bad and s not in bad:
                 bad[t] = f"moves more than {s} while walking: thigh and shank sensors swapped?"
                 bad[s] = f"moves less than {t} while walking: thigh and shank sensors swapped?"
         if "pelvis" in amp:

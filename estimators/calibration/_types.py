@@ -28,10 +28,12 @@ class CalibrationParams:
     active_gyr_rad_s: a leg side is moving if its 1-s smoothed gyro norm exceeds this, rad/s.
     min_fe_repetitions: fewest hip flexion/extension repetitions accepted (thesis ≥ 10).
     min_walking_steps: fewest straight-walking steps accepted (thesis PC8: 8).
-    peak_prominence_rad_s: prominence of a repetition / swing peak on the main axis, rad/s (0.5:
-        a hip FE of ±18° at 0.6 Hz peaks at ≈ 1.1 rad/s, and its first repetition rises from rest).
-    min_peak_fraction: a peak also needs ≥ this fraction of the largest peak (0.2: gait-initiation and
-        -termination swings are slower than steady steps but are steps; stance bumps stay below).
+    peak_prominence_rad_s: prominence of a repetition / swing peak on the main axis, rad/s (0.3: a hip
+        FE of ±18° at 0.6 Hz peaks at ≈ 1.1 rad/s; the short closing step of a paretic leg at ≈ 0.4
+        rad/s; gyro noise is < 0.02 rad/s, and stance bumps are left to the one-peak-per-period rule).
+    min_peak_fraction: a peak also needs ≥ this fraction of the largest peak (0.1: the gait-initiation
+        swing and the short closing step of an 8-step walk peak at 15-40 % of a steady swing but are
+        steps; stance bumps are rejected by the one-peak-per-period rule of ``count_cycles``).
     min_planarity: smallest explained variance λ1/(λ1+λ2) of the principal axis (spec: 0.8).
     max_axis_tilt_deg: largest angle between the 3D principal rotation axis and the horizontal
         plane of the standing estimate (agreement standing vs movement); above it → warning.
@@ -50,8 +52,8 @@ class CalibrationParams:
     active_gyr_rad_s: float = 0.3
     min_fe_repetitions: int = 10
     min_walking_steps: int = 8
-    peak_prominence_rad_s: float = 0.5
-    min_peak_fraction: float = 0.2
+    peak_prominence_rad_s: float = 0.3
+    min_peak_fraction: float = 0.1
     min_planarity: float = 0.8
     max_axis_tilt_deg: float = 15.0
     max_gravity_spread_deg: float = 3.0

@@ -85,14 +85,28 @@ def _label_runs(labels: np.ndarray, min_len: int) -> list[tuple[int, int, int]]:
 REST, FE_LEFT, FE_RIGHT, WALK = 0, 1, 2, 3
 
 
+def _hysteresis(x: np.ndarray, high: float, low_fraction: float = 0.5) -> np.ndarray:
+    """``x > high``, with the gaps between such runs filled where ``x`` stays above ``low_fraction·high``
+    (a few small hip FE repetitions do not split the movement into pieces; the edges do not move)."""
+    hi = x > high
+    out = hi.copy()
+    for a, b in runs(x > low_fraction * high):
+        idx = np.flatnonzero(hi[a:b])
+        if idx.size:
+            out[a + idx[0]:a + idx[-1] + 1] = True
+    return out
+
+
 def activity_labels(gyr: Mapping[str, np.ndarray], *, sampling_rate_hz: float,
                     params: CalibrationParams = CalibrationParams()) -> np.ndarray:
-    """(N,) int8 labels REST / FE_LEFT / FE_RIGHT / WALK from the leg IMUs (majority of a side's sensors)."""
+    """(N,) int8 labels REST / FE_LEFT / FE_RIGHT / WALK from the leg IMUs (majority of a side's sensors;
+    a sensor is active from where its 1-s smoothed gyro norm exceeds ``active_gyr_rad_s`` while it
+    stays above half of that)."""
     n1 = int(round(1.0 * sampling_rate_hz))
     n = len(next(iter(gyr.values())))
     active = {}
     for side in SIDES:
-        votes = [smoothed_norm(gyr[f"{seg}_{side}"], n1) > params.active_gyr_rad_s
+        votes = [_hysteresis(smoothed_norm(gyr[f"{seg}_{side}"], n1), params.active_gyr_rad_s)
                  for seg in LEG_SEGMENTS if f"{seg}_{side}" in gyr]
         if votes:
             active[side] = np.sum(votes, axis=0) * 2 > len(votes)   # strict majority
@@ -152,14 +166,50 @@ def first_quiet_standing(acc: Mapping[str, np.ndarray], gyr: Mapping[str, np.nda
 
 
 def count_cycles(gyr_move: np.ndarray, axis_S: np.ndarray, *, sampling_rate_hz: float,
-                 prominence_rad_s: float = 0.5, min_peak_fraction: float = 0.2) -> int:
-    """Positive peaks of the angular velocity on ``axis_S`` (hip flexion, or a leg swing in walking):
-    prominence ≥ ``prominence_rad_s`` and height ≥ ``min_peak_fraction`` of the largest peak, ≥ 0.3 s apart."""
+                 prominence_rad_s: float = 0.5, min_peak_fraction: float = 0.1,
+                 min_period_fraction: float = 0.6) -> int:
+    """Positive peaks of the angular velocity on ``axis_S`` (hip flexion, or a leg swing in walking).
+
+    A peak needs prominence ≥ ``prominence_rad_s`` and height ≥ ``min_peak_fraction`` of the largest
+    peak. Peaks closer than ``min_period_fraction`` of the movement period (median interval of the
+    peaks at least half as high as the largest; 0.3 s when fewer than two) keep only the higher one:
+    one peak per repetition or swing. This counts the slow swings of gait initiation and of the short
+    closing step (a fraction of a full swing's rate) and rejects the smaller stance-phase bumps half a
+    stride away from a swing.
+    """
     w = np.nan_to_num(np.asarray(gyr_move, float)) @ np.asarray(axis_S, float)
     w = np.concatenate([[0.0], w, [0.0]])          # a peak cut by the window edge still counts
     if w.size < 5 or not np.any(w > 0):
         return 0
-    pk, _ = find_peaks(w, prominence=prominence_rad_s, distance=max(1, int(0.3 * sampling_rate_hz)))
-    if pk.size:
-        pk = pk[w[pk] >= min_peak_fraction * w[pk].max()]
+    d0 = max(1, int(0.3 * sampling_rate_hz))
+    pk, _ = find_peaks(w, prominence=prominence_rad_s, distance=d0)
+    if not pk.size:
+        return 0
+    big = pk[w[pk] >= 0.5 * w[pk].max()]
+    if big.size >= 2:
+        period = float(np.median(np.diff(big)))
+        pk, _ = find_peaks(w, prominence=prominence_rad_s, distance=max(d0, int(min_period_fraction * period)))
+    pk = pk[w[pk] >= min_peak_fraction * w[pk].max()]
     return int(pk.size)
+
+
+def count_repetitions(gyr_move: np.ndarray, axis_S: np.ndarray, *, sampling_rate_hz: float,
+                      min_amplitude_rad: float = 0.1, min_fraction: float = 0.2) -> int:
+    """Hip flexion/extension repetitions: maxima of the flexion angle (angular velocity on ``axis_S``
+    integrated, linear trend removed: a constant gyro bias does not count) with a prominence of at
+    least ``min_amplitude_rad`` and ``min_fraction`` of the largest one.
+
+    One maximum per flexion/extension cycle: lifting the leg into the mean posture before the first
+    repetition and lowering it after the last are part of those repetitions, not extra ones (peaks
+    of the angular velocity would count them). Give a window that includes some rest before and after
+    the movement: a maximum at the window edge is not counted.
+    """
+    from scipy.signal import detrend
+    w = np.nan_to_num(np.asarray(gyr_move, float)) @ np.asarray(axis_S, float)
+    if w.size < 5:
+        return 0
+    ang = detrend(np.cumsum(w) / sampling_rate_hz)
+    pk, pr = find_peaks(ang, prominence=min_amplitude_rad, distance=max(1, int(0.3 * sampling_rate_hz)))
+    if not pk.size:
+        return 0
+    return int(np.sum(pr["prominences"] >= min_fraction * pr["prominences"].max()))

@@ -429,7 +429,9 @@ class LowerBodyModel:
             d = A - H
             dist = np.linalg.norm(d, axis=1)
             u = d / dist[:, None]
-            f = R_f[:, :, 0]
+            # the knee flexes in the plane of the walking direction: the foot's toe-out is tibial torsion
+            # (a constant ankle rotation), not a rotation of the thigh/shank flexion axes
+            f = self.foot_rotation(psi_f + sign * g.side(side).toe_out, th_f)[:, :, 0]
             nvec = _unit(f - np.sum(f * u, 1)[:, None] * u)
             L1, L2 = geo.thigh_m, geo.shank_m
             a = (L1 ** 2 - L2 ** 2 + dist ** 2) / (2.0 * dist)

@@ -12,9 +12,9 @@ from estimators.recording import ImuData, PoseData, RangeData, Recording
 from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._gait_patterns import BodyGeometry, GaitParams, body_geometry, gait_params
-from ._kinematics import SEGMENTS, SIDES, HipWindow, LowerBodyModel, TrialPlan, WalkPath
+from ._kinematics import SEGMENTS, SIDES, HipWindow, LowerBodyModel, TrialPlan, WalkPath, rot_z, smoothstep
 from ._sensor_model import (FD_STEP_S, MagneticEnvironment, SensorErrors, TrueImu, apply_errors, noisy_pose,
-                            random_rotation, true_imu)
+                            random_rotation, rotmat_from_rotvec, true_imu)
 
 LAB_PROTOCOL = "stridelab-lab-gait-v1"
 RANGE_DIVIDER = 3            # distance sensors at 100/3 Hz
@@ -99,6 +99,196 @@ def joint_angles_deg(R_prox, R_dist, side: str, joint: str) -> np.ndarray:
 def local_to_utc_ns(day: _dt.date, hhmm: str, tz: str, offset_s: float = 0.0) -> int:
     local = _dt.datetime.combine(day, _dt.time.fromisoformat(hhmm), tzinfo=zoneinfo.ZoneInfo(tz))
     return int(round(local.timestamp() * 1e9)) + int(round(offset_s * 1e9))
+
+
+# ---- lab body model: upright quiet standing, variable hip flexion/extension ---------------------
+
+@dataclass(frozen=True)
+class LabMotion:
+    """Per-session motor behaviour of a participant in the lab (drawn once per session).
+
+    - ``standing_knee_deg``: natural knee flexion in quiet standing (thigh and shank each about half
+      of it off vertical in the sagittal plane; real quiet standing: 0-3°). The feet stand under the
+      hips (stance width = hip width), so the legs are vertical in the frontal plane.
+    - ``sway_m`` (AP, ML): amplitude of the postural sway of the pelvis over the standing feet (a sum
+      of slow sines, 0.05-0.5 Hz); ``sway_freq_hz`` / ``sway_phase`` (2, 3) per direction.
+    - ``hip_amp[side]`` (reps,): flexion/extension amplitude factor of each repetition (×18° hip,
+      ×6° knee oscillation), ``hip_plane_deg[side]`` (reps,): each repetition swings about an axis
+      turned about the vertical by this angle (flexion mixed with ab/adduction: the leg does not
+      swing in the same plane every time), ``hip_ie_deg[side]`` (reps,): internal/external rotation
+      amplitude coupled to the swing, ``knee_amp[side]`` (reps,): knee oscillation factor.
+    """
+    standing_knee_deg: float = 1.0
+    sway_m: tuple[float, float] = (0.0, 0.0)
+    sway_freq_hz: np.ndarray = field(default_factory=lambda: np.array([[0.1, 0.23, 0.41], [0.13, 0.29, 0.37]]))
+    sway_phase: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    hip_amp: dict = field(default_factory=dict)
+    hip_plane_deg: dict = field(default_factory=dict)
+    hip_ie_deg: dict = field(default_factory=dict)
+    knee_amp: dict = field(default_factory=dict)
+
+    #: SD of the per-repetition swing plane (deg), amplitude (fraction), coupled internal/external
+    #: rotation (deg); bias of the swing plane common to all repetitions of a leg (deg); practice
+    #: effect: the first repetitions of the unfamiliar movement vary more, SD × (1 + PRACTICE·e^(−k/PRACTICE_REPS)).
+    #: PRACTICE is 0 (off): no source quantifies it, and the repetitions study must not be shaped by the
+    #: simulator — with independent repetitions the error still falls and levels off (bench calibration)
+    PLANE_SD_DEG = 3.0
+    AMP_SD = 0.15
+    IE_SD_DEG = 1.5
+    PLANE_BIAS_SD_DEG = 0.5
+    PRACTICE = 0.0
+    PRACTICE_REPS = 2.5
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator, reps: int, sway_scale: float = 1.0) -> "LabMotion":
+        """Random behaviour: knee flexion U(0.5, 2)°, sway ≈ 3 mm AP / 2 mm ML (× ``sway_scale``),
+        per-repetition swing plane N(bias, 3°), coupled rotation N(0, 1.5°), hip and knee amplitude
+        factors N(1, 0.15) clipped to [0.6, 1.4], all SDs larger in the first repetitions (practice)."""
+        knee = float(rng.uniform(0.5, 2.0))
+        sway = (0.003 * sway_scale, 0.002 * sway_scale)
+        freq = rng.uniform(0.05, 0.5, (2, 3))
+        phase = rng.uniform(0.0, 2.0 * np.pi, (2, 3))
+        amp, plane, ie, kamp = {}, {}, {}, {}
+        n = max(int(reps), 1)
+        practice = 1.0 + cls.PRACTICE * np.exp(-np.arange(n) / cls.PRACTICE_REPS)
+        for side in SIDES:
+            amp[side] = np.clip(1.0 + cls.AMP_SD * practice * rng.normal(size=n), 0.6, 1.4)
+            plane[side] = rng.normal(0.0, cls.PLANE_BIAS_SD_DEG) + cls.PLANE_SD_DEG * practice * rng.normal(size=n)
+            ie[side] = cls.IE_SD_DEG * practice * rng.normal(size=n)
+            kamp[side] = np.clip(1.0 + cls.AMP_SD * practice * rng.normal(size=n), 0.6, 1.4)
+        return cls(standing_knee_deg=knee, sway_m=sway, sway_freq_hz=freq, sway_phase=phase, hip_amp=amp,
+                   hip_plane_deg=plane, hip_ie_deg=ie, knee_amp=kamp)
+
+
+def _per_rep(values: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Smooth (C2) function of the repetition coordinate ``u`` (rep k spans [k, k+1)) through ``values[k]``
+    at the middle of each repetition (quintic smoothstep between neighbouring repetitions)."""
+    v = np.asarray(values, float)
+    if v.size == 1:
+        return np.full_like(u, v[0])
+    x = np.clip(u - 0.5, 0.0, v.size - 1.0)
+    k = np.minimum(np.floor(x).astype(int), v.size - 2)
+    f = smoothstep(x - k)
+    return v[k] + (v[k + 1] - v[k]) * f
+
+
+class LabBodyModel(LowerBodyModel):
+    """:class:`LowerBodyModel` with a realistic quiet standing and hip flexion/extension for lab trials.
+
+    * Quiet standing is upright: the pelvis stands high enough that the knee is flexed only by
+      ``motion.standing_knee_deg`` (thigh and shank within about 1° of vertical), the feet stand
+      under the hip joint centres, and the pelvis sways by a few millimetres over the feet. The
+      base model's standing height keeps a reach margin that flexes the knees by about 9° (thigh and
+      shank about 5° off vertical), which the thesis calibration (segment y vertical in standing,
+      Eq. 14) would see as calibration error. Before the walk starts the knees unlock smoothly.
+    * Hip flexion/extension repetitions vary: every repetition has its own amplitude and swings
+      about an axis turned about the vertical by a few degrees, with a little coupled internal /
+      external rotation, so the principal axis (Eq. 15) from few repetitions is off and converges as
+      repetitions are added (thesis ch. 3: about 10 suffice).
+    """
+
+    def __init__(self, geom: BodyGeometry, gait: GaitParams, plan: TrialPlan, motion: LabMotion | None = None):
+        self.motion = motion or LabMotion()
+        super().__init__(geom, gait, plan)
+        L1, L2 = geom.thigh_m, geom.shank_m
+        k = np.deg2rad(self.motion.standing_knee_deg)
+        self.l_stand = float(np.sqrt(L1 ** 2 + L2 ** 2 + 2.0 * L1 * L2 * np.cos(k)))
+
+    # feet under the hips in standing (first and last footprint), step width in between
+    def _schedule(self, side: str):
+        sch = super()._schedule(side)
+        sign = 1.0 if side == "right" else -1.0
+        widen = 0.5 * (self.geom.hip_width_m - self.gait.step_width_m)
+        toe = self.gait.side(side).toe_out
+        idx = [0] if sch.n_steps == 0 else [0, len(sch.fp_pos) - 1]
+        fp = sch.fp_pos.copy()
+        for i in idx:
+            psi = sch.fp_psi[i] + sign * toe                   # walking direction
+            right = np.array([np.sin(psi), -np.cos(psi), 0.0])
+            fp[i] = fp[i] + sign * widen * right
+        sch.fp_pos = fp
+        return sch
+
+    def standing_weight(self, t):
+        """1 in quiet standing (before the walk and after it), 0 while walking; smooth in between."""
+        t = np.asarray(t, dtype=float)
+        p = self.plan
+        if p.t_walk0 is None:
+            return np.ones_like(t)
+        w = 1.0 - smoothstep((t - (p.t_walk0 - 0.6)) / 0.55)          # knees unlock just before gait initiation
+        ends = [float(s.ff.max()) for s in self.schedules.values() if s.n_steps]
+        t_end = max([p.t_walk1] + ends) + 0.3
+        return w + smoothstep((t - t_end) / 1.0)
+
+    def pelvis(self, t, ankles):
+        pos, R, E, ph = super().pelvis(t, ankles)
+        if self._z_spline is None:                          # base model: reach limits while walking
+            return pos, R, E, ph
+        t = np.asarray(t, dtype=float)
+        S = self.standing_weight(t)
+        if not np.any(S > 0):
+            return pos, R, E, ph
+        mo = self.motion
+        pos = pos.copy()
+        # postural sway: AP along the pelvis x axis, ML along its z axis
+        for j, axis in ((0, 0), (1, 2)):
+            if mo.sway_m[j] > 0:
+                sw = mo.sway_m[j] / np.sqrt(3.0) * np.sum(
+                    np.sin(2.0 * np.pi * mo.sway_freq_hz[j][None, :] * t[:, None] + mo.sway_phase[j][None, :]), 1)
+                pos[:, :2] += (S * sw)[:, None] * R[:, :2, axis]
+        # standing height: hips at l_stand from the ankles (knees almost straight)
+        zs = []
+        for side, sign in (("right", 1.0), ("left", -1.0)):
+            off = R[:, :, 2] * (sign * 0.5 * self.geom.hip_width_m)
+            a = ankles[side]
+            dxy2 = np.sum((pos[:, :2] + off[:, :2] - a[:, :2]) ** 2, axis=1)
+            zs.append(a[:, 2] + np.sqrt(np.maximum(self.l_stand ** 2 - dxy2, 1e-6)) - off[:, 2])
+        z_up = np.min(zs, axis=0)
+        pos[:, 2] += S * np.maximum(z_up - pos[:, 2], 0.0)
+        return pos, R, E, ph
+
+    def _apply_hip_window(self, w: HipWindow, t, out):
+        m = (t > w.t0) & (t < w.t1)
+        if not np.any(m):
+            return
+        mo = self.motion
+        if w.side not in mo.hip_amp:
+            return super()._apply_hip_window(w, t, out)
+        geo = self.geom
+        tt = t[m]
+        ramp = 1.0
+        env = smoothstep((tt - w.t0) / ramp) - smoothstep((tt - (w.t1 - ramp)) / ramp)
+        # the leg lifts into the mean posture (hip and knee flexed) slowly, over the first repetition
+        lift = (w.t1 - w.t0) / max(w.reps, 1)
+        env_m = smoothstep((tt - w.t0) / lift) - smoothstep((tt - (w.t1 - lift)) / lift)
+        u = w.reps * (tt - w.t0) / (w.t1 - w.t0)             # repetition coordinate
+        osc = np.sin(2.0 * np.pi * u)
+        amp = _per_rep(mo.hip_amp[w.side], u)
+        plane = np.deg2rad(_per_rep(mo.hip_plane_deg[w.side], u))
+        ie = np.deg2rad(_per_rep(mo.hip_ie_deg[w.side], u))
+        kamp = _per_rep(mo.knee_amp[w.side], u)
+        # hip flexion (12° mean + 18° oscillation, per-repetition amplitude) about the thigh's z axis
+        # turned about its y axis by the repetition's `plane` angle, plus a coupled rotation about y
+        f_hip = np.deg2rad(12.0) * env_m + np.deg2rad(18.0) * amp * env * osc
+        rv = np.stack([np.sin(plane) * f_hip, ie * env * osc, np.cos(plane) * f_hip], -1)
+        d_knee = np.deg2rad(24.0) * env_m + np.deg2rad(6.0) * kamp * env * osc
+        d_ank = -(np.cos(plane) * f_hip - d_knee)              # keeps the foot about level
+        th_key, sh_key, ft_key = f"thigh_{w.side}", f"shank_{w.side}", f"foot_{w.side}"
+        H, R_th = out[th_key][0][m], out[th_key][1][m]
+        R_sh, R_ft = out[sh_key][1][m], out[ft_key][1][m]
+        rel_knee = np.swapaxes(R_th, 1, 2) @ R_sh
+        rel_ank = np.swapaxes(R_sh, 1, 2) @ R_ft
+        R_th2 = R_th @ rotmat_from_rotvec(rv)
+        R_sh2 = R_th2 @ rel_knee @ rot_z(-d_knee)
+        R_ft2 = R_sh2 @ rel_ank @ rot_z(d_ank)
+        K2 = H - R_th2[:, :, 1] * geo.thigh_m
+        A2 = K2 - R_sh2[:, :, 1] * geo.shank_m
+        for key, val in ((th_key, (H, R_th2)), (sh_key, (K2, R_sh2)), (ft_key, (A2, R_ft2))):
+            p_all, R_all = out[key]
+            p_all = p_all.copy()
+            R_all = R_all.copy()
+            p_all[m], R_all[m] = val
+            out[key] = (p_all, R_all)
 
 
 # ---- trial plans ---------------------------------------------------------------------------------
@@ -278,12 +468,17 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
     if participant.hemiparetic:
         base["paretic_side"] = str(participant.paretic_side)
     plan, windows = calibration_plan(manifest, gait)
+    # motor behaviour of this session (standing posture, sway, hip FE variability); its own stream so
+    # the device and trial streams stay as they were. Postural sway scales with the sensor model's
+    # noise (the ideal model keeps quiet standing exactly still, the rest contract of its tests).
+    motion = LabMotion.draw(np.random.default_rng(np.random.SeedSequence([seed, index, 2, session])),
+                            manifest.lab.hip_repetitions, sway_scale=spec.noise_scale)
     trials = [("calibration", "lab", plan, windows)]   # one lab session; the trial name marks calibration
     for k in range(1, manifest.lab.walking_trials + 1):
         trials.append((f"walk-{k}", "lab", walking_plan(manifest, gait, k), []))
     t_off = 0.0
     for (trial, kind, plan, windows), ss in zip(trials, trial_ss):
-        model = LowerBodyModel(geo, gait, plan)
+        model = LabBodyModel(geo, gait, plan, motion)
         md = dict(base, kind=kind, trial=trial)
         rec, truth = simulate_trial(model, t0_ns=t_start + int(round(t_off * 1e9)), rate_hz=rate, devices=devices,
                                     spec=spec, mag_env=mag_env, rng=np.random.default_rng(ss),
