@@ -62,10 +62,15 @@ def lying_state(theta_deg: np.ndarray, p: ActivityParams) -> np.ndarray:
 
 
 def detect_transitions(theta_deg, ga, acc, sec_static, sec_ga, fs: float, p: ActivityParams,
-                       lying: np.ndarray | None = None) -> Transitions:
+                       lying: np.ndarray | None = None, return_candidates: bool = False):
     """SiLy/LySi (70° crossings, direction from the sign of the GA_v gradient, static frontal-gravity
-    confirmation) and StSi/SiSt (20° excursions, ΔY ≥ dy_fraction × thigh, sign of the cumulative SVM
-    integral). All inputs in the analysis frame (x frontal, y vertical, z lateral), in g and degrees."""
+    confirmation) and StSi/SiSt (20° excursions, ΔY (Eq. 55-56) ≥ dy_fraction × thigh, sign of the cumulative
+    SVM integral (Eq. 57) or of ΔY). All inputs in the analysis frame (x frontal, y vertical, z lateral), in g
+    and degrees.
+
+    With ``return_candidates`` also returns every sit/stand candidate excursion (a ``Transitions`` with the
+    kind its ΔY / CI sign gives, accepted or not) and a bool mask of the accepted ones, for the posture-sequence
+    check of the timeline (``sitstand_resolve``)."""
     n = theta_deg.shape[0]
     ts, kinds, t0s, t1s, dys = [], [], [], [], []
     if lying is None:
@@ -99,6 +104,7 @@ def detect_transitions(theta_deg, ga, acc, sec_static, sec_ga, fs: float, p: Act
         a_v = None
     limit = int(round(p.minima_search_s * fs))
     max_len = p.max_transition_s * fs
+    c_t, c_k, c_0, c_1, c_dy, c_ok = [], [], [], [], [], []
     starts, ends = runs(theta_deg > p.sitstand_deg)
     for a, b in zip(starts, ends):
         if b - a > max_len or a == 0 or b >= n:
@@ -109,24 +115,31 @@ def detect_transitions(theta_deg, ga, acc, sec_static, sec_ga, fs: float, p: Act
         t_e = _walk_to_minimum(theta_deg, b - 1, 1, limit, p.minima_tolerance_deg)
         if t_e - t_s < 3:
             continue
-        dy = _window_dy(acc, ga, a_v, t_s, t_e, fs)
+        dy = _window_dy(acc, ga, a_v, t_s, t_e, fs, p.dy_source)
         pad = int(round(p.dy_pad_s * fs))
         if pad > 0:                 # the θ minima can cut the chest motion (e.g. a window starting mid-rise)
             i0, i1 = max(0, t_s - pad), min(n - 1, t_e + pad)
             if _quiet(acc, i0, t_s, p.static_std_g) and _quiet(acc, t_e, i1, p.static_std_g):
-                dy2 = _window_dy(acc, ga, a_v, i0, i1, fs)
+                dy2 = _window_dy(acc, ga, a_v, i0, i1, fs, p.dy_source)
                 if abs(dy2) > abs(dy):
                     dy = dy2
-        if abs(dy) < p.dy_fraction * p.thigh_length_m:
-            continue                                     # bowing, squat, reaching: not a sit/stand
+        ok = abs(dy) >= p.dy_fraction * p.thigh_length_m   # else bowing, squat, reaching: not a sit/stand
         svm = np.linalg.norm(ga[t_s:t_e + 1], axis=1) - 1.0
         sign = cumulative_svm_sign(svm) if p.sitstand_sign == "ci" else (1 if dy > 0 else -1)
         kind = STSI if sign < 0 else SIST
-        ts.append(0.5 * (t_s + t_e) / fs); kinds.append(kind); t0s.append(t_s / fs); t1s.append(t_e / fs)
-        dys.append(dy)
+        c_t.append(0.5 * (t_s + t_e) / fs); c_k.append(kind); c_0.append(t_s / fs); c_1.append(t_e / fs)
+        c_dy.append(dy); c_ok.append(ok)
+        if ok:
+            ts.append(0.5 * (t_s + t_e) / fs); kinds.append(kind); t0s.append(t_s / fs); t1s.append(t_e / fs)
+            dys.append(dy)
     order = np.argsort(np.asarray(ts, dtype=np.float64), kind="stable")
     f = lambda v, dt=np.float64: np.asarray(v, dtype=dt)[order]  # noqa: E731
-    return Transitions(t_s=f(ts), kind=f(kinds, np.int8), start_s=f(t0s), end_s=f(t1s), dy_m=f(dys))
+    tr = Transitions(t_s=f(ts), kind=f(kinds, np.int8), start_s=f(t0s), end_s=f(t1s), dy_m=f(dys))
+    if not return_candidates:
+        return tr
+    g = lambda v, dt=np.float64: np.asarray(v, dtype=dt)  # noqa: E731  (excursions come in time order)
+    cand = Transitions(t_s=g(c_t), kind=g(c_k, np.int8), start_s=g(c_0), end_s=g(c_1), dy_m=g(c_dy))
+    return tr, cand, np.asarray(c_ok, dtype=bool)
 
 
 def _quiet(acc, i0, i1, std_g):
@@ -137,10 +150,20 @@ def _quiet(acc, i0, i1, std_g):
     return float(np.linalg.norm(acc[i0:i1], axis=1).std()) < std_g
 
 
-def _window_dy(acc, ga, a_v, i0, i1, fs):
-    """ΔY (Eq. 56) over samples [i0, i1]: a_vg from GA (Eq. 55, ``a_v`` given) or raw acc projected on the GA
-    direction (``a_v`` None)."""
-    if a_v is None:
+def _window_dy(acc, ga, a_v, i0, i1, fs, source="raw"):
+    """ΔY (Eq. 56) over samples [i0, i1] from a vertical acceleration:
+
+    ``"ga"``: a_vg from the GA components (Eq. 55, ``a_v`` given, thesis); ``"raw"``: the raw acc projected on
+    the GA direction (raw form of Eq. 55); ``"norm"``: ‖a‖ (extension). ‖g + d‖ = g + d·ĝ + O(|d⊥|²/2g), so
+    ‖a‖ − g is the vertical acceleration to first order without any orientation estimate: no lag of the causal
+    GA filter (which tilts the projection by up to 10-15° while the trunk leans 30°, i.e. a spurious −(1 − cos δ)
+    g ≈ −0.03 g, as large as the transition acceleration itself) and no sensitivity to the mounting; the
+    second-order term is < 0.015 m/s² for a 0.5 m/s² horizontal acceleration. Constant offsets are removed with
+    the window mean (Eq. 56)."""
+    if source == "norm":
+        x = acc[i0:i1 + 1]
+        av = np.sqrt(np.einsum("ij,ij->i", x, x))
+    elif a_v is None:
         g = ga[i0:i1 + 1]
         av = np.einsum("ij,ij->i", acc[i0:i1 + 1], g) / np.linalg.norm(g, axis=1)
     else:

@@ -89,8 +89,9 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     (8) the timeline state machine (§4.5) gives every second a class.
 
     Deviations (project default, see ``PRESETS["thesis"]`` for the literal method and docs/activity.md):
-    frame alignment to the walking posture (thesis: none, the mounting tilt stays in θ); ΔY from raw acc
-    projected on the GA direction (thesis: GA, Eq. 55), also over a quiet-padded window; steps on the
+    frame alignment to the walking posture (thesis: none, the mounting tilt stays in θ); ΔY (Eq. 56) from ‖a‖,
+    lag-free (thesis: a_vg from GA, Eq. 55), also over a quiet-padded window; a posture-sequence check of the
+    sit/stand transitions (``resolve_sitstand``: StSi and SiSt alternate between walking and lying anchors); steps on the
     0.5-3 Hz band-passed vertical raw acc with an adaptive threshold (thesis: GA SVM, Eq. 57, fixed threshold);
     stairs by cadence and lean relative to the participant's own walking (thesis: var(GA_v) and GA_f area
     with unspecified thresholds); side lying accepted; hybrid timeline (lying from θ, static lean when no
@@ -157,7 +158,8 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     dc = ga_dc_gain(fs, p.ga_cutoff_hz, p.ga_ripple_db, p.ga_stop_db)
     theta = K.theta_deg(np.ascontiguousarray(ga[:, 1]), dc)
     lying = lying_state(theta, p)
-    tr = detect_transitions(theta, ga, acc_g, sec_static, sec_ga, fs, p, lying)
+    tr, cand_tr, cand_ok = detect_transitions(theta, ga, acc_g, sec_static, sec_ga, fs, p, lying,
+                                              return_candidates=True)
     groups = [g for g in groups if cand[int(g[0] / fs):int(g[-1] / fs) + 1].mean() < 0.5]
     bouts, steps, smod = classify_bouts(groups, theta, ga, fs, p)
     if len(bouts) == 0:
@@ -166,12 +168,164 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
     lying_sec = K.second_mean1(lying.astype(np.float64), fs, n_sec) > 0.5
     nonwear = cand
     tr = _drop(tr, nonwear)
+    if p.sitstand_resolve and p.timeline == "hybrid":
+        tr, n_rev = resolve_sitstand(tr, cand_tr, cand_ok, bouts, lying_sec, nonwear,
+                                     p.dy_fraction * p.thigh_length_m, theta_sec, p.sit_lean_deg)
+        if n_rev:
+            warn.append(f"{n_rev} sit/stand transitions revised by the posture-sequence check "
+                        "(sign flipped, rejected candidate added, or dropped)")
     cls = _timeline(n_sec, tr, bouts, nonwear, lying_sec, theta_sec, p, warn)
     return ActivityResult(second_t_ns=np.int64(t0_ns) + np.arange(n_sec, dtype=np.int64) * 1_000_000_000,
                           second_class=cls, step_times_s=steps / fs, step_modality=smod, bouts=bouts,
                           transitions=tr, inclination_deg=theta_sec, calibration=cal,
                           upright_ref=np.asarray(refs), clipped_fraction=clipped, warnings=tuple(warn),
                           sampling_rate_hz=fs, t0_ns=int(t0_ns), timezone=timezone, params=p)
+
+
+#: costs of the posture-sequence check (``resolve_sitstand``), in units of "one implausible decision"
+_C_FLIP = 1.0        # accepted transition applied with the opposite sign
+_C_DROP = 1.5        # accepted transition (ΔY ≥ threshold) ignored
+_C_ADD = 0.65        # rejected candidate (20° excursion, ΔY below the check) applied; − 0.15 × its ΔY in the
+_C_ADD_SLOPE = 0.15  # applied direction / the ΔY threshold (clipped to ±1): 0.5 (sit-like) ... 0.8 (opposite)
+_C_IMPLICIT = 1.2    # posture change with no candidate at all, right before a walking bout / lying period
+_C_LEAN = 2.0        # standing through ≥ _LEAN_MIN_S still seconds that mostly lean > sit_lean_deg (sitting evidence)
+_LEAN_MIN_S = 60
+
+
+def resolve_sitstand(tr: Transitions, cand: Transitions, ok: np.ndarray, bouts, lying_sec: np.ndarray,
+                     nonwear: np.ndarray, dy_threshold_m: float, theta_sec: np.ndarray | None = None,
+                     sit_lean_deg: float | None = None) -> tuple[Transitions, int]:
+    """Posture-sequence check of the sit/stand transitions (extension; the thesis classifies each transition
+    on its own, spec §4.3, and §4.5 applies contradicting events anyway).
+
+    Sitting and standing alternate: a StSi starts from standing, a SiSt from sitting; a walking bout is
+    standing at both ends; the trunk sits next to a lying period (SiLy from sitting, LySi to sitting). Per wear
+    period, a two-state (standing / sitting) minimum-cost path over the time-ordered sit/stand candidates
+    (every 20° excursion with a θ-minima window, spec §4.3 steps 1 and 3, whether its ΔY passed the
+    thigh-length check or not) and these anchors decides which candidates are posture changes; the kind follows
+    from the state (standing -> StSi). Costs: ``_C_FLIP`` to apply an accepted transition with the other sign,
+    ``_C_DROP`` to ignore it, ``_C_ADD`` − ``_C_ADD_SLOPE`` × (ΔY in the applied direction / ``dy_threshold_m``,
+    clipped to ±1) to apply a rejected candidate (so the most sit-like of several excursions, e.g. the real
+    stand-to-sit rather than a bow before it, is chosen), ``_C_IMPLICIT`` for a change with no candidate right
+    before an anchor; ties go to the earlier candidate. Posture evidence (with ``theta_sec``, the per-second
+    inclination relative to the upright walking reference, and ``sit_lean_deg``): standing through a gap of
+    ≥ ``_LEAN_MIN_S`` s between items whose seconds mostly lean more than ``sit_lean_deg`` costs ``_C_LEAN``
+    (a reclined or slumped trunk is sitting, in the thesis' own framing sitting and standing differ in the
+    trunk inclination), so a period such evidence marks as sitting takes a rejected candidate or an implicit
+    change rather than staying standing. Each such leaning run (≥ ``_LEAN_MIN_S`` s, outside lying and walking)
+    also adds two virtual candidates, its onset (StSi) and its end (SiSt), applied at cost ``_C_ADD`` (dy_m NaN
+    in the output), because a reclined sit-down keeps θ above 20° for longer than a candidate excursion. A missed stand-to-sit (the ΔY check failed) before a detected sit-to-stand is thereby recovered
+    from the rejected excursion, and one wrong sign no longer flips the following correct transition.
+
+    ``tr``: detected transitions (lying ones kept as they are); ``cand``/``ok``: every sit/stand candidate and
+    whether it was accepted. Returns (revised transitions, number of candidates whose outcome changed)."""
+    n_sec = nonwear.shape[0]
+    keep_lying = np.isin(tr.kind, (SILY, LYSI))
+    out = {f: [getattr(tr, f)[keep_lying]] for f in ("t_s", "kind", "start_s", "end_s", "dy_m")}
+    walk = np.zeros(n_sec + 1, dtype=bool)
+    for a, b in zip(bouts.start_s, bouts.end_s):
+        walk[int(max(a, 0)):int(np.ceil(b))] = True
+    csec = np.minimum(cand.t_s.astype(np.int64), n_sec - 1)
+    use = ~nonwear[csec] & ~walk[csec]
+    # anchors: (time, kind 1, required state); candidates: (time, kind 0, index). 0 = standing, 1 = sitting
+    items = [(float(cand.t_s[i]), 0, int(i)) for i in np.flatnonzero(use)]
+    items += [(float(a), 1, 0) for a in bouts.start_s] + [(float(b), 1, 0) for b in bouts.end_s]
+    for a, b in zip(*runs(lying_sec)):
+        items += [(float(a) - 0.5, 1, 1), (float(b) + 0.5, 1, 1)]
+    items.sort(key=lambda x: (x[0], x[1]))
+    lean = None
+    n_c = len(cand)
+    v_t, v_k = [], []                                           # virtual candidates: lean onsets / offsets
+    if theta_sec is not None and sit_lean_deg is not None:
+        lean = (np.asarray(theta_sec, dtype=np.float64) > sit_lean_deg) & ~lying_sec & ~walk[:n_sec]
+        lean_cs = np.concatenate([[0], np.cumsum(lean)])
+        for a, b in zip(*runs(lean)):
+            if b - a >= _LEAN_MIN_S and not nonwear[a:b].any():
+                v_t += [float(a), float(b)]; v_k += [STSI, SIST]
+                items += [(float(a), 0, n_c + len(v_t) - 2), (float(b), 0, n_c + len(v_t) - 1)]
+        items.sort(key=lambda x: (x[0], x[1]))
+    if v_t:
+        z = np.full(len(v_t), np.nan)
+        cand = Transitions(t_s=np.concatenate([cand.t_s, v_t]), kind=np.concatenate([cand.kind, v_k]).astype(np.int8),
+                           start_s=np.concatenate([cand.start_s, v_t]), end_s=np.concatenate([cand.end_s, v_t]),
+                           dy_m=np.concatenate([cand.dy_m, z]))
+        ok = np.concatenate([ok, np.zeros(len(v_t), dtype=bool)])
+        use = np.concatenate([use, np.ones(len(v_t), dtype=bool)])
+    if len(cand) == 0:
+        return tr, 0
+    times = np.asarray([x[0] for x in items], dtype=np.float64)
+
+    def gap_cost(t0, t1):
+        """Cost of standing through (t0, t1): _C_LEAN if it is ≥ _LEAN_MIN_S long and most of its seconds
+        lean more than sit_lean_deg from the upright (walking) reference (posture evidence of sitting)."""
+        if lean is None:
+            return 0.0
+        i0, i1 = int(np.ceil(max(t0, 0.0))), int(min(t1, n_sec))
+        if i1 - i0 < _LEAN_MIN_S:
+            return 0.0
+        return _C_LEAN if (lean_cs[i1] - lean_cs[i0]) > 0.5 * (i1 - i0) else 0.0
+
+    revised = 0
+    applied = np.zeros(len(cand), dtype=bool)
+    kind_out = cand.kind.copy()
+    for wa, wb in zip(*runs(~nonwear)):                         # one wear period at a time
+        lo, hi = np.searchsorted(times, [wa - 1.0, wb], side="left")
+        seg = items[lo:hi]
+        if not any(typ == 0 for _, typ, _ in seg):
+            continue
+        cost = np.zeros(2)                                      # free start (back-filled like spec §4.5)
+        back = []                                               # per item: (prev state of state 0, of state 1)
+        rank = 0
+        t_prev = float(wa)
+        for t, typ, v in seg:
+            cost = cost + np.array([gap_cost(t_prev, t), 0.0])  # evidence over the gap before this item
+            t_prev = max(t_prev, t)
+            if typ == 1:                                        # anchor: state must be v
+                new = np.full(2, np.inf)
+                new[v] = min(cost[v], cost[1 - v] + _C_IMPLICIT)
+                back.append((0 if new[0] == cost[0] else 1, 1 if new[1] == cost[1] else 0))
+                cost = new
+                continue
+            rank += 1
+            k = int(cand.kind[v])
+            eps = 1e-3 * rank
+            new, bp = np.empty(2), [0, 0]
+            for s1 in (0, 1):
+                opts = []
+                for s0 in (0, 1):
+                    if s0 == s1:
+                        c = _C_DROP if ok[v] else 0.0
+                    else:
+                        natural = (k == STSI) == (s0 == 0)
+                        if ok[v]:
+                            c = 0.0 if natural else _C_FLIP
+                        elif v >= n_c:                          # lean onset / offset (no ΔY)
+                            c = (_C_ADD if natural else _C_DROP) + eps
+                        else:
+                            r = float(np.clip((-1.0 if s0 == 0 else 1.0) * cand.dy_m[v] / dy_threshold_m, -1, 1))
+                            c = _C_ADD - _C_ADD_SLOPE * r + eps
+                    opts.append(cost[s0] + c)
+                bp[s1] = int(np.argmin(opts))
+                new[s1] = opts[bp[s1]]
+            back.append(tuple(bp))
+            cost = new
+        cost = cost + np.array([gap_cost(t_prev, float(wb)), 0.0])
+        s = int(np.argmin(cost))
+        for (t, typ, v), bp in zip(reversed(seg), reversed(back)):
+            s0 = bp[s]
+            if typ == 0 and s0 != s:
+                applied[v] = True
+                kind_out[v] = STSI if s0 == 0 else SIST
+            s = s0
+    for v in range(len(cand)):
+        if applied[v] != bool(ok[v] and use[v]) or (applied[v] and kind_out[v] != cand.kind[v]):
+            revised += 1
+    sel = applied
+    out["t_s"].append(cand.t_s[sel]); out["kind"].append(kind_out[sel].astype(np.int8))
+    out["start_s"].append(cand.start_s[sel]); out["end_s"].append(cand.end_s[sel]); out["dy_m"].append(cand.dy_m[sel])
+    cat = {f: np.concatenate(v) for f, v in out.items()}
+    order = np.argsort(cat["t_s"], kind="stable")
+    return Transitions(**{f: v[order] for f, v in cat.items()}), revised
 
 
 def _drop(tr: Transitions, mask: np.ndarray) -> Transitions:

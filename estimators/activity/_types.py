@@ -59,7 +59,18 @@ class ActivityParams:
     sitstand_sign: StSi vs SiSt from ``"ci"`` (thesis: sign of the dominant extremum of the cumulative SVM
         integral) or ``"dy"`` (sign of ΔY: the thesis's "alternative method"; default, because the GA-based CI
         had the StSi sign for sit-to-stand too on the synthetic days).
-    dy_source: ``"ga"`` (thesis Eq. 55 on GA) or ``"raw"`` (raw acc projected on the GA gravity direction).
+    dy_source: vertical acceleration integrated for ΔY (Eq. 56): ``"ga"`` (thesis Eq. 55 on GA), ``"raw"`` (raw
+        acc projected on the GA gravity direction) or ``"norm"`` (default, extension: ‖a‖, the vertical
+        acceleration to first order with no orientation estimate, hence no lag of the causal GA filter; the
+        projection on the lagging GA direction recovered 55-80 % of a simulated sit-to-stand rise, ‖a‖ 80-100 %).
+    sitstand_resolve: posture-sequence check of the sit/stand transitions (extension, timeline "hybrid" only):
+        between walking bouts (standing) and lying periods (sitting next to them) StSi and SiSt must alternate;
+        a minimum-cost two-state path over all 20° candidate excursions (accepted ones and those the ΔY check
+        rejected) flips a transition whose sign contradicts the sequence, adds a rejected candidate where a
+        transition is missing (e.g. a SiSt while standing needs a StSi before it) and drops one that fits nowhere;
+        posture evidence: ≥ 60 s still with the trunk leaning more than sit_lean_deg from the upright reference
+        costs when standing, and such a run's onset / end are virtual candidates (a reclined sit-down keeps θ
+        above 20°, so it has no candidate excursion). Thesis preset: off (each transition decided on its own).
     svm_walk_source: ``"ga"`` (thesis Eq. 57 SVM), ``"raw"`` (‖a‖ − 1 g low-passed at step_lowpass_hz) or
         ``"vertical"`` (default, extension: raw acc projected on the GA gravity direction, i.e. the raw form of
         Eq. 55, band-passed step_highpass_hz-step_lowpass_hz; orientation-free and insensitive to the
@@ -87,7 +98,7 @@ class ActivityParams:
         (extension: lying straight from θ, sit/stand also from the static lean relative to the upright
         reference when no transition decides).
     sit_lean_deg: hybrid mode, static lean relative to the upright reference above which a still period
-        with no deciding transition is sitting, deg.
+        with no deciding transition is sitting, and the posture evidence of ``sitstand_resolve``, deg.
     nonwear_std_g: a minute is motionless if every axis' std over the minute is below the threshold, g: this
         value when nonwear_noise_factor = 0, else the cap of the adaptive threshold (van Hees 2013: 13 mg).
     nonwear_noise_factor: adaptive non-wear threshold = this × the recording's own noise floor (5th percentile
@@ -117,7 +128,8 @@ class ActivityParams:
     dy_fraction: float = 0.35
     dy_pad_s: float = 1.0
     sitstand_sign: str = "dy"
-    dy_source: str = "raw"
+    sitstand_resolve: bool = True
+    dy_source: str = "norm"
     svm_walk_source: str = "vertical"
     step_highpass_hz: float = 0.5
     step_lowpass_hz: float = 3.0
@@ -142,7 +154,7 @@ class ActivityParams:
 
     def __post_init__(self):
         for name, allowed in (("ga_mode", ("lfilter", "filtfilt")), ("align", ("none", "upright_reference")),
-                              ("dy_source", ("ga", "raw")), ("sitstand_sign", ("ci", "dy")), ("svm_walk_source", ("ga", "raw", "vertical")),
+                              ("dy_source", ("ga", "raw", "norm")), ("sitstand_sign", ("ci", "dy")), ("svm_walk_source", ("ga", "raw", "vertical")),
                               ("stairs_mode", ("thesis", "relative")), ("timeline", ("events", "hybrid"))):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"ActivityParams.{name} must be one of {allowed}, got {getattr(self, name)!r}")
@@ -155,7 +167,7 @@ class ActivityParams:
 PRESETS = MappingProxyType({
     "thesis": ActivityParams(align="none", autocalibrate=False, side_lying=False, dy_source="ga",
                              svm_walk_source="ga", step_threshold_g=0.015, step_relative=0.0,
-                             step_min_interval_s=0.25, step_max_interval_s=1.5, dy_fraction=0.5, dy_pad_s=0.0, sitstand_sign="ci", minima_tolerance_deg=0.0, stairs_mode="thesis",
+                             step_min_interval_s=0.25, step_max_interval_s=1.5, dy_fraction=0.5, dy_pad_s=0.0, sitstand_sign="ci", sitstand_resolve=False, minima_tolerance_deg=0.0, stairs_mode="thesis",
                              timeline="events"),
     "default": ActivityParams(),
 })

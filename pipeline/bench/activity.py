@@ -13,6 +13,13 @@ synthetic data; participants 1-4 were looked at while developing (``development`
 (``held_out``). Both groups are reported separately, plus all participants together.
 Speed: ``classify_day`` + ``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a
 warm-up call (numba JIT).
+
+Simulated free-living days (``--simulated N``, key ``simulated``): the demo study's first N participants, one
+24 h day each from ``studies.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
+classified with the project default and the participant's thigh length. ``agreement`` = per-second agreement
+over the seconds whose reference is a class (``transition`` seconds are not scored; a labelled interval covers
+its whole seconds, same definition as docs/activity.md); ``steps_error_pct`` = 100 (detected − scripted) /
+scripted; ``seconds`` = classify_day + daily_summaries on that day.
 """
 from __future__ import annotations
 
@@ -97,18 +104,76 @@ def speed_24h(fs: float = 100.0) -> float:
     return time.perf_counter() - t0
 
 
-def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = True) -> dict:
-    """Run the benchmark; returns the JSON-able result (see module docstring)."""
+def reference_seconds(events, t0_ns: int, n_sec: int) -> tuple[np.ndarray, int]:
+    """Per-second reference class index (−1 = not scored, e.g. transitions) and the scripted step total from a
+    simulated recording's activity events (whole seconds inside each labelled interval)."""
+    from estimators.activity import CLASSES
+    ref = np.full(n_sec, -1, dtype=np.int64)
+    steps = 0
+    for e in events:
+        if e.get("label") in CLASSES:
+            a = int(np.ceil((e["t_ns"] - t0_ns) / 1e9))
+            b = int((e["end_ns"] - t0_ns) // 1_000_000_000)
+            ref[max(a, 0):max(min(b, n_sec), 0)] = CLASSES.index(e["label"])
+        steps += int(e.get("steps", 0))
+    return ref, steps
+
+
+def simulated_days(n: int, *, preset: str = "default", progress_cb=None) -> dict:
+    """Per-second agreement and step error of ``preset`` on N simulated 24 h days of the demo study."""
+    import dataclasses
+
+    from estimators.activity import CLASSES, PRESETS, classify_day, daily_summaries
+    from studies.manifest import load_manifest
+    from studies.simulator import simulate_chest_day, study_participants
+    m = load_manifest(None)
+    m = dataclasses.replace(m, free_living=dataclasses.replace(m.free_living, hours=24.0))
+    per = {}
+    for i, part in enumerate(study_participants(m, n)):
+        if progress_cb:
+            progress_cb(f"simulated day {part.id}")
+        rec, _ = simulate_chest_day(m, part, i)
+        imu = rec.imu["chest"]
+        t0 = int(imu.t_ns[0])
+        params = dataclasses.replace(PRESETS[preset], thigh_length_m=float(rec.metadata["thigh_length_m"]))
+        tic = time.perf_counter()
+        r = classify_day(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone, params=params)
+        daily_summaries(r)
+        el = time.perf_counter() - tic
+        ref, steps_ref = reference_seconds(rec.events, t0, r.second_class.size)
+        sc = ref >= 0
+        C = np.zeros((len(CLASSES), len(CLASSES)), dtype=np.int64)
+        np.add.at(C, (ref[sc], r.second_class[sc].astype(np.int64)), 1)
+        per[part.id] = {"agreement": float((r.second_class[sc] == ref[sc]).mean()) if sc.any() else None,
+                        "steps": int(r.step_times_s.size), "steps_reference": int(steps_ref),
+                        "steps_error_pct": (100.0 * (r.step_times_s.size - steps_ref) / steps_ref) if steps_ref else None,
+                        "seconds": el, "hemiparetic": bool(getattr(part, "hemiparetic", False)),
+                        "scored_s": int(sc.sum()), "confusion": C.tolist()}
+        if progress_cb:
+            progress_cb(None)
+    ag = [v["agreement"] for v in per.values() if v["agreement"] is not None]
+    return {"preset": preset, "hours": 24.0, "classes": list(CLASSES), "per_participant": per,
+            "min_agreement": min(ag) if ag else None,
+            "max_abs_steps_error_pct": max((abs(v["steps_error_pct"]) for v in per.values()
+                                            if v["steps_error_pct"] is not None), default=None),
+            "goal": {"agreement": 0.95, "abs_steps_error_pct": 3.0}}
+
+
+def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: bool = True,
+                  simulated: int = 0) -> dict:
+    """Run the benchmark; returns the JSON-able result (see module docstring). ``directory`` None skips UCI."""
     from estimators.activity import PRESETS, classify_day
     from pipeline.formats.uci_chest import load_uci_chest
-    try:
-        parts = load_uci_chest(directory)
-    except ValueError as e:
-        raise UserError(str(e)) from e
+    parts = []
+    if directory is not None:
+        try:
+            parts = load_uci_chest(directory)
+        except ValueError as e:
+            raise UserError(str(e)) from e
     methods = {}
     with progress(show_progress) as p:
-        task = p.add_task("activity", total=len(parts) * 2 + (1 if speed else 0))
-        for name in ("thesis", "default"):
+        task = p.add_task("activity", total=len(parts) * 2 + (1 if speed else 0) + simulated)
+        for name in (("thesis", "default") if parts else ()):
             params = PRESETS[name]
             per, groups = {}, {"all": np.zeros((4, 4), np.int64), "development": np.zeros((4, 4), np.int64),
                                "held_out": np.zeros((4, 4), np.int64)}
@@ -124,7 +189,8 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
             overall = scores(groups["all"])
             methods[name] = {**overall, "development": scores(groups["development"]),
                              "held_out": scores(groups["held_out"]), "per_participant": per}
-        out = {"dataset": str(directory), "classes": list(BENCH_CLASSES), "window_s": WINDOW_S,
+        out = {"dataset": str(directory) if directory is not None else None, "classes": list(BENCH_CLASSES),
+               "window_s": WINDOW_S,
                "protocol": ("no parameter learned from UCI labels; thesis values + defaults set on synthetic data; "
                             "participants 1-4 inspected during development, the others held out"),
                "development_participants": list(DEVELOPMENT), "methods": methods, "default": "default",
@@ -133,6 +199,13 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
             p.update(task, description="speed: 24 h at 100 Hz")
             out["seconds_24h_100hz"] = speed_24h()
             p.advance(task)
+        if simulated > 0:
+            def cb(desc):
+                if desc:
+                    p.update(task, description=desc)
+                else:
+                    p.advance(task)
+            out["simulated"] = simulated_days(simulated, progress_cb=cb)
     return out
 
 
@@ -140,18 +213,25 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
 @click.option("--uci-chest", "uci", type=click.Path(path_type=Path), default=DEFAULT_UCI, show_default=True,
               help="folder of the UCI chest CSV files (<n>.csv: seq,x,y,z,label)")
 @click.option("--no-speed", is_flag=True, help="skip the 24 h x 100 Hz speed measurement")
+@click.option("--no-uci", is_flag=True, help="skip the UCI chest part (e.g. only the simulated days)")
+@click.option("--simulated", type=click.IntRange(min=0), default=4, show_default=True,
+              help="simulated 24 h free-living days of the demo study to score (0 = skip)")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
-def command(uci: Path, no_speed: bool, as_json: bool) -> None:
-    """Daily-activity classes (sitting/standing/walking/stairs) on the UCI chest set, thesis vs default.
+def command(uci: Path, no_speed: bool, no_uci: bool, simulated: int, as_json: bool) -> None:
+    """Daily-activity classes (sitting/standing/walking/stairs) on the UCI chest set, thesis vs default, and
+    per-second agreement / step error on simulated 24 h days with reference labels.
 
     \b
     Examples:
       stridelab bench activity
       stridelab bench activity --uci-chest ../shared/data/uci_chest --json
+      stridelab bench activity --no-uci --no-speed --simulated 2
     """
-    if not uci.is_dir():
-        raise UserError(f"UCI chest data not found at {uci}; pass --uci-chest DIR (see DESIGN.md 'Real data')")
-    result = run_benchmark(uci, show_progress=not as_json or err_console.is_terminal, speed=not no_speed)
+    if not no_uci and not uci.is_dir():
+        raise UserError(f"UCI chest data not found at {uci}; pass --uci-chest DIR (see DESIGN.md 'Real data') "
+                        "or --no-uci")
+    result = run_benchmark(None if no_uci else uci, show_progress=not as_json or err_console.is_terminal,
+                           speed=not no_speed, simulated=simulated)
     if as_json:
         emit_json(result)
         return
@@ -162,3 +242,8 @@ def command(uci: Path, no_speed: bool, as_json: bool) -> None:
             err_console.print(f"  {row:9s} {c}")
     if "seconds_24h_100hz" in result:
         err_console.print(f"24 h at 100 Hz: {result['seconds_24h_100hz']:.2f} s")
+    if "simulated" in result:
+        err_console.print("simulated 24 h days (default params): participant, agreement, steps error, seconds")
+        for pid, v in result["simulated"]["per_participant"].items():
+            err_console.print(f"  {pid}: agreement {100 * v['agreement']:.1f} %, steps {v['steps_error_pct']:+.1f} % "
+                              f"({v['steps']} / {v['steps_reference']}), {v['seconds']:.2f} s")

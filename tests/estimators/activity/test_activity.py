@@ -281,3 +281,132 @@ def test_simulated_day_agreement_and_steps():
     scored = ref >= 0                               # "transition" seconds are not scored
     assert (r.second_class[scored] == ref[scored]).mean() >= 0.95
     assert abs(len(r.step_times_s) - steps_ref) <= 0.03 * steps_ref
+
+
+def _bow(peak_deg=50.0, dur_s=3.0, lean0=5.0):
+    n = int(dur_s * FS)
+    s = np.linspace(0, 1, n)
+    th = np.deg2rad(lean0 + (peak_deg - lean0) * np.sin(np.pi * s) ** 2)
+    return np.column_stack([-G * np.sin(th), G * np.cos(th), np.zeros(n)])
+
+
+def _kinds(r):
+    return [("SiLy", "LySi", "StSi", "SiSt")[k] for k in r.transitions.kind]
+
+
+def _sitting_share(r, a_s, b_s):
+    return float((r.class_names()[int(a_s):int(b_s)] == "sitting").mean())
+
+
+def test_sequence_check_recovers_missed_stand_to_sit():
+    """A stand-to-sit whose ΔY fails the thigh check (0.06 m) before a clear sit-to-stand: the posture sequence
+    (walking = standing, a SiSt needs sitting before it) adds it back, and prefers it to a bow before it."""
+    p = ActivityParams(thigh_length_m=0.45)
+    blocks = [_posture(5, 2000), _walk(20), _posture(5, 2000), _bow(), _posture(5, 2000),
+              _sit_stand(-1, drop_m=0.06), _posture(10, 60000), _sit_stand(+1, lean_start=10, lean_end=5),
+              _posture(5, 2000), _walk(20), _posture(5, 2000)]
+    acc = _day(blocks)
+    sit_a = sum(b.shape[0] for b in blocks[:6]) / FS
+    sit_b = sit_a + 600
+    r = classify_day(acc, sampling_rate_hz=FS, params=p)
+    assert _kinds(r) == ["StSi", "SiSt"]
+    assert r.transitions.t_s[0] > sit_a - 5                      # the stand-to-sit, not the bow
+    assert _sitting_share(r, sit_a + 5, sit_b - 5) == 1.0
+    assert any("posture-sequence" in w for w in r.warnings)
+    off = classify_day(acc, sampling_rate_hz=FS, params=dataclasses.replace(p, sitstand_resolve=False))
+    assert _kinds(off) == ["SiSt"] and _sitting_share(off, sit_a + 5, sit_b - 5) == 0.0
+
+
+def test_sequence_check_flips_one_wrong_sign_without_flipping_the_next():
+    """A stand-to-sit whose chest motion reads as a rise (+0.4 m) followed by a correct sit-to-stand: the first
+    is flipped to StSi, the second stays SiSt (relabelling by the current state alone flipped the second)."""
+    p = ActivityParams(thigh_length_m=0.45)
+    blocks = [_posture(5, 2000), _walk(20), _posture(5, 2000), _sit_stand(+1, lean_start=5, lean_end=10),
+              _posture(10, 60000), _sit_stand(+1, lean_start=10, lean_end=5), _posture(5, 2000), _walk(20),
+              _posture(5, 2000)]
+    acc = _day(blocks)
+    sit_a = sum(b.shape[0] for b in blocks[:4]) / FS
+    r = classify_day(acc, sampling_rate_hz=FS, params=p)
+    assert _kinds(r) == ["StSi", "SiSt"]
+    assert _sitting_share(r, sit_a + 5, sit_a + 595) == 1.0
+    off = classify_day(acc, sampling_rate_hz=FS, params=dataclasses.replace(p, sitstand_resolve=False))
+    assert _kinds(off) == ["SiSt", "SiSt"]
+
+
+def test_sequence_check_keeps_consistent_days_and_bows():
+    """Standing with bows between walks: nothing added; thesis preset does not run the check."""
+    p = ActivityParams(thigh_length_m=0.45)
+    acc = _day([_posture(5, 2000), _walk(20), _posture(5, 3000), _bow(45), _posture(5, 3000), _bow(55),
+                _posture(5, 3000), _walk(20), _posture(5, 2000)])
+    r = classify_day(acc, sampling_rate_hz=FS, params=p)
+    assert len(r.transitions) == 0 and not (r.class_names() == "sitting").any()
+    assert PRESETS["thesis"].sitstand_resolve is False
+
+
+def test_dy_from_norm_is_lag_free():
+    """ΔY (Eq. 56) from ‖a‖ recovers a 0.40 m sit-to-stand within 10 % over the θ-minima window, better than the
+    projection on the lagging causal GA direction (the window and the lean are those of the synthetic SiSt)."""
+    from estimators.activity._detect import _window_dy
+    from estimators.activity._signals import gravitational_component
+    a = np.vstack([_posture(10, 300), _sit_stand(+1, lean_start=10, lean_end=5), _posture(5, 300)]) / G
+    ga = gravitational_component(a, FS)
+    i0, i1 = 300, 500
+    dy_norm = _window_dy(a, ga, None, i0 - 50, i1 + 50, FS, "norm")
+    dy_raw = _window_dy(a, ga, None, i0 - 50, i1 + 50, FS, "raw")
+    assert abs(dy_norm - 0.40) < 0.04
+    assert abs(dy_norm - 0.40) < abs(dy_raw - 0.40)
+
+
+def test_bench_reference_seconds_and_no_uci_shape():
+    """Per-second reference of the simulated-day bench: whole seconds inside each labelled interval,
+    transitions unscored, scripted steps summed; the UCI part can be skipped without breaking the JSON keys."""
+    from pipeline.bench.activity import reference_seconds, run_benchmark
+    s = 1_000_000_000
+    ev = [{"t_ns": 0, "end_ns": 3 * s, "label": "sitting"},
+          {"t_ns": 3 * s, "end_ns": int(5.5 * s), "label": "transition"},
+          {"t_ns": int(5.5 * s), "end_ns": 9 * s, "label": "level_walking", "steps": 7}]
+    ref, steps = reference_seconds(ev, 0, 10)
+    assert steps == 7
+    assert ref.tolist() == [1, 1, 1, -1, -1, -1, 3, 3, 3, -1]
+    out = run_benchmark(None, show_progress=False, speed=False, simulated=0)
+    assert out["methods"] == {} and out["default"] == "default" and "simulated" not in out
+
+
+def _lean_change(a_deg, b_deg, dur_s=2.0):
+    n = int(dur_s * FS)
+    th = np.deg2rad(a_deg + (b_deg - a_deg) * _min_jerk(n))
+    return np.column_stack([-G * np.sin(th), G * np.cos(th), np.zeros(n)])
+
+
+def test_sequence_check_uses_reclined_trunk_as_sitting_evidence():
+    """Walking, then 10 min still with the trunk reclined 30° behind the upright walking posture (θ stays above
+    20°, so no candidate excursion; no chest motion), then walking: the posture evidence makes it sitting."""
+    p = ActivityParams(thigh_length_m=0.45)
+    blocks = [_posture(5, 2000), _walk(20), _posture(5, 2000), _lean_change(5, -30), _posture(-30, 60000),
+              _lean_change(-30, 5), _posture(5, 2000), _walk(20), _posture(5, 2000)]
+    acc = _day(blocks)
+    a = sum(b.shape[0] for b in blocks[:4]) / FS
+    r = classify_day(acc, sampling_rate_hz=FS, params=p)
+    assert _sitting_share(r, a + 5, a + 595) == 1.0
+    assert _kinds(r) == ["StSi", "SiSt"]
+    assert (r.class_names()[int(a) - 15:int(a) - 5] == "standing").all()
+    upright_only = classify_day(acc, sampling_rate_hz=FS, params=dataclasses.replace(p, sit_lean_deg=60.0))
+    assert _sitting_share(upright_only, a + 5, a + 595) == 0.0
+
+
+def test_resolve_sitstand_lean_evidence_without_any_candidate():
+    """No excursion candidate at all, walking before and after a 10-min reclined (30°) still period: the lean
+    run's onset and end become StSi / SiSt."""
+    from estimators.activity._timeline import resolve_sitstand
+    from estimators.activity._types import Bouts, Transitions
+    z = np.zeros(0)
+    empty = Transitions(z, np.zeros(0, np.int8), z, z, z)
+    bouts = Bouts(np.array([0.0, 720.0]), np.array([60.0, 780.0]), np.array([60, 60]), np.zeros(2, np.int8),
+                  np.full(2, 100.0), np.zeros(2), np.zeros(2))
+    theta = np.full(800, 3.0)
+    theta[100:700] = 30.0
+    no = np.zeros(800, dtype=bool)
+    tr, n = resolve_sitstand(empty, empty, np.zeros(0, bool), bouts, no, no, 0.15, theta, 18.0)
+    assert tr.kind.tolist() == [2, 3] and tr.t_s.tolist() == [100.0, 700.0] and n == 2
+    tr0, n0 = resolve_sitstand(empty, empty, np.zeros(0, bool), bouts, no, no, 0.15, theta, 40.0)
+    assert len(tr0) == 0 and n0 == 0
