@@ -38,7 +38,7 @@ class Posture:
     bend: float      # rad
     roll: float      # rad, about the trunk long axis
     psi: float       # heading, rad
-    z: float         # chest height above the current floor... absolute (m)
+    z: float         # chest height, absolute (m): the floor of the current storey + the posture's height
 
 
 @dataclass
@@ -60,6 +60,7 @@ class _Script:
         self.rng, self.p = rng, p
         s = p.height_m / 1.75
         self.z_stand, self.z_sit, self.z_lie = 1.30 * s, 1.30 * s - 0.9 * p.thigh_m, 0.62
+        self.floor = 0.0     # height of the storey the person is on (stairs move it); postures are relative to it
         self.t = 0.0
         self.bouts: list[Bout] = []
         self.pos = Posture(lean=D(-90.0), bend=0.0, roll=0.0, psi=0.3, z=self.z_lie)
@@ -77,25 +78,25 @@ class _Script:
         self._add(label, dur, "static", self.pos)
 
     def lying_roll(self, roll):
-        e = Posture(D(-90.0), 0.0, roll, self.pos.psi, self.z_lie)
+        e = Posture(D(-90.0), 0.0, roll, self.pos.psi, self.floor + self.z_lie)
         self._add("lying", 4.0, "transition", e, bump_lean=0.0, shift=0.0)
 
     def lie_to_sit(self):
-        e = Posture(D(8.0), 0.0, 0.0, self.pos.psi + D(90.0), self.z_sit)
+        e = Posture(D(8.0), 0.0, 0.0, self.pos.psi + D(90.0), self.floor + self.z_sit)
         self._add("transition", self.rng.uniform(3.0, 4.5), "transition", e, bump_lean=0.0, shift=0.25)
 
     def sit_to_lie(self):
-        e = Posture(D(-90.0), 0.0, 0.0, self.pos.psi - D(90.0), self.z_lie)
+        e = Posture(D(-90.0), 0.0, 0.0, self.pos.psi - D(90.0), self.floor + self.z_lie)
         self._add("transition", self.rng.uniform(3.0, 4.5), "transition", e, bump_lean=0.0, shift=-0.25)
 
     def sit_to_stand(self):
         dur = self.rng.uniform(2.0, 3.0) * (1.5 if self.slow else 1.0)
-        e = Posture(D(5.0), 0.0, 0.0, self.pos.psi, self.z_stand)
+        e = Posture(D(5.0), 0.0, 0.0, self.pos.psi, self.floor + self.z_stand)
         self._add("transition", dur, "transition", e, bump_lean=D(32.0), shift=0.2)
 
     def stand_to_sit(self):
         dur = self.rng.uniform(2.0, 3.0) * (1.5 if self.slow else 1.0)
-        e = Posture(D(self.rng.uniform(-5.0, 15.0)), 0.0, 0.0, self.pos.psi, self.z_sit)
+        e = Posture(D(self.rng.uniform(-5.0, 15.0)), 0.0, 0.0, self.pos.psi, self.floor + self.z_sit)
         self._add("transition", dur, "transition", e, bump_lean=D(30.0), shift=-0.2)
 
     def walk(self, label, dur, turns=0):
@@ -108,6 +109,7 @@ class _Script:
         steps = int(round(f * (dur - ramp)))
         dz = rise * f * (dur - ramp)
         e = Posture(D(5.0), 0.0, 0.0, self.pos.psi + float(turn_a.sum()), self.pos.z + dz)
+        self.floor += dz
         speed = (0.65 if self.slow else 1.0) * self.p.speed_m_s * (1.0 if rise == 0 else 0.45)
         sev = float(self.p.severity) if self.slow else 0.0
         b = self._add(label, dur, "walk", e, f=f, rise=rise, turn_t=turn_t, turn_a=turn_a, ramp=ramp, speed=speed,
