@@ -92,6 +92,25 @@ def read_imu_files(root: str | Path, imu_path: str, mag_path: str | None, sampli
     return ImuSeries(t_ns, acc, gyr, mag, sampling_rate_hz)
 
 
+def reference_orientation_on(root: str | Path, series_path: str, t_ns: np.ndarray) -> np.ndarray:
+    """Optical segment orientation ([w x y z], segment→lab) of a ``reference_pose`` series at the stamps
+    ``t_ns``: the nearest reference sample within half a reference period, NaN elsewhere (occlusions,
+    before/after the capture)."""
+    t = read_table(root, series_path, columns=["t_ns", "qw", "qx", "qy", "qz"])
+    rt = t.column("t_ns").to_numpy()
+    rq = np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")])
+    t_ns = np.asarray(t_ns, np.int64)
+    out = np.full((len(t_ns), 4), np.nan)
+    if len(rt) < 2:
+        return out
+    half = 0.5 * float(np.median(np.diff(rt)))
+    j = np.clip(np.searchsorted(rt, t_ns), 1, len(rt) - 1)
+    j -= (t_ns - rt[j - 1]) < (rt[j] - t_ns)
+    ok = np.abs(rt[j] - t_ns) <= half
+    out[ok] = rq[j[ok]]
+    return out
+
+
 def read_imu(con: duckdb.DuckDBPyConnection, root: str | Path, content_hash: str, placement: str) -> ImuSeries | None:
     """IMU samples of one recording and placement, or None if that sensor is absent."""
     rows = dict(con.execute(

@@ -24,7 +24,7 @@ import json
 import numpy as np
 
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json
-from warehouse.read import read_imu_files
+from warehouse.read import read_imu_files, reference_orientation_on
 from warehouse.store import read_table
 
 CALIBRATION_TRIAL = "calibration"
@@ -150,8 +150,37 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                             quats=data["quat"] or None, placements=DEFAULT_PLACEMENTS)
     bad = sorted(p for p, c in cal.imus.items() if c.status != "pass")
     note = f"calibration {cal.status}" + (f" ({', '.join(bad)})" if bad else "")
-    return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, fs, params)}, note=note)
+    return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, fs, params),
+                             "accuracy_metrics": accuracy_rows(inp, rec, data, cal)}, note=note)
 
 
-STAGE = Stage(name="calibration", version="1", needs=("orientation",), tables=("calibration",),
+def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
+    """Calibration error (thesis Eq. 19, helical angle) against the optical reference, per IMU with a segment
+    pose in the calibration trial: the reference sensor-to-segment rotation is the constant rotation between
+    the IMU orientation and the optical segment orientation over the trial
+    (:func:`estimators.orientation.evaluation.segment_alignment`), so it carries the orientation error too."""
+    from estimators.calibration.evaluation import helical_angle_deg
+    from estimators.orientation.evaluation import segment_alignment
+    from estimators.quaternion import quat_to_matrix
+    rows = []
+    ori = inp.upstream.get("orientation", [])
+    estimator = ori[0]["estimator"] if ori else None
+    for p, c in sorted(cal.imus.items()):
+        ref = rec["sensors"].get(p, {}).get("reference_pose")
+        q = data["quat"].get(p)
+        if ref is None or q is None or c.status == "fail" or not np.all(np.isfinite(c.quat_sensor_af)):
+            continue
+        q_ref = reference_orientation_on(inp.root, ref["series_path"], data["t_ns"])
+        ok = np.all(np.isfinite(q_ref), axis=1) & np.all(np.isfinite(q), axis=1)
+        if ok.sum() < (data["sampling_rate_hz"] or 0):
+            continue
+        _, mount = segment_alignment(q[ok], q_ref[ok])
+        # mount: sensor→segment; quat_sensor_af: anatomical frame→sensor (q_AF = q_sensor ⊗ quat_sensor_af)
+        err = float(np.ravel(helical_angle_deg(quat_to_matrix(mount).T, quat_to_matrix(c.quat_sensor_af)))[0])
+        rows.append({"session_id": inp.session["session_id"], "stage": "calibration", "estimator": estimator,
+                     "placement": p, "metric": "calibration_error_deg", "value": err, "unit": "deg"})
+    return rows
+
+
+STAGE = Stage(name="calibration", version="1", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)

@@ -8,6 +8,11 @@ orientations (orientation stage) and the session's calibration rows (calibration
 status of each joint is the worse calibration of its two segments: a failed calibration gives
 ``fail`` (and NaN angles when no rotation exists), never silently produced angles, and no curves.
 
+Accuracy: when the trial carries optical segment poses (``reference_pose``) for both segments of a joint,
+the reference joint angles are computed from them with the same joint coordinate system and standing-offset
+removal, and the session's RMSE per plane (pooled over its walking trials) goes to ``accuracy_metrics`` and
+each trial's range of motion (IMU vs reference) to ``accuracy_pairs`` (dashboard Bland–Altman).
+
 Gait-cycle curves need initial contacts: when an upstream ``gait_events`` table exists (rows with
 ``side`` or a ``foot_<side>`` placement and either ``type`` = IC and ``t_ns``, or ``ic_ns``), its
 contacts cut the cycles; otherwise the curves are left empty with a note. Reference events (the
@@ -23,6 +28,7 @@ import pyarrow as pa
 
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
 from pipeline.stages.calibration import find_calibration_recording, read_recording
+from warehouse.read import reference_orientation_on
 from warehouse.store import series_relpath, write_table
 
 PLANES = ("sagittal", "frontal", "transverse")
@@ -76,7 +82,8 @@ def _key(*parts) -> str:
 def compute(inp: SessionInput, params: dict) -> StageOutput:
     from estimators.calibration import first_quiet_standing
     from estimators.calibration._session import DEFAULT_PLACEMENTS
-    from estimators.joints import ANGLE_NAMES, compute_joint_angles, pool_cycles, session_gait_curves
+    from estimators.joints import (ANGLE_NAMES, JOINTS, angle_errors, compute_joint_angles, joint_angles_deg,
+                                   pool_cycles, session_gait_curves)
     s = inp.session
     sid = s["session_id"]
     cal_rows = inp.upstream.get("calibration", [])
@@ -92,6 +99,9 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     rows, notes = [], []
     per_trial_curves: dict[str, list] = {}
     status_of: dict[str, str] = {}
+    errors: dict[str, list] = {}
+    pairs: list[dict] = []
+    estimator = ori_rows[0]["estimator"] if ori_rows else None
     for rec in trials:
         data = read_recording(inp, rec, ori_rows, DEFAULT_PLACEMENTS)
         fs, t = data["sampling_rate_hz"], data["t_ns"]
@@ -122,6 +132,25 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                          "standing_end_ns": int(t[standing[1] - 1]) if standing is not None else None,
                          "n_samples": int(len(t)), "series_path": rel})
             status_of[key] = max(status_of.get(key, "pass"), ja.status[key], key=["pass", "warn", "fail"].index)
+        ref_q = {p: reference_orientation_on(inp.root, rec["sensors"][p]["reference_pose"]["series_path"], t)
+                 for p in DEFAULT_PLACEMENTS if "reference_pose" in rec["sensors"].get(p, {})}
+        for key, a in sorted(ja.angles_deg.items()):
+            joint, side = key.rsplit("_", 1)
+            prox, dist = (s_ if s_ == "pelvis" else f"{s_}_{side}" for s_ in JOINTS[joint])
+            if prox not in ref_q or dist not in ref_q or ja.status[key] == "fail":
+                continue
+            ref = joint_angles_deg(ref_q[prox], ref_q[dist], joint=joint, side=side)
+            if standing is not None:
+                ref = ref - np.nanmean(ref[standing[0]:standing[1]], axis=0)
+            ok = np.all(np.isfinite(ref), axis=1) & np.all(np.isfinite(a), axis=1)
+            if ok.sum() < fs:
+                continue
+            errors.setdefault(key, []).append(ref[ok] - a[ok])
+            e = angle_errors(ref[ok], a[ok])
+            for k, plane in enumerate(PLANES):
+                pairs.append({"session_id": sid, "stage": "joint_angles", "estimator": estimator, "placement": key,
+                              "quantity": f"{joint}_{plane}_rom", "estimate": float(e.rom_est_deg[k]),
+                              "reference": float(e.rom_ref_deg[k]), "unit": "deg"})
         if ics is not None:
             ic_idx = {side: np.searchsorted(t, v[(v >= t[0]) & (v <= t[-1])]) for side, v in ics.items()}
             for key, c in session_gait_curves(ja, ic_idx, sampling_rate_hz=fs,
@@ -146,13 +175,21 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                            for i in range(c.mean.shape[0])]
             rom_rows.append(dict(base, rom_deg=float(c.rom_mean[k]),
                                  rom_sd_deg=float(c.rom_sd[k]) if np.isfinite(c.rom_sd[k]) else None))
+    metrics = []
+    for key, errs in sorted(errors.items()):
+        err = np.concatenate(errs)
+        for k, plane in enumerate(PLANES):
+            metrics.append({"session_id": sid, "stage": "joint_angles", "estimator": estimator, "placement": key,
+                            "metric": f"{plane}_rmse_deg", "value": float(np.sqrt(np.mean(err[:, k] ** 2))),
+                            "unit": "deg"})
     failed = sorted(k for k, v in status_of.items() if v == "fail")
     if failed:
         notes.insert(0, f"calibration failed for {', '.join(failed)}: angles marked fail")
-    return StageOutput(rows={"joint_angles": rows, "joint_angle_curves": curve_rows, "joint_rom": rom_rows},
+    return StageOutput(rows={"joint_angles": rows, "joint_angle_curves": curve_rows, "joint_rom": rom_rows,
+                             "accuracy_metrics": metrics, "accuracy_pairs": pairs},
                        note="; ".join(notes))
 
 
 STAGE = Stage(name="joint_angles", version="1", needs=("orientation", "calibration", "gait"),
-              tables=("joint_angles", "joint_angle_curves", "joint_rom"),
+              tables=("joint_angles", "joint_angle_curves", "joint_rom", "accuracy_metrics", "accuracy_pairs"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)

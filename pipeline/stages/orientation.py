@@ -8,25 +8,8 @@ from estimators.orientation.blockwise import blockwise
 from estimators.orientation.evaluation import align_reference, orientation_error_deg
 from estimators.timebase import contiguous_segments
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
-from warehouse.read import read_imu_files
-from warehouse.store import read_table, series_relpath, write_table
-
-
-def _reference_on(t_ns: np.ndarray, inp: SessionInput, ref: dict) -> np.ndarray:
-    """Optical segment orientation (segment→lab) at the IMU stamps: the nearest reference sample within half a
-    reference period, NaN elsewhere (occlusions, before/after the capture)."""
-    t = read_table(inp.root, ref["series_path"], columns=["t_ns", "qw", "qx", "qy", "qz"])
-    rt = t.column("t_ns").to_numpy()
-    rq = np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")])
-    out = np.full((len(t_ns), 4), np.nan)
-    if len(rt) < 2:
-        return out
-    half = 0.5 * float(np.median(np.diff(rt)))
-    j = np.clip(np.searchsorted(rt, t_ns), 1, len(rt) - 1)
-    j -= (t_ns - rt[j - 1]) < (rt[j] - t_ns)
-    ok = np.abs(rt[j] - t_ns) <= half
-    out[ok] = rq[j[ok]]
-    return out
+from warehouse.read import read_imu_files, reference_orientation_on
+from warehouse.store import series_relpath, write_table
 
 
 def _accuracy_rows(sid: str, name: str, errors: dict) -> list[dict]:
@@ -84,7 +67,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                          "mag_used": data.mag is not None, "series_path": rel})
             ref = kinds.get("reference_pose")
             if ref is not None:          # optical segment pose: score after aligning mounting and lab heading
-                q_ref = _reference_on(data.t_ns, inp, ref)
+                q_ref = reference_orientation_on(inp.root, ref["series_path"], data.t_ns)
                 ok = np.isfinite(q_ref[:, 0]) & np.isfinite(quat[:, 0])
                 if ok.sum() >= data.sampling_rate_hz:
                     e = orientation_error_deg(quat[ok], align_reference(quat[ok], q_ref[ok]))

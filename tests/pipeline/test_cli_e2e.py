@@ -44,6 +44,16 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
                       "AND producer = 'orientation' AND metric = 'inclination_rmse_deg'").fetchall()
     assert len(acc) == 2 * 8 and all(0.0 < v < 10.0 for _, v in acc)
     assert first(con.execute("SELECT count(*) FROM accuracy_metrics WHERE producer = 'gait'"))[0] > 0
+    # calibration (helical angle vs the optical mounting) and joint angles (RMSE per plane, ROM pairs)
+    cal = con.execute("SELECT value FROM accuracy_metrics WHERE producer = 'calibration' "
+                      "AND metric = 'calibration_error_deg'").fetchall()
+    assert len(cal) == 2 * 7 and sorted(v for (v,) in cal)[len(cal) // 2] < 5.0
+    ja = con.execute("SELECT value FROM accuracy_metrics WHERE producer = 'joint_angles' "
+                     "AND metric = 'sagittal_rmse_deg'").fetchall()
+    assert len(ja) == 2 * 6 and sorted(v for (v,) in ja)[len(ja) // 2] < 4.0
+    rom = con.execute("SELECT estimate, reference FROM accuracy_pairs WHERE producer = 'joint_angles' "
+                      "AND quantity = 'knee_sagittal_rom'").fetchall()
+    assert rom and all(abs(e - r) < 20.0 and r > 30.0 for e, r in rom)
 
 
 def test_simulate_refuses_a_bad_manifest_with_one_line(tmp_path):
