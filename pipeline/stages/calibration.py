@@ -182,5 +182,5 @@ def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
     return rows
 
 
-STAGE = Stage(name="calibration", version="1", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
+STAGE = Stage(name="calibration", version="2", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)

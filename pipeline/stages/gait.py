@@ -334,5 +334,5 @@ def _session_status(statuses: dict, n_strides: dict) -> str:
     return "no_strides"
 
 
-STAGE = Stage(name="gait", version="1", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
+STAGE = Stage(name="gait", version="2", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
               default_params=default_params)

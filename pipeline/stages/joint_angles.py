@@ -190,6 +190,6 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                        note="; ".join(notes))
 
 
-STAGE = Stage(name="joint_angles", version="1", needs=("orientation", "calibration", "gait"),
+STAGE = Stage(name="joint_angles", version="2", needs=("orientation", "calibration", "gait"),
               tables=("joint_angles", "joint_angle_curves", "joint_rom", "accuracy_metrics", "accuracy_pairs"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)
