@@ -452,7 +452,6 @@ class LowerBodyModel:
         m = (t > w.t0) & (t < w.t1)
         if not np.any(m):
             return
-        geo = self.geom
         tt = t[m]
         ramp = 1.0
         env = smoothstep((tt - w.t0) / ramp) - smoothstep((tt - (w.t1 - ramp)) / ramp)
@@ -460,12 +459,19 @@ class LowerBodyModel:
         d_hip = np.deg2rad(12.0) * env + np.deg2rad(18.0) * env * osc
         d_knee = np.deg2rad(24.0) * env + np.deg2rad(6.0) * env * osc
         d_ank = -(d_hip - d_knee)                       # keeps the foot level
-        th_key, sh_key, ft_key = f"thigh_{w.side}", f"shank_{w.side}", f"foot_{w.side}"
+        self._bend_leg(out, w.side, m, rot_z(d_hip), d_knee, d_ank)
+
+    def _bend_leg(self, out: dict, side: str, m, R_hip, d_knee, d_ank) -> None:
+        """Rotate one leg's thigh by ``R_hip`` (thigh frame) about the hip, then add ``d_knee`` knee flexion
+        and ``d_ank`` ankle rotation (rad, about the segments' z axes) to the walking pose, on samples ``m``;
+        the chain (knee, ankle positions) follows."""
+        geo = self.geom
+        th_key, sh_key, ft_key = f"thigh_{side}", f"shank_{side}", f"foot_{side}"
         H, R_th = out[th_key][0][m], out[th_key][1][m]
         R_sh, R_ft = out[sh_key][1][m], out[ft_key][1][m]
         rel_knee = np.swapaxes(R_th, 1, 2) @ R_sh
         rel_ank = np.swapaxes(R_sh, 1, 2) @ R_ft
-        R_th2 = R_th @ rot_z(d_hip)
+        R_th2 = R_th @ R_hip
         R_sh2 = R_th2 @ rel_knee @ rot_z(-d_knee)
         R_ft2 = R_sh2 @ rel_ank @ rot_z(d_ank)
         K2 = H - R_th2[:, :, 1] * geo.thigh_m

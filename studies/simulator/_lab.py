@@ -254,7 +254,6 @@ class LabBodyModel(LowerBodyModel):
         mo = self.motion
         if w.side not in mo.hip_amp:
             return super()._apply_hip_window(w, t, out)
-        geo = self.geom
         tt = t[m]
         ramp = 1.0
         env = smoothstep((tt - w.t0) / ramp) - smoothstep((tt - (w.t1 - ramp)) / ramp)
@@ -273,22 +272,7 @@ class LabBodyModel(LowerBodyModel):
         rv = np.stack([np.sin(plane) * f_hip, ie * env * osc, np.cos(plane) * f_hip], -1)
         d_knee = np.deg2rad(24.0) * env_m + np.deg2rad(6.0) * kamp * env * osc
         d_ank = -(np.cos(plane) * f_hip - d_knee)              # keeps the foot about level
-        th_key, sh_key, ft_key = f"thigh_{w.side}", f"shank_{w.side}", f"foot_{w.side}"
-        H, R_th = out[th_key][0][m], out[th_key][1][m]
-        R_sh, R_ft = out[sh_key][1][m], out[ft_key][1][m]
-        rel_knee = np.swapaxes(R_th, 1, 2) @ R_sh
-        rel_ank = np.swapaxes(R_sh, 1, 2) @ R_ft
-        R_th2 = R_th @ rotmat_from_rotvec(rv)
-        R_sh2 = R_th2 @ rel_knee @ rot_z(-d_knee)
-        R_ft2 = R_sh2 @ rel_ank @ rot_z(d_ank)
-        K2 = H - R_th2[:, :, 1] * geo.thigh_m
-        A2 = K2 - R_sh2[:, :, 1] * geo.shank_m
-        for key, val in ((th_key, (H, R_th2)), (sh_key, (K2, R_sh2)), (ft_key, (A2, R_ft2))):
-            p_all, R_all = out[key]
-            p_all = p_all.copy()
-            R_all = R_all.copy()
-            p_all[m], R_all[m] = val
-            out[key] = (p_all, R_all)
+        self._bend_leg(out, w.side, m, rotmat_from_rotvec(rv), d_knee, d_ank)
 
 
 # ---- trial plans ---------------------------------------------------------------------------------
