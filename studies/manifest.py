@@ -7,6 +7,8 @@ reads itself (``pipeline/config.py``). ``load_manifest`` validates every field a
 """
 from __future__ import annotations
 
+import re
+
 import datetime as _dt
 import tomllib
 import zoneinfo
@@ -249,6 +251,9 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
         raise ctx.err("study", "the [study] table with at least 'name' and 'seed' is required")
     if not isinstance(study["name"], str) or not study["name"]:
         raise ctx.err("study.name", f"expected a non-empty string, got {study['name']!r}")
+    if not re.fullmatch(r"[A-Za-z0-9._-]{1,128}", study["name"]) or ".." in study["name"]:
+        # the study id becomes a warehouse folder name and a query value: the warehouse's identifier rule
+        raise ctx.err("study.name", f"must use letters, digits, '.', '_', '-' only (no '..'), got {study['name']!r}")
     if isinstance(study["seed"], bool) or not isinstance(study["seed"], int) or study["seed"] < 0:
         raise ctx.err("study.seed", f"expected a non-negative integer, got {study['seed']!r}")
     head = {k: v for k, v in study.items() if k not in ("name", "seed")}

@@ -118,3 +118,20 @@ def test_session_id_claimed_by_another_participant_is_quarantined(tmp_path):
     b = write_recording(small_recording(seed=2, session="S07", participant="P002", trial="t2"), tmp_path / "b.mcap")
     s = _ingest(tmp_path / "wh", [a, b])
     assert s.ingested == ["a.mcap"] and "already belongs to testing/P001" in s.quarantined[0]
+
+
+def test_hostile_file_names_are_stored_as_data(tmp_path):
+    """A file name carrying SQL or a path is only ever a parameter and a label: the file is ingested under
+    its content hash, its series land inside the warehouse, and the catalog is intact."""
+    inbox = tmp_path / "in"
+    inbox.mkdir()
+    names = ["x'; DROP TABLE recordings; --.mcap", "..%2F..%2Fetc%2Fpasswd.mcap"]
+    files = [write_recording(small_recording(seed=i, session=f"S{i}", trial=f"walk-{i}"), inbox / n)
+             for i, n in enumerate(names)]
+    s = _ingest(tmp_path / "wh", files)
+    assert sorted(s.ingested) == sorted(names) and not s.quarantined
+    con = connect_snapshot(tmp_path / "wh")
+    assert sorted(r[0] for r in con.execute("SELECT file_name FROM recordings").fetchall()) == sorted(names)
+    root = (tmp_path / "wh").resolve()
+    for (p,) in con.execute("SELECT series_path FROM sensors").fetchall():
+        assert (root / p).resolve().is_relative_to(root) and (root / p).is_file()

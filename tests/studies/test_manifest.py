@@ -20,6 +20,9 @@ def test_default_manifest():
     (("hours = 24.0", "hours = -1.0"), "free_living.hours"),
     (("timezone = \"Europe/Zurich\"", "timezone = \"Mars/Olympus\""), "study.timezone"),
     (("noise_scale = 1.0", "noise_scle = 1.0"), "sensor_model"),
+    (("name = \"demo\"", "name = \"../../etc\""), "study.name"),                 # path traversal
+    (("name = \"demo\"", "name = \"x'; DROP TABLE sessions; --\""), "study.name"),  # SQL
+    (("id = \"P001\"", "id = \"P001'; DROP TABLE x; --\""), "participants[0]"),
 ])
 def test_bad_manifest_names_file_and_field(tmp_path, edit, field):
     text = DEFAULT_MANIFEST.read_text()
