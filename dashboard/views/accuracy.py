@@ -35,7 +35,7 @@ if snap is not None and not empty_warehouse_note(snap):
                 group = [c for c in ("estimator", "placement", "metric", "unit") if c in m and m[c].notna().any()]
                 table = m.groupby(group, dropna=False)["value"].agg(["count", "mean", "std", "median", "min", "max"])
                 st.dataframe(table.reset_index(), hide_index=True)
-                for metric in sorted(m["metric"].unique())[:4]:
+                for metric in [x for x in sorted(m["metric"].unique()) if not str(x).startswith("n_")][:4]:
                     st.plotly_chart(F.error_distribution(m, metric), key=f"dist_{stage}_{metric}")
             p = None if pairs is None else pairs[pairs["stage"].astype(str).str.startswith(stage.rstrip("s"))] \
                 if "stage" in pairs else pairs
