@@ -252,7 +252,8 @@ def test_uci_bench_runs_on_real_data():
     from pipeline.bench.activity import run_benchmark
     d = shared_data("uci_chest")
     out = run_benchmark(d, show_progress=False, speed=False)
-    assert set(out["methods"]) == {"thesis", "default"} and out["default"] == "default"
+    assert set(out["methods"]) == {"thesis", "default", "learned_loso"}
+    assert out["default"] == "default" and out["best_balanced_accuracy"] in out["methods"]
     for m in out["methods"].values():
         assert {"accuracy", "balanced_accuracy", "confusion", "per_participant"} <= set(m)
         assert len(m["per_participant"]) >= 1

@@ -1,0 +1,102 @@
+"""Window features of the learned chest-activity classifier (estimators.activity.windows) and its LOSO bench."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators.activity.windows import (FEATURE_NAMES, add_context, gait_windows, lean_deg, posture_clusters,
+                                         window_features)
+from tests.conftest import shared_data
+
+G = 9.80665
+FS = 52.0
+
+
+def _still(lean_deg_, n_s, seed):
+    th = np.deg2rad(lean_deg_)
+    n = int(n_s * FS)
+    a = np.tile([-G * np.sin(th), G * np.cos(th), 0.0], (n, 1))
+    return a + np.random.default_rng(seed).normal(0, 0.02, a.shape)
+
+
+def _walk(n_s, f_step=1.8, seed=0):
+    t = np.arange(int(n_s * FS)) / FS
+    a = _still(2.0, n_s, seed)
+    a[:, 1] += 2.5 * np.sin(2 * np.pi * f_step * t)
+    a[:, 0] += 1.2 * np.sin(2 * np.pi * f_step * t + 0.8)
+    a[:, 2] += 0.6 * np.sin(np.pi * f_step * t)
+    return a
+
+
+def _day():
+    # sitting 20° for 200 s, standing 3° 100 s, walking 1.8 Hz 150 s, standing 100 s (+ a partial window)
+    return np.vstack([_still(20.0, 200, 1), _still(3.0, 100, 2), _walk(150), _still(3.0, 105, 3)])
+
+
+def test_window_features_shape_units_and_determinism():
+    acc = _day()
+    wf = window_features(acc, FS)
+    assert wf.window_samples == 520
+    assert wf.x.shape == (acc.shape[0] // 520, len(FEATURE_NAMES)) and wf.names == FEATURE_NAMES
+    assert np.all(np.isfinite(wf.x))
+    np.testing.assert_array_equal(wf.x, window_features(acc, FS).x)            # deterministic
+    col = {n: wf.x[:, i] for i, n in enumerate(FEATURE_NAMES)}
+    walk = slice(31, 44)                                                        # windows fully inside the walk
+    assert wf.gait[walk].all() and not wf.gait[:30].any()
+    np.testing.assert_allclose(col["cadence_hz"][walk], 1.8, atol=0.06)          # Hz
+    np.testing.assert_allclose(col["cadence_rel"][walk], 1.0, atol=0.03)
+    assert np.all(col["step_regularity"][walk] > 0.8)
+    # lean in degrees: sitting 20° vs walking 2° -> ≈ 18° from the walking posture; standing ≈ 1°
+    np.testing.assert_allclose(np.median(col["lean_walk_deg"][2:19]), 18.0, atol=1.0)
+    assert np.median(col["lean_walk_deg"][21:29]) < 2.0
+    # two still-posture clusters ≈ 17° apart; sitting is closer to the leaning one, standing to the upright one
+    assert 14.0 < col["cluster_sep_deg"][0] < 20.0
+    assert np.all(col["posture_margin_deg"][2:19] < 0) and np.all(col["posture_margin_deg"][21:29] > 0)
+    # amplitudes are log10 g: walking RMS ~ 0.3 g, still windows at the 0.02 m/s² noise (~ 3.5 mg over 3 axes)
+    assert -0.8 < np.median(col["log_dyn"][walk]) < 0.0 and np.median(col["log_dyn"][21:29]) < -2.0
+
+
+def test_window_features_is_rotation_invariant_in_leans():
+    acc = _day()
+    c, s = np.cos(0.7), np.sin(0.7)
+    R = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    a, b = window_features(acc, FS), window_features(acc @ R.T, FS)
+    for name in ("lean_walk_deg", "posture_margin_deg", "cadence_hz"):
+        i = FEATURE_NAMES.index(name)
+        np.testing.assert_allclose(a.x[:, i], b.x[:, i], atol=0.2)
+
+
+def test_helpers():
+    assert lean_deg(np.array([[0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]), np.array([0.0, 2.0, 0.0])) == pytest.approx([0.0, 45.0])
+    g = gait_windows(np.array([0.7, 0.7, 0.2, 0.7]), np.array([-0.5, -2.0, -0.5, -0.5]), np.array([1.9, 1.9, 1.9, 3.0]))
+    assert g.tolist() == [True, False, False, False]
+    x = np.arange(10.0)[:, None]
+    xc, names = add_context(x, ("f",), (1,))
+    assert names == ("f", "f@±1") and xc.shape == (10, 2)
+    assert xc[0, 1] == pytest.approx(0.5) and xc[5, 1] == pytest.approx(5.0) and xc[9, 1] == pytest.approx(8.5)
+    up, other = posture_clusters(np.zeros((2, 3)) + [0, 1, 0], np.array([True, True]), np.array([0.0, 1.0, 0.0]))
+    np.testing.assert_allclose(up, other)                                       # too few still windows
+
+
+def test_input_checks():
+    with pytest.raises(ValueError):
+        window_features(np.zeros((100, 3)), FS)                                 # shorter than one window
+    with pytest.raises(ValueError):
+        window_features(np.full((1000, 3), np.nan), FS)
+    with pytest.raises(ValueError):
+        window_features(np.zeros((1000, 2)), FS)
+
+
+@pytest.mark.realdata
+def test_learned_loso_on_two_uci_participants():
+    from pipeline.bench.activity import LEARNED, learned_loso
+    from pipeline.formats.uci_chest import load_uci_participant
+    d = shared_data("uci_chest")
+    parts = [load_uci_participant(d / "1.csv"), load_uci_participant(d / "2.csv")]
+    out = learned_loso(parts)
+    assert {"accuracy", "balanced_accuracy", "confusion", "per_participant", "development", "held_out",
+            "protocol", "hyper_parameters"} <= set(out)
+    assert set(out["per_participant"]) == {"1", "2"} and out["hyper_parameters"] == LEARNED
+    assert out["per_participant"]["1"]["trained_on"] == ["2"] and out["per_participant"]["2"]["trained_on"] == ["1"]
+    assert np.array(out["confusion"]).shape == (4, 4) and 0.0 <= out["balanced_accuracy"] <= 1.0
+    assert out["windows"] == sum(v["windows"] for v in out["per_participant"].values())
