@@ -83,24 +83,24 @@ def gait_params(p: ParticipantSpec) -> GaitParams:
     stride = 120.0 / p.cadence_steps_min
     d = np.deg2rad
     speed_factor = float(np.clip(p.speed_m_s / 1.3, 0.5, 1.1))
-    healthy = SideGait(stance_frac=0.61, theta_hs=d(20.0) * speed_factor, theta_to=-d(36.0) * speed_factor,
+    healthy = SideGait(stance_frac=0.61, theta_hs=d(22.0) * speed_factor, theta_to=-d(50.0) * speed_factor,
                        clearance_m=0.02, circumduction_m=0.0, footprint_offset_m=0.0, toe_out=d(6.0))
     if not p.hemiparetic:
         return GaitParams(stride_s=stride, speed_m_s=p.speed_m_s, left_ic_phase=0.5, step_width_m=0.10,
-                          load_frac=0.09, preswing_frac=0.22, right=healthy, left=healthy,
+                          load_frac=0.11, preswing_frac=0.20, right=healthy, left=healthy,
                           pelvis_vertical_m=0.02 * speed_factor, pelvis_drop_m=0.02,
                           pelvis_lateral_m=0.022, pelvis_rotation=d(4.0), pelvis_obliquity=d(4.0),
                           pelvis_tilt=d(1.5), hip_hike=0.0, paretic_side=None, trunk_lean=d(4.0))
     s = p.severity
-    paretic = SideGait(stance_frac=0.60 - 0.07 * s, theta_hs=d(20.0 - 13.0 * s) * speed_factor,
-                       theta_to=-d(36.0 - 20.0 * s) * speed_factor, clearance_m=0.035 - 0.02 * s,
+    paretic = SideGait(stance_frac=0.60 - 0.07 * s, theta_hs=d(22.0 - 14.0 * s) * speed_factor,
+                       theta_to=-d(50.0 - 25.0 * s) * speed_factor, clearance_m=0.035 - 0.02 * s,
                        circumduction_m=0.07 * s, footprint_offset_m=-0.05 * s, toe_out=d(6.0 + 6.0 * s))
     nonpar = SideGait(stance_frac=0.62 + 0.08 * s, theta_hs=healthy.theta_hs, theta_to=healthy.theta_to,
                       clearance_m=0.02, circumduction_m=0.0, footprint_offset_m=0.0, toe_out=d(6.0))
     left_par = p.paretic_side == "left"
     phase = 0.5 + (0.06 if left_par else -0.06) * s    # paretic step time is the longer one
     return GaitParams(stride_s=stride, speed_m_s=p.speed_m_s, left_ic_phase=phase, step_width_m=0.10 + 0.06 * s,
-                      load_frac=0.09, preswing_frac=0.20,
+                      load_frac=0.11, preswing_frac=0.20,
                       right=nonpar if left_par else paretic, left=paretic if left_par else nonpar,
                       pelvis_vertical_m=0.010 * speed_factor, pelvis_drop_m=0.015, pelvis_lateral_m=0.03 + 0.01 * s,
                       pelvis_rotation=d(4.0 + 2.0 * s), pelvis_obliquity=d(3.0), pelvis_tilt=d(1.5),

@@ -55,9 +55,74 @@ def bump(u):
     return np.where(inside, 64.0 * uc ** 3 * (1.0 - uc) ** 3, 0.0)
 
 
-def _g(u):
-    """Rocker profile 6u³ - 8u⁴ + 3u⁵ (monotone): g(0)=g'(0)=g''(0)=0, g(1)=1, g'(1)=1, g''(1)=0."""
-    return u * u * u * (6.0 + u * (-8.0 + 3.0 * u))
+def smoothstep7(u):
+    """Septic 0 -> 1 on [0, 1] with zero 1st..3rd derivatives at both ends (clipped outside)."""
+    u = np.clip(u, 0.0, 1.0)
+    return u ** 4 * (35.0 + u * (-84.0 + u * (70.0 - 20.0 * u)))
+
+
+def _smoothstep7_integral(u):
+    """∫₀ᵘ smoothstep7 (u may exceed 1: linear continuation; 0 for u < 0)."""
+    u = np.asarray(u, dtype=float)
+    c = np.clip(u, 0.0, 1.0)
+    return c ** 5 * (7.0 + c * (-14.0 + c * (10.0 - 2.5 * c))) + np.maximum(u - 1.0, 0.0)
+
+
+def _septic_basis():
+    """Coefficients (8, 8) of the septic Hermite basis on [0, 1]: value, 1st..3rd derivative at 0, then at 1."""
+    from math import factorial
+    M = np.zeros((8, 8))
+    for d in range(4):
+        for p in range(d, 8):
+            M[d, p] = factorial(p) if p == d else 0.0
+            M[4 + d, p] = factorial(p) / factorial(p - d)
+    return np.linalg.inv(M)          # column i: polynomial coefficients of basis function i
+
+
+_H7 = _septic_basis()
+
+
+def hermite7(u, ends):
+    """Septic Hermite on u in [0, 1] (clipped): ``ends`` = value and 1st..3rd derivatives at 0, then at 1, in u
+    units (scalars or arrays broadcasting with u)."""
+    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+    out = np.zeros_like(u)
+    for i, e in enumerate(ends):
+        if np.any(np.asarray(e) != 0.0):
+            out = out + np.asarray(e, dtype=float) * np.polynomial.polynomial.polyval(u, _H7[:, i])
+    return out
+
+
+HS_CURV = 4.0            # heel rocker: pitch curvature at IC (units theta_hs / t_load^2): the pitch peak at IC
+
+
+def _heel_rocker_profile(u):
+    """0 -> 1 over the heel rocker: zero rate and curvature HS_CURV at IC, C3 into foot flat."""
+    return hermite7(u, (0.0, 0.0, HS_CURV, 0.0, 1.0, 0.0, 0.0, 0.0))
+
+
+def _ramp5(u):
+    """∫₀ᵘ smoothstep (linear continuation u - 1/2 beyond 1, 0 below 0)."""
+    u = np.asarray(u, dtype=float)
+    return _smoothstep_integral(u) + np.maximum(u - 1.0, 0.0)
+
+
+def bump4(u):
+    """C3 bump 256 u⁴(1-u)⁴ on [0, 1] (peak 1 at 0.5), zero outside."""
+    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+    return 256.0 * (u * (1.0 - u)) ** 4
+
+
+# foot pitch and swing shape near the contacts (see LowerBodyModel._swing and docs/gait.md)
+TOE_RISE = 0.6           # toe rocker: the plantarflexion rate rises over this fraction of the pre-swing, then holds
+TOE_OFF_STOP_S = 0.045   # toe-off -> end of the push-off plantarflexion (quintic stop; pitch minimum ~35 ms after TO)
+SWING_PULSE_START = 0.0  # the swing dorsiflexion pulse starts this fraction of TOE_OFF_STOP_S after toe-off
+SWING_RAMP1 = 0.15       # swing progression ramps down over this fraction of the swing before IC
+HEEL_APPROACH = 0.5      # heel speed before that final ramp (fraction of the walking speed)
+SWING_RISE = 0.45        # pre-IC dorsiflexion (to theta_hs) over this fraction of the swing (at most RISE_MAX
+RISE_MAX = 1.7           # heel-rocker times: its curvature at IC must match the heel rocker's, monotone septic)
+SWING_OVERLAP = 0.7      # the swing's main dorsiflexion (to level) ends this fraction of the pre-IC rise before IC
+BLEND = (0.3, 0.8)       # ball track -> heel track blend (swing fraction)
 
 
 def heading_frame(psi):
@@ -89,20 +154,6 @@ def rot_z(a):
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _hermite5(tau, y0, v0, a0, y1, v1, a1, dur):
-    """Quintic Hermite on tau in [0,1] over duration ``dur`` (derivatives in physical time)."""
-    t = tau
-    t2, t3 = t * t, t * t * t
-    t4, t5 = t3 * t, t3 * t2
-    h0 = 1 - 10 * t3 + 15 * t4 - 6 * t5
-    h1 = t - 6 * t3 + 8 * t4 - 3 * t5
-    h2 = 0.5 * t2 - 1.5 * t3 + 1.5 * t4 - 0.5 * t5
-    h3 = 10 * t3 - 15 * t4 + 6 * t5
-    h4 = -4 * t3 + 7 * t4 - 3 * t5
-    h5 = 0.5 * t3 - t4 + 0.5 * t5
-    return h0 * y0 + h1 * v0 * dur + h2 * a0 * dur ** 2 + h3 * y1 + h4 * v1 * dur + h5 * a1 * dur ** 2
 
 
 # ---- walking path --------------------------------------------------------------------------------
@@ -285,22 +336,50 @@ class LowerBodyModel:
                             circumduction=np.asarray(circ, float))
 
     # -- feet
-    def _rocker(self, fp_pos, fp_psi, pivot_x, theta, theta_d, theta_dd):
-        """Ankle position, velocity, acceleration for a foot pitched by ``theta`` about a sole point."""
+    def _about(self, pivot, psi, pivot_x, theta):
+        """Ankle position of a foot with heading ``psi`` and pitch ``theta`` whose sole point ``pivot_x``
+        (foot x) is at ``pivot`` (N, 3)."""
         geo = self.geom
         cx, cy = -pivot_x, geo.ankle_height_m           # ankle relative to the pivot, foot frame
         c, s = np.cos(theta), np.sin(theta)
         rx, ry = cx * c - cy * s, cx * s + cy * c        # rotated (heading-frame x, world up)
-        drx, dry = -ry * theta_d, rx * theta_d
-        ddrx = -rx * theta_d ** 2 - ry * theta_dd
-        ddry = -ry * theta_d ** 2 + rx * theta_dd
+        h = np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], -1)
+        return pivot + h * rx[..., None] + np.array([0.0, 0.0, 1.0]) * ry[..., None]
+
+    def _sole_point(self, fp_pos, fp_psi, x):
+        """World position of sole point ``x`` (foot x) of a flat footprint (ankle at ``fp_pos``)."""
         h = np.stack([np.cos(fp_psi), np.sin(fp_psi), np.zeros_like(fp_psi)], -1)
-        ez = np.array([0.0, 0.0, 1.0])
-        pivot = fp_pos + h * pivot_x + ez * (-geo.ankle_height_m)
-        pos = pivot + h * rx[..., None] + ez * ry[..., None]
-        vel = h * drx[..., None] + ez * dry[..., None]
-        acc = h * ddrx[..., None] + ez * ddry[..., None]
-        return pos, vel, acc
+        return fp_pos + h * x + np.array([0.0, 0.0, -self.geom.ankle_height_m])
+
+    def _toe_rate_peak(self, theta_to):
+        """Plantarflexion rate at toe-off (rad/s): the toe-rocker rate rises (quintic) over the first
+        ``TOE_RISE`` of the pre-swing and stays at its peak until toe-off."""
+        return theta_to / (self.gait.preswing_frac * self.gait.stride_s * (1.0 - 0.5 * TOE_RISE))
+
+    def _toe_rocker_pitch(self, theta_to, u):
+        """Pitch over the toe rocker (u = 0 heel-off .. 1 toe-off)."""
+        v = np.clip(u, 0.0, 1.0) / TOE_RISE
+        area = np.where(v < 1.0, TOE_RISE * _smoothstep_integral(v), TOE_RISE * (0.5 + (v - 1.0)))
+        return theta_to * area / (1.0 - 0.5 * TOE_RISE)
+
+    def _swing_pitch(self, theta_to, theta_hs, dt, dur):
+        """Swing pitch at ``dt`` s after toe-off (sum of three C3 pieces): the toe-off plantarflexion rate stops
+        within ``TOE_OFF_STOP_S`` (quintic in the rate, its onset at toe-off), a septic dorsiflexion brings the
+        foot level, and an overlapping septic rise (a stretched mirror image of the heel rocker) raises it to
+        ``theta_hs`` at IC: zero rate and the heel rocker's curvature at IC (a pitch peak at the heel strike)."""
+        w0 = self._toe_rate_peak(theta_to)
+        stop = np.minimum(TOE_OFF_STOP_S, 0.3 * dur)
+        v = np.clip(dt / stop, 0.0, 1.0)
+        fall = np.where(dt < stop, v - _smoothstep_integral(v), 0.5)
+        th_stop = theta_to + 0.5 * w0 * stop
+        t_load = self.gait.load_frac * self.gait.stride_s
+        d2 = SWING_PULSE_START * stop
+        t_rise = np.minimum(SWING_RISE * dur, RISE_MAX * t_load)
+        end = np.maximum(dur - SWING_OVERLAP * t_rise, d2 + 2.0 * stop)
+        level = smoothstep7((dt - d2) / (end - d2))
+        curv = HS_CURV * (t_rise / t_load) ** 2          # same pitch curvature at IC as the heel rocker's
+        rise = 1.0 - hermite7((dur - dt) / t_rise, (0.0, 0.0, curv, 0.0, 1.0, 0.0, 0.0, 0.0))
+        return theta_to + w0 * stop * fall - th_stop * level + theta_hs * rise
 
     def foot(self, side: str, t):
         """Ankle position (N, 3), heading ψ (N,), pitch θ (N,) of one foot."""
@@ -327,45 +406,85 @@ class LowerBodyModel:
         fp_idx = np.where(r == -1, 0, k + 1)
         pos[flat] = sch.fp_pos[fp_idx[flat]]
         psi[flat] = sch.fp_psi[fp_idx[flat]]
-        # toe rocker (footprint k)
+        # toe rocker (footprint k): rotation about the fixed ball of the foot
         m = r == 0
         if np.any(m):
             kk = k[m]
-            tau = (t[m] - sch.ho[kk]) / t_pre
-            th = sch.theta_to[kk] * _g(tau)
-            p_, _, _ = self._rocker(sch.fp_pos[kk], sch.fp_psi[kk], geo.ball_x_m, th, 0 * th, 0 * th)
-            pos[m], psi[m], theta[m] = p_, sch.fp_psi[kk], th
-        # heel rocker (footprint k+1)
+            th = self._toe_rocker_pitch(sch.theta_to[kk], (t[m] - sch.ho[kk]) / t_pre)
+            ball = self._sole_point(sch.fp_pos[kk], sch.fp_psi[kk], geo.ball_x_m)
+            pos[m], psi[m], theta[m] = self._about(ball, sch.fp_psi[kk], geo.ball_x_m, th), sch.fp_psi[kk], th
+        # heel rocker (footprint k+1): rotation about the fixed heel, pitch peak (zero rate) at IC
         m = r == 2
         if np.any(m):
             kk = k[m]
-            tau = (t[m] - sch.ic[kk]) / t_load
-            th = sch.theta_hs[kk] * _g(1.0 - tau)
-            p_, _, _ = self._rocker(sch.fp_pos[kk + 1], sch.fp_psi[kk + 1], geo.heel_x_m, th, 0 * th, 0 * th)
-            pos[m], psi[m], theta[m] = p_, sch.fp_psi[kk + 1], th
+            th = sch.theta_hs[kk] * (1.0 - _heel_rocker_profile((t[m] - sch.ic[kk]) / t_load))
+            heel = self._sole_point(sch.fp_pos[kk + 1], sch.fp_psi[kk + 1], geo.heel_x_m)
+            pos[m], psi[m], theta[m] = self._about(heel, sch.fp_psi[kk + 1], geo.heel_x_m, th), sch.fp_psi[kk + 1], th
         # swing k: footprint k -> k+1
         m = r == 1
         if np.any(m):
-            kk = k[m]
-            dur = sch.ic[kk] - sch.tc[kk]
-            tau = (t[m] - sch.tc[kk]) / dur
-            a_th, a_thd = sch.theta_to[kk], sch.theta_to[kk] / t_pre
-            b_th, b_thd = sch.theta_hs[kk], -sch.theta_hs[kk] / t_load
-            p0, v0, a0 = self._rocker(sch.fp_pos[kk], sch.fp_psi[kk], geo.ball_x_m, a_th, a_thd, 0 * a_th)
-            p1, v1, a1 = self._rocker(sch.fp_pos[kk + 1], sch.fp_psi[kk + 1], geo.heel_x_m, b_th, b_thd, 0 * b_th)
-            tau3 = tau[:, None]
-            pw = _hermite5(tau3, p0, v0, a0, p1, v1, a1, dur[:, None])
-            ps0, ps1 = sch.fp_psi[kk], sch.fp_psi[kk + 1]
-            ps = ps0 + (ps1 - ps0) * smoothstep(tau)
-            th = _hermite5(tau, a_th, a_thd, 0.0, b_th, b_thd, 0.0, dur)
-            bm = bump(tau)
-            pw[:, 2] += sch.clearance[kk] * bm
-            sign = 1.0 if side == "right" else -1.0
-            pm = 0.5 * (ps0 + ps1)
-            outward = np.stack([np.sin(pm), -np.cos(pm), np.zeros_like(pm)], -1) * sign
-            pw += outward * (sch.circumduction[kk] * bm)[:, None]
-            pos[m], psi[m], theta[m] = pw, ps, th
+            pos[m], psi[m], theta[m] = self._swing(side, sch, k[m], t[m])
         return pos, psi, theta
+
+    def _swing(self, side, sch, kk, tt):
+        """Swing of steps ``kk`` at times ``tt``: two contact tracks, blended in mid-swing.
+
+        Ball track: the ball of the foot leaves its toe-off position along a path whose derivatives (up to
+        the 4th) vanish at toe-off, the ankle follows from the pitch (rotation about the moving ball);
+        heel track: likewise the heel arrives at its IC position. The ankle is the ball-track ankle early in
+        swing, the heel-track ankle late in swing, a septic blend in between. So the foot motion near both
+        contacts is the rocker's own (C3 joins, no contact point below the floor) whatever the pitch does.
+        """
+        geo, g = self.geom, self.gait
+        ah = geo.ankle_height_m
+        L = geo.ball_x_m - geo.heel_x_m
+        dur = sch.ic[kk] - sch.tc[kk]
+        dt = tt - sch.tc[kk]
+        tau = dt / dur
+        th_to, th_hs = sch.theta_to[kk], sch.theta_hs[kk]
+        th = self._swing_pitch(th_to, th_hs, dt, dur)
+        ps0, ps1 = sch.fp_psi[kk], sch.fp_psi[kk + 1]
+        ps = ps0 + (ps1 - ps0) * smoothstep7(tau)
+        ez = np.array([0.0, 0.0, 1.0])
+        h0 = np.stack([np.cos(ps0), np.sin(ps0), np.zeros_like(ps0)], -1)
+        h1 = np.stack([np.cos(ps1), np.sin(ps1), np.zeros_like(ps1)], -1)
+        ball0 = self._sole_point(sch.fp_pos[kk], ps0, geo.ball_x_m)
+        heel1 = self._sole_point(sch.fp_pos[kk + 1], ps1, geo.heel_x_m)
+        ball_ic = heel1 + h1 * (L * np.cos(th_hs))[:, None] + ez * (L * np.sin(th_hs))[:, None]
+        heel_to = ball0 - h0 * (L * np.cos(th_to))[:, None] - ez * (L * np.sin(th_to))[:, None]
+        d_b, d_h = ball_ic - ball0, heel1 - heel_to
+        d_b[:, 2] = 0.0           # the ball track stays low (toe clearance from ``lift``); the heel track takes over
+        # ankle velocity at toe-off (rotation about the ball at the toe-off plantarflexion rate)
+        w0 = self._toe_rate_peak(th_to)
+        cx, cy = -geo.ball_x_m, ah
+        rx, ry = cx * np.cos(th_to) - cy * np.sin(th_to), cx * np.sin(th_to) + cy * np.cos(th_to)
+        v_to = h0 * (-ry * w0)[:, None] + ez * (rx * w0)[:, None]
+        v_ic = h1 * (HEEL_APPROACH * g.speed_m_s)
+        # progression variable: its rate ramps up over the toe-off pitch stop (the ball takes over the ankle's
+        # velocity as the foot stops rotating about it) and down over SWING_RAMP1 before IC (zero derivatives
+        # up to the 3rd at both contacts); quintic Hermite paths in it, same end velocities for both tracks
+        stop = np.minimum(TOE_OFF_STOP_S, 0.3 * dur)
+        d0, d1 = stop / dur, SWING_RAMP1
+        x = d0 * _ramp5(tau / d0) - d1 * _smoothstep7_integral((tau - (1.0 - d1)) / d1)
+        X = 1.0 - 0.5 * (d0 + d1)
+        xs = (x / X)[:, None]
+        x3 = xs ** 3
+        h01 = x3 * (10.0 + xs * (-15.0 + 6.0 * xs))             # quintic Hermite basis (zero end curvature)
+        h10 = xs + x3 * (-6.0 + xs * (8.0 - 3.0 * xs))
+        h11 = x3 * (-4.0 + xs * (7.0 - 3.0 * xs))
+        m0 = v_to * (X * dur)[:, None]
+        m1 = v_ic * (X * dur)[:, None]
+        lift = sch.clearance[kk] * bump4(tau)
+        sign = 1.0 if side == "right" else -1.0
+        pm = 0.5 * (ps0 + ps1)
+        outward = np.stack([np.sin(pm), -np.cos(pm), np.zeros_like(pm)], -1) * sign
+        extra = ez * lift[:, None] + outward * (sch.circumduction[kk] * bump4(tau))[:, None]
+        pb = ball0 + d_b * h01 + m0 * h10 + m1 * h11 + extra
+        ph = heel1 - d_h * (1.0 - h01) + m0 * h10 + m1 * h11 + extra
+        a_b = self._about(pb, ps, geo.ball_x_m, th)
+        a_h = self._about(ph, ps, geo.heel_x_m, th)
+        w = smoothstep7((tau - BLEND[0]) / (BLEND[1] - BLEND[0]))[:, None]
+        return a_b + w * (a_h - a_b), ps, th
 
     @staticmethod
     def foot_rotation(psi, theta):
