@@ -13,7 +13,7 @@ from numba import njit
 __all__ = [
     "quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_from_rotvec",
     "quat_to_rotvec", "quat_to_matrix", "quat_from_matrix", "quat_from_axis_angle",
-    "quat_angle_deg", "quat_mul_1", "quat_rotate_1", "quat_exp_step_1",
+    "quat_angle_deg", "quat_mul_1", "quat_rotate_1", "quat_exp_step_1", "quat_to_matrix_1",
 ]
 
 
@@ -167,3 +167,18 @@ def quat_exp_step_1(q, gx, gy, gz, dt):
     out = quat_mul_1(q, d)
     nrm = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
     return out / nrm
+
+
+@njit(cache=True, fastmath=False)
+def quat_to_matrix_1(q, R):
+    """Rotation matrix of a (4,) unit quaternion written into the (3, 3) array ``R`` (numba kernel)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    R[0, 0] = 1 - 2 * (y * y + z * z)
+    R[0, 1] = 2 * (x * y - w * z)
+    R[0, 2] = 2 * (x * z + w * y)
+    R[1, 0] = 2 * (x * y + w * z)
+    R[1, 1] = 1 - 2 * (x * x + z * z)
+    R[1, 2] = 2 * (y * z - w * x)
+    R[2, 0] = 2 * (x * z - w * y)
+    R[2, 1] = 2 * (y * z + w * x)
+    R[2, 2] = 1 - 2 * (x * x + y * y)

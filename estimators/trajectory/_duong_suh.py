@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_exp_step_1, quat_mul_1
+from estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
 from estimators.trajectory._api import ZuptParams
 
 GRAVITY = 9.81
@@ -138,20 +138,6 @@ class DuongSuhResult:
 
 
 @njit(cache=True)
-def _rotm(q, R):
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    R[0, 0] = 1 - 2 * (y * y + z * z)
-    R[0, 1] = 2 * (x * y - w * z)
-    R[0, 2] = 2 * (x * z + w * y)
-    R[1, 0] = 2 * (x * y + w * z)
-    R[1, 1] = 1 - 2 * (x * x + z * z)
-    R[1, 2] = 2 * (y * z - w * x)
-    R[2, 0] = 2 * (x * z - w * y)
-    R[2, 1] = 2 * (y * z + w * x)
-    R[2, 2] = 1 - 2 * (x * x + y * y)
-
-
-@njit(cache=True)
 def _scalar_update(P, dx, h, y, r, ns, Ph):
     """One scalar measurement y = h·δx + v, var r (DS9): sequential update of δx and P (Joseph-equivalent form
     P − K S K' for the optimal gain, symmetrised)."""
@@ -217,7 +203,7 @@ def ds_kernel(gyr, acc, rng, zupt, T, k0, q0, r0, ns, P0, qg, qa, var_d, var_z, 
     tmp = np.zeros((9, ns))
     n_gated = np.zeros(2, np.int64)
     for k in range(k0, n):
-        _rotm(q, R)
+        quat_to_matrix_1(q, R)
         for i in range(ns):
             dx[i] = 0.0
         any_upd = False
@@ -298,7 +284,7 @@ def ds_kernel(gyr, acc, rng, zupt, T, k0, q0, r0, ns, P0, qg, qa, var_d, var_z, 
                     nn = math.sqrt(geom[2 + sens, 0] ** 2 + geom[2 + sens, 1] ** 2 + geom[2 + sens, 2] ** 2)
                     for j in range(3):
                         geom[2 + sens, j] /= nn
-            _rotm(q, R)
+            quat_to_matrix_1(q, R)
         for j in range(3):
             pos[k, j] = r[j]
             vel[k, j] = v[j]

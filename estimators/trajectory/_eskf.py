@@ -26,23 +26,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_exp_step_1, quat_mul_1
+from estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
 
 GRAVITY = 9.81
-
-
-@njit(cache=True)
-def _rot(q, R):
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    R[0, 0] = 1 - 2 * (y * y + z * z)
-    R[0, 1] = 2 * (x * y - w * z)
-    R[0, 2] = 2 * (x * z + w * y)
-    R[1, 0] = 2 * (x * y + w * z)
-    R[1, 1] = 1 - 2 * (x * x + z * z)
-    R[1, 2] = 2 * (y * z - w * x)
-    R[2, 0] = 2 * (x * z - w * y)
-    R[2, 1] = 2 * (y * z + w * x)
-    R[2, 2] = 1 - 2 * (x * x + y * y)
 
 
 @njit(cache=True)
@@ -61,7 +47,7 @@ def _quat_small(dth):
 @njit(cache=True)
 def _build_phi(q, f, ba, bg, T, n, Phi, R):
     """Φ = I + F T of (E3)/(E4) into ``Phi`` (n × n), using rotation workspace ``R``."""
-    _rot(q, R)
+    quat_to_matrix_1(q, R)
     for i in range(n):
         for j in range(n):
             Phi[i, j] = 0.0

@@ -36,3 +36,11 @@ def test_body_rate_integration_uses_right_multiplication():
     expected = quat_mul(quat_from_axis_angle([0, 1, 0], np.pi / 2), quat_from_axis_angle([0, 0, 1], 1.0))
     np.testing.assert_allclose(q, expected, atol=1e-12)
     np.testing.assert_allclose(quat_rotate(q, [0, 0, 1.0]), [1, 0, 0], atol=1e-12)
+
+
+def test_numba_matrix_kernel_equals_quat_to_matrix():
+    from estimators.quaternion import quat_from_axis_angle, quat_to_matrix, quat_to_matrix_1
+    q = quat_from_axis_angle([0.3, -1.0, 0.5], 1.2)
+    R = np.empty((3, 3))
+    quat_to_matrix_1(q, R)
+    np.testing.assert_allclose(R, quat_to_matrix(q), atol=1e-15)
