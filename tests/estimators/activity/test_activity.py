@@ -261,9 +261,6 @@ def test_uci_bench_runs_on_real_data():
 
 @pytest.mark.slow
 def test_simulated_day_agreement_and_steps():
-    from pathlib import Path
-    if not Path("/tmp/ready_simulator").exists():
-        pytest.skip("simulator not ready")
     from studies.manifest import load_manifest
     from studies.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
@@ -273,12 +270,8 @@ def test_simulated_day_agreement_and_steps():
     t0 = int(imu.t_ns[0])
     r = classify_day(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone,
                      params=ActivityParams(thigh_length_m=float(rec.metadata["thigh_length_m"])))
-    ref = np.full(r.second_class.size, -1)
-    steps_ref = 0
-    for e in rec.events:
-        if e["label"] in CLASSES:
-            ref[int(np.ceil((e["t_ns"] - t0) / 1e9)):int((e["end_ns"] - t0) // 10 ** 9)] = CLASSES.index(e["label"])
-        steps_ref += e.get("steps", 0)
+    from pipeline.bench.activity import reference_seconds
+    ref, steps_ref = reference_seconds(rec.events, t0, r.second_class.size)
     scored = ref >= 0                               # "transition" seconds are not scored
     assert (r.second_class[scored] == ref[scored]).mean() >= 0.95
     assert abs(len(r.step_times_s) - steps_ref) <= 0.03 * steps_ref
