@@ -21,7 +21,8 @@ from scipy import signal
 from estimators.activity._signals import autocalibrate
 
 __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows", "walking_reference",
-           "standing_reference", "posture_clusters", "lean_deg", "add_context", "calibrated_g", "GAIT_BAND_HZ"]
+           "standing_reference", "posture_clusters", "lean_deg", "add_context", "calibrated_g", "GAIT_BAND_HZ",
+           "moving_fraction"]
 
 G = 9.80665
 #: cadence band (steps/s) of gait-like windows used to find the participant's own walking posture
@@ -262,3 +263,24 @@ def add_context(x: np.ndarray, names: tuple, half_widths: tuple = (1, 3)) -> tup
         cols.append((cs[hi] - cs[lo]) / (hi - lo)[:, None])
         out_names += [f"{nm}@±{h}" for nm in names]
     return np.hstack(cols), tuple(out_names)
+
+
+def moving_fraction(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: float, gait_level_g: float,
+                    rel: float = 0.2) -> np.ndarray:
+    """(W,) fraction of the 1-s chunks of each window (same windows as ``window_features``) whose 0.3-20 Hz
+    acc RMS (vector norm, g, after ``calibrated_g``) is at least ``rel`` × ``gait_level_g``, the participant's
+    typical walking intensity (``10 ** median(log_dyn)`` over its gait-like windows). A person walking or
+    climbing stairs moves in nearly every second at about that level; standing or sitting still stays far
+    below it (a few mg against ≈ 0.2 g). Used to check labels against the signal (``pipeline.bench.activity``).
+    """
+    fs = float(sampling_rate_hz)
+    w = int(round(window_s * fs))
+    k = max(1, int(round(fs)))
+    a, _ = calibrated_g(acc_m_s2, fs)
+    sos = signal.butter(2, [0.3, min(20.0, 0.45 * fs)], "bandpass", fs=fs, output="sos")
+    d = signal.sosfiltfilt(sos, a, axis=0)
+    n_win = d.shape[0] // w
+    m = w // k
+    chunks = d[: n_win * w].reshape(n_win, w, 3)[:, : m * k].reshape(n_win, m, k, 3)
+    rms = np.sqrt((chunks ** 2).sum(axis=3).mean(axis=2))
+    return (rms >= rel * float(gait_level_g)).mean(axis=1)

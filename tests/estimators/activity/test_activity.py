@@ -254,6 +254,9 @@ def test_uci_bench_runs_on_real_data():
     out = run_benchmark(d, show_progress=False, speed=False)
     assert set(out["methods"]) == {"thesis", "default", "learned_loso"}
     assert out["default"] == "default" and out["best_balanced_accuracy"] in out["methods"]
+    lc = out["label_consistency"]
+    assert sum(lc["windows"]) == out["methods"]["default"]["windows"]
+    assert 0.0 < lc["ceiling_balanced_accuracy"] <= 1.0 and lc["contradicted"][3] <= lc["windows"][3]
     for m in out["methods"].values():
         assert {"accuracy", "balanced_accuracy", "confusion", "per_participant"} <= set(m)
         assert len(m["per_participant"]) >= 1

@@ -100,3 +100,31 @@ def test_learned_loso_on_two_uci_participants():
     assert out["per_participant"]["1"]["trained_on"] == ["2"] and out["per_participant"]["2"]["trained_on"] == ["1"]
     assert np.array(out["confusion"]).shape == (4, 4) and 0.0 <= out["balanced_accuracy"] <= 1.0
     assert out["windows"] == sum(v["windows"] for v in out["per_participant"].values())
+
+
+def test_moving_fraction_separates_still_from_walking_seconds():
+    from estimators.activity.windows import moving_fraction
+    acc = np.vstack([_still(3.0, 100, 4), _walk(100), _still(3.0, 5, 5), _walk(5), _still(3.0, 90, 6)])
+    mf = moving_fraction(acc, FS, 10.0, gait_level_g=0.25)
+    assert mf.shape == (acc.shape[0] // 520,)
+    np.testing.assert_array_equal(mf[:10], 0.0)                      # still: a few mg against 0.05 g
+    assert (mf[11:19] == 1.0).all()                                  # walking moves in every second
+    assert 0.3 <= mf[20] <= 0.7                                      # half still, half walking
+    np.testing.assert_array_equal(mf[-8:], 0.0)
+
+
+def test_label_consistency_counts_windows_the_signal_contradicts():
+    """Walking labelled over a still stretch and standing labelled over walking are counted; the ceiling is the
+    mean consistent fraction per class, not a fitted figure."""
+    from pipeline.bench.activity import label_consistency
+    from pipeline.formats.uci_chest import UciParticipant
+    acc = np.vstack([_still(20.0, 200, 1), _still(3.0, 100, 2), _walk(200), _still(3.0, 100, 3)])
+    lab = np.concatenate([np.full(200 * 52, 1), np.full(100 * 52, 3), np.full(200 * 52, 4), np.full(100 * 52, 3)])
+    lab[300 * 52:350 * 52] = 3           # the first 50 s of walking labelled standing (5 windows)
+    lab[250 * 52:300 * 52] = 4           # 50 s of standing labelled walking (5 windows)
+    u = UciParticipant(participant="9", acc=acc, counts=acc, labels=lab, counts_per_g=1.0)
+    out = label_consistency([u])
+    assert out["windows"] == [20, 5 + 5 + 10, 5 + 15, 0]
+    assert out["contradicted"] == [0, 5, 5, 0]
+    assert out["ceiling_balanced_accuracy"] == pytest.approx((1.0 + 15 / 20 + 15 / 20) / 3)
+    assert out["per_participant"]["9"]["contradicted"] == [0, 5, 5, 0] and "held_out" in out
