@@ -61,6 +61,8 @@ def load_uci_participant(path: Path | str) -> UciParticipant:
     if d.ndim != 2 or d.shape[1] != 5 or d.shape[0] < 2:
         raise ValueError(f"{p}: expected 5 columns 'seq,x,y,z,label', got shape {d.shape}")
     counts = d[:, 1:4]
+    if not np.isfinite(d).all():
+        raise ValueError(f"{p}: non-numeric or non-finite values (nan/inf); every row must be 'seq,x,y,z,label'")
     if counts.min() < 0 or counts.max() > 4095:
         raise ValueError(f"{p}: x/y/z outside the 12-bit ADC range 0..4095 (not UCI counts?)")
     acc, cpg = counts_to_m_s2(counts)
