@@ -100,16 +100,24 @@ def _new_forest():
                                   random_state=LEARNED["random_state"], n_jobs=1)
 
 
-def learned_loso(parts, progress_cb=None) -> dict:
+def participant_features(parts) -> dict:
+    """``window_features`` of every participant (``WINDOW_S`` windows), by participant id; computed once and
+    shared by ``learned_loso`` and ``label_consistency``."""
+    from estimators.activity.windows import window_features
+    return {u.participant: window_features(u.acc, u.sampling_rate_hz, WINDOW_S) for u in parts}
+
+
+def learned_loso(parts, progress_cb=None, features: dict | None = None) -> dict:
     """Leave-one-subject-out scores of the learned window classifier (see module docstring) over ``parts``
     (``UciParticipant`` list, ≥ 2). Same keys as the other methods plus ``protocol`` and, per participant,
     the unlabelled normalisation it used (gait-like windows, still-posture cluster separation)."""
-    from estimators.activity.windows import add_context, window_features
+    from estimators.activity.windows import add_context
     if len(parts) < 2:
         raise ValueError("learned_loso needs at least two participants (train on the others)")
+    features = features or participant_features(parts)
     feats = {}
     for u in parts:
-        wf = window_features(u.acc, u.sampling_rate_hz, WINDOW_S)
+        wf = features[u.participant]
         x, _ = add_context(wf.x, wf.names, tuple(LEARNED["context_half_widths"]))
         y = window_labels(u.labels, wf.window_samples, x.shape[0])
         feats[u.participant] = (x, y, wf)
@@ -146,7 +154,7 @@ def learned_loso(parts, progress_cb=None) -> dict:
 CONSISTENCY = {"moving_rel_gait": 0.2, "moving_min_fraction": 0.5}
 
 
-def label_consistency(parts) -> dict:
+def label_consistency(parts, features: dict | None = None) -> dict:
     """Windows whose UCI label the chest signal contradicts, and the balanced accuracy this leaves at most.
 
     A scored window (``window_labels``) is *contradicted* when
@@ -159,10 +167,11 @@ def label_consistency(parts) -> dict:
     mean over classes of the consistent fraction (``ceiling_balanced_accuracy``) bounds its balanced accuracy
     from above, even if it is perfect on every other window (including stairs vs level walking). Labels are read
     only to count; nothing here is fitted."""
-    from estimators.activity.windows import moving_fraction, window_features
+    from estimators.activity.windows import moving_fraction
+    features = features or participant_features(parts)
     per, tot, bad = {}, np.zeros(4, np.int64), np.zeros(4, np.int64)
     for u in parts:
-        wf = window_features(u.acc, u.sampling_rate_hz, WINDOW_S)
+        wf = features[u.participant]
         y = window_labels(u.labels, wf.window_samples, wf.x.shape[0])
         log_dyn = wf.x[:, wf.names.index("log_dyn")]
         level = 10 ** (np.median(log_dyn[wf.gait]) if wf.gait.sum() >= 3 else np.percentile(log_dyn, 90))
@@ -317,16 +326,18 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
             methods[name] = {**overall, "development": scores(groups["development"]),
                              "held_out": scores(groups["held_out"]), "per_participant": per}
 
+        features = participant_features(parts) if parts else {}
+
         def cb(desc):
             if desc:
                 p.update(task, description=desc)
             else:
                 p.advance(task)
         if len(parts) >= 2:
-            methods["learned_loso"] = learned_loso(parts, progress_cb=cb)
+            methods["learned_loso"] = learned_loso(parts, progress_cb=cb, features=features)
         if parts:
             p.update(task, description="label consistency")
-            consistency = label_consistency(parts)
+            consistency = label_consistency(parts, features)
         scored = {k: v["balanced_accuracy"] for k, v in methods.items() if v.get("balanced_accuracy") is not None}
         out = {"dataset": str(directory) if directory is not None else None, "classes": list(BENCH_CLASSES),
                "window_s": WINDOW_S,
