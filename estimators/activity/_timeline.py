@@ -156,7 +156,8 @@ def classify_day(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 
         sec_ga = K.second_mean3(ga, fs, n_sec)
     # ---- postures and transitions --------------------------------------------------------------------
     dc = ga_dc_gain(fs, p.ga_cutoff_hz, p.ga_ripple_db, p.ga_stop_db)
-    theta = K.theta_deg(np.ascontiguousarray(ga[:, 1]), dc)
+    theta = (K.theta_direction_deg(np.ascontiguousarray(ga)) if p.theta_mode == "direction"
+             else K.theta_deg(np.ascontiguousarray(ga[:, 1]), dc))
     lying = lying_state(theta, p)
     tr, cand_tr, cand_ok = detect_transitions(theta, ga, acc_g, sec_static, sec_ga, fs, p, lying,
                                               return_candidates=True)

@@ -32,6 +32,11 @@ class ActivityParams:
         in steady state.
     ga_cutoff_hz: elliptic pass-band edge, Hz (thesis 0.25).
     ga_ripple_db: pass-band ripple, dB (thesis 0.01).
+    theta_mode: trunk inclination θ from ``"thesis"`` Eq. 54, arccos(GA_v / g) (assumes ‖GA‖ = 1 g), or
+        ``"direction"`` (extension, default) arccos(GA_v / ‖GA‖), the angle of the GA direction alone: identical
+        for a calibrated sensor, and immune to a scale error that survives auto-calibration (an uncalibrated
+        sensor whose still orientations do not cover the sphere reads e.g. 0.8 g while upright, which Eq. 54
+        turns into a 37° lean and every walking bout into a rejected, non-upright one).
     ga_stop_db: stop-band attenuation, dB (thesis 100).
     align: ``"none"`` (thesis: sensor y is vertical, x frontal, z lateral; the mounting tilt stays in θ) or
         ``"upright_reference"`` (rotate each wear period so that the participant's walking posture is +y;
@@ -112,6 +117,7 @@ class ActivityParams:
     ga_cutoff_hz: float = 0.25
     ga_ripple_db: float = 0.01
     ga_stop_db: float = 100.0
+    theta_mode: str = "direction"
     align: str = "upright_reference"
     autocalibrate: bool = True
     lying_deg: float = 70.0
@@ -155,7 +161,8 @@ class ActivityParams:
     def __post_init__(self):
         for name, allowed in (("ga_mode", ("lfilter", "filtfilt")), ("align", ("none", "upright_reference")),
                               ("dy_source", ("ga", "raw", "norm")), ("sitstand_sign", ("ci", "dy")), ("svm_walk_source", ("ga", "raw", "vertical")),
-                              ("stairs_mode", ("thesis", "relative")), ("timeline", ("events", "hybrid"))):
+                              ("stairs_mode", ("thesis", "relative")), ("timeline", ("events", "hybrid")),
+                              ("theta_mode", ("thesis", "direction"))):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"ActivityParams.{name} must be one of {allowed}, got {getattr(self, name)!r}")
         if self.thigh_length_m <= 0 or self.step_min_interval_s <= 0 or self.min_bout_steps < 1:
@@ -168,7 +175,7 @@ PRESETS = MappingProxyType({
     "thesis": ActivityParams(align="none", autocalibrate=False, side_lying=False, dy_source="ga",
                              svm_walk_source="ga", step_threshold_g=0.015, step_relative=0.0,
                              step_min_interval_s=0.25, step_max_interval_s=1.5, dy_fraction=0.5, dy_pad_s=0.0, sitstand_sign="ci", sitstand_resolve=False, minima_tolerance_deg=0.0, stairs_mode="thesis",
-                             timeline="events"),
+                             timeline="events", theta_mode="thesis"),
     "default": ActivityParams(),
 })
 

@@ -63,5 +63,5 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                        note="; ".join(notes)[:500])
 
 
-STAGE = Stage(name="activity", version="2", needs=(), tables=("activity_bouts", "activity_transitions", "activity_daily"),
+STAGE = Stage(name="activity", version="3", needs=(), tables=("activity_bouts", "activity_transitions", "activity_daily"),
               session_kinds=("free_living",), compute=compute, default_params=default_params)

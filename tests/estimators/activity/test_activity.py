@@ -407,3 +407,26 @@ def test_resolve_sitstand_lean_evidence_without_any_candidate():
     assert tr.kind.tolist() == [2, 3] and tr.t_s.tolist() == [100.0, 700.0] and n == 2
     tr0, n0 = resolve_sitstand(empty, empty, np.zeros(0, bool), bouts, no, no, 0.15, theta, 40.0)
     assert len(tr0) == 0 and n0 == 0
+
+
+def test_inclination_is_an_angle_even_with_a_scale_error_left_by_autocalibration():
+    """An offset on the vertical axis that auto-calibration cannot see (still orientations do not cover the
+    sphere) makes the upright sensor read 0.7 g (0.77 g after the common gain): Eq. 54 (theta_mode "thesis")
+    turns that into a 40° lean and rejects every walking bout as not upright; the default's direction-only θ keeps walking upright."""
+    import dataclasses
+
+    n_lie, n_walk = int(1800 * FS), int(600 * FS)
+    t = np.arange(n_walk) / FS
+    walk = np.column_stack([-G * np.sin(0.07) + 2.0 * np.sin(2 * np.pi * 1.9 * t),
+                            G * np.cos(0.07) + 3.0 * np.sin(2 * np.pi * 1.9 * t + 0.5), np.sin(np.pi * 1.9 * t)])
+    acc = np.vstack([np.tile([G, 0.0, 0.0], (n_lie, 1)), np.tile([0.0, G, 0.0], (int(300 * FS), 1)), walk,
+                     np.tile([G, 0.0, 0.0], (n_lie, 1))])
+    acc += np.random.default_rng(3).normal(0.0, 0.03, acc.shape)
+    acc[:, 1] -= 0.3 * G                  # zero-g offset on y: lying reads 1.04 g, upright 0.7 g
+    r = classify_day(acc, sampling_rate_hz=FS)
+    assert r.calibration.status != "sphere_fit" and len(r.bouts) > 0
+    walking = r.class_names() == "level_walking"
+    assert walking.mean() > 0.1 and np.median(r.inclination_deg[walking]) < 15.0
+    thesis_theta = classify_day(acc, sampling_rate_hz=FS,
+                                params=dataclasses.replace(PRESETS["default"], theta_mode="thesis"))
+    assert np.median(thesis_theta.inclination_deg[walking]) > 25.0 and len(thesis_theta.bouts) < len(r.bouts)
