@@ -110,17 +110,11 @@ def theta_deg(gv, dc):
 def theta_direction_deg(ga):
     """θ as the angle (deg) between each GA sample (N, 3) and the sensor y axis: arccos(GA_y / ‖GA‖)
     (``ActivityParams.theta_mode="direction"``); 0 where ‖GA‖ = 0."""
-    out = np.empty(ga.shape[0])
-    r = 180.0 / np.pi
+    c = np.empty(ga.shape[0])
     for i in range(ga.shape[0]):
         nrm = np.sqrt(ga[i, 0] * ga[i, 0] + ga[i, 1] * ga[i, 1] + ga[i, 2] * ga[i, 2])
-        v = ga[i, 1] / nrm if nrm > 0.0 else 1.0
-        if v > 1.0:
-            v = 1.0
-        elif v < -1.0:
-            v = -1.0
-        out[i] = np.arccos(v) * r
-    return out
+        c[i] = ga[i, 1] / nrm if nrm > 0.0 else 1.0
+    return theta_deg(c, 1.0)
 
 
 @njit(cache=True)
