@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.orientation._dcf_kernel import STATE_LEN, dcf_series, initial_state, strapdown_series
-from estimators.orientation._types import OrientationResult
+from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.orientation._yun_cf import _check_inputs
 from estimators.quaternion import quat_conj, quat_mul, quat_normalize, quat_rotate
 
@@ -100,39 +100,22 @@ def _butter2(tau_s: float, sampling_rate_hz: float) -> tuple[float, float, float
     return b0, 2.0 * b0, b0, 2.0 * (c * c - 1.0) / d, (1.0 - np.sqrt(2.0) * c + c * c) / d
 
 
-class DCFFilter:
-    """Online decoupled complementary filter. ``state`` is a plain (29,) array you can copy and restore;
+class DCFFilter(OnlineFilter):
+    """Online decoupled complementary filter. ``state`` is a plain (STATE_LEN,) array you can copy and restore;
     ``update_batch`` on consecutive chunks gives exactly the result of one call on the whole recording."""
 
+    STATE_SIZE = STATE_LEN
+
     def __init__(self, params: DCFParams = DCFParams(), *, sampling_rate_hz: float):
-        if not sampling_rate_hz or sampling_rate_hz <= 0:
-            raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
-        self.params = params
-        self.sampling_rate_hz = float(sampling_rate_hz)
+        super().__init__(params, sampling_rate_hz=sampling_rate_hz)
         self._coef = dcf_coefficients(params, self.sampling_rate_hz)
         self._state = initial_state()
 
-    @property
-    def state(self) -> np.ndarray:
-        return self._state.copy()
-
-    @state.setter
-    def state(self, value: np.ndarray) -> None:
-        value = np.array(value, dtype=np.float64)
-        if value.shape != (STATE_LEN,):
-            raise ValueError(f"state must be a ({STATE_LEN},) array, got {value.shape}")
-        self._state = value
-
     def update_batch(self, gyr, acc, mag=None) -> OrientationResult:
-        gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape(-1, 3)
-        acc = np.ascontiguousarray(acc, dtype=np.float64).reshape(-1, 3)
+        gyr, acc, mag = self._chunk(gyr, acc, mag)
         n = gyr.shape[0]
-        if acc.shape != gyr.shape:
-            raise ValueError(f"gyr {gyr.shape} and acc {acc.shape} must both be (N, 3)")
         use_mag = mag is not None
-        m = np.ascontiguousarray(mag, dtype=np.float64).reshape(-1, 3) if use_mag else np.empty((n, 3))
-        if m.shape != gyr.shape:
-            raise ValueError(f"mag {m.shape} must be (N, 3) like gyr")
+        m = mag if use_mag else np.empty((n, 3))
         q = np.empty((n, 4))
         rest = np.empty(n, dtype=np.bool_)
         rej = np.empty(n, dtype=np.bool_)

@@ -37,7 +37,7 @@ import numpy as np
 
 from estimators.orientation._fqa import fqa
 from estimators.orientation._fullstate_kernel import I_FALLBACK, NX, STATE_LEN, ekf_series, lkf_series
-from estimators.orientation._types import OrientationResult
+from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.orientation._yun_cf import _check_inputs
 from estimators.quaternion import quat_rotate
 
@@ -148,30 +148,17 @@ def _coef(p, dt, last):
                      last])
 
 
-class _FullStateFilter:
+class _FullStateFilter(OnlineFilter):
     """Online filter: ``state`` is a plain (FILTER_STATE_LEN,) array (x, P, counters, references); it is
     initialised from the first ``init_s`` seconds of the first chunk; chunked = whole (tested)."""
 
+    STATE_SIZE = FILTER_STATE_LEN
+
     def __init__(self, params, *, sampling_rate_hz: float):
-        if not sampling_rate_hz or sampling_rate_hz <= 0:
-            raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
-        self.params = params
-        self.sampling_rate_hz = float(sampling_rate_hz)
+        super().__init__(params, sampling_rate_hz=sampling_rate_hz)
         self._sg = _levels(params.sigma_gyr_rad_s, params.s_gyr_rad_s, "sigma_gyr_rad_s / s_gyr_rad_s")
         self._sa = _levels(params.sigma_acc_g, params.s_acc_g, "sigma_acc_g / s_acc_g")
         self._sm = _levels(params.sigma_mag, params.s_mag, "sigma_mag / s_mag")
-        self._state = np.zeros(FILTER_STATE_LEN)
-
-    @property
-    def state(self) -> np.ndarray:
-        return self._state.copy()
-
-    @state.setter
-    def state(self, value) -> None:
-        value = np.array(value, dtype=np.float64)
-        if value.shape != (FILTER_STATE_LEN,):
-            raise ValueError(f"state must be a ({FILTER_STATE_LEN},) array, got {value.shape}")
-        self._state = value
 
     def _initialise(self, gyr, acc, mag):
         p = self.params
@@ -210,16 +197,9 @@ class _FullStateFilter:
         s[STATE_LEN + 3:STATE_LEN + 6] = m_ref
 
     def _run(self, kernel, last, extra, gyr, acc, mag) -> FullStateResult:
-        gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape(-1, 3)
-        acc = np.ascontiguousarray(acc, dtype=np.float64).reshape(-1, 3)
+        gyr, acc, mag = self._chunk(gyr, acc, mag)
         n = gyr.shape[0]
-        if acc.shape != gyr.shape:
-            raise ValueError(f"gyr {gyr.shape} and acc {acc.shape} must both be (N, 3)")
         use_mag = mag is not None
-        if use_mag:
-            mag = np.ascontiguousarray(mag, dtype=np.float64).reshape(-1, 3)
-            if mag.shape != gyr.shape:
-                raise ValueError(f"mag {mag.shape} must be (N, 3) like gyr")
         if self._state[STATE_LEN] == 0.0:
             self._initialise(gyr, acc, mag)
         s = self._state

@@ -31,7 +31,7 @@ from numba import njit
 
 from estimators.orientation._dcf_kernel import _qmul, _qrot
 from estimators.orientation._fqa import fqa
-from estimators.orientation._types import OrientationResult
+from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.orientation._yun_cf import _check_inputs
 
 G = 9.81
@@ -229,42 +229,21 @@ def _gain_arrays(gains, thr, thr_m):
     return gains, thr, thr_m
 
 
-class _SwitchingFilter:
+class _SwitchingFilter(OnlineFilter):
     """Online Madgwick / Mahony: ``state`` is a plain (12,) array (layout: ``STATE_LEN`` comment) you can
     copy and restore; it is initialised from the first ``init_s`` seconds of the first chunk, so chunked =
     whole when that chunk is at least ``init_s`` long (tested)."""
     _mahony = False
+    STATE_SIZE = STATE_LEN
 
     def __init__(self, params, *, sampling_rate_hz: float):
-        if not sampling_rate_hz or sampling_rate_hz <= 0:
-            raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
-        self.params = params
-        self.sampling_rate_hz = float(sampling_rate_hz)
+        super().__init__(params, sampling_rate_hz=sampling_rate_hz)
         g = params.kp_levels_per_s if self._mahony else params.beta_levels_rad_s
         self._arrays = _gain_arrays(g, params.s_acc_g, params.s_mag)
-        self._state = np.zeros(STATE_LEN)
-
-    @property
-    def state(self) -> np.ndarray:
-        return self._state.copy()
-
-    @state.setter
-    def state(self, value) -> None:
-        value = np.array(value, dtype=np.float64)
-        if value.shape != (STATE_LEN,):
-            raise ValueError(f"state must be a ({STATE_LEN},) array, got {value.shape}")
-        self._state = value
 
     def update_batch(self, gyr, acc, mag=None) -> OrientationResult:
-        gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape(-1, 3)
-        acc = np.ascontiguousarray(acc, dtype=np.float64).reshape(-1, 3)
+        gyr, acc, mag = self._chunk(gyr, acc, mag)
         n = gyr.shape[0]
-        if acc.shape != gyr.shape:
-            raise ValueError(f"gyr {gyr.shape} and acc {acc.shape} must both be (N, 3)")
-        if mag is not None:
-            mag = np.ascontiguousarray(mag, dtype=np.float64).reshape(-1, 3)
-            if mag.shape != gyr.shape:
-                raise ValueError(f"mag {mag.shape} must be (N, 3) like gyr")
         p = self.params
         if self._state[7] == 0.0:
             self._state = initial_state(gyr, acc, mag, self.sampling_rate_hz, p.init_s, p.static_bias)

@@ -27,7 +27,7 @@ from numba import njit
 from estimators.orientation._fqa import fqa_azimuth_1, fqa_tilt_1
 from estimators.orientation._frames import ned_to_enu
 from estimators.orientation._stillness import detect_rest
-from estimators.orientation._types import OrientationResult
+from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.quaternion import quat_exp_step_1, quat_mul_1
 
 
@@ -219,38 +219,18 @@ def _yun_online_series(gyr, acc, mag, use_mag, stance_in, use_stance_in, dt, k_s
     s[5] = count
 
 
-class YunCFFilter:
+class YunCFFilter(OnlineFilter):
     """Online Yun complementary filter: ``state`` is a plain (7,) array (``YUN_STATE_LEN`` layout) you can
     copy and restore; initialised from the first ``init_s`` seconds of the first chunk; chunked = whole."""
 
+    STATE_SIZE = YUN_STATE_LEN
+
     def __init__(self, params: YunCFParams = YunCFParams(), *, sampling_rate_hz: float):
-        if not sampling_rate_hz or sampling_rate_hz <= 0:
-            raise ValueError(f"sampling_rate_hz must be > 0, got {sampling_rate_hz}")
-        self.params = params
-        self.sampling_rate_hz = float(sampling_rate_hz)
-        self._state = np.zeros(YUN_STATE_LEN)
-
-    @property
-    def state(self) -> np.ndarray:
-        return self._state.copy()
-
-    @state.setter
-    def state(self, value) -> None:
-        value = np.array(value, dtype=np.float64)
-        if value.shape != (YUN_STATE_LEN,):
-            raise ValueError(f"state must be a ({YUN_STATE_LEN},) array, got {value.shape}")
-        self._state = value
+        super().__init__(params, sampling_rate_hz=sampling_rate_hz)
 
     def update_batch(self, gyr, acc, mag=None, stance=None) -> OrientationResult:
-        gyr = np.ascontiguousarray(gyr, dtype=np.float64).reshape(-1, 3)
-        acc = np.ascontiguousarray(acc, dtype=np.float64).reshape(-1, 3)
+        gyr, acc, mag = self._chunk(gyr, acc, mag)
         n = gyr.shape[0]
-        if acc.shape != gyr.shape:
-            raise ValueError(f"gyr {gyr.shape} and acc {acc.shape} must both be (N, 3)")
-        if mag is not None:
-            mag = np.ascontiguousarray(mag, dtype=np.float64).reshape(-1, 3)
-            if mag.shape != gyr.shape:
-                raise ValueError(f"mag {mag.shape} must be (N, 3) like gyr")
         if stance is not None:
             stance = np.ascontiguousarray(stance, dtype=np.bool_)
             if stance.shape != (n,):
