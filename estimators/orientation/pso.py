@@ -122,6 +122,24 @@ class SwarmData:
                    tuple(getattr(t, "name", str(i)) for i, t in enumerate(trials)))
 
 
+@njit(cache=True)
+def _masked_rmse_deg(q, qref, mask, a):
+    """Total orientation RMSE (deg) of the estimate ``q`` (n, 4) against ``qref[a:a + n]`` over the samples
+    where ``mask`` is set and the reference is finite (the BROAD metric of ``evaluation``); NaN if none."""
+    ss = 0.0
+    cnt = 0
+    for i in range(q.shape[0]):
+        if mask[a + i]:
+            r0, r1, r2, r3 = qref[a + i, 0], qref[a + i, 1], qref[a + i, 2], qref[a + i, 3]
+            if r0 == r0 and r1 == r1 and r2 == r2 and r3 == r3:
+                w = abs(q[i, 0] * r0 + q[i, 1] * r1 + q[i, 2] * r2 + q[i, 3] * r3)
+                w = w / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+                e = 2.0 * np.arccos(min(w, 1.0))
+                ss += e * e
+                cnt += 1
+    return np.degrees(np.sqrt(ss / cnt)) if cnt > 0 else np.nan
+
+
 @njit(parallel=True, cache=True)
 def _swarm_kernel(gyr, acc, mag, qref, mask, offsets, states0, dts, tsel, gains, thr, thr_m, ki, zeta, mahony,
                   out):
@@ -138,18 +156,7 @@ def _swarm_kernel(gyr, acc, mag, qref, mask, offsets, states0, dts, tsel, gains,
         g = np.empty(n)
         _series(gyr[a:b], acc[a:b], mag[a:b], True, dts[t], gains[p], thr[p], thr_m[p], ki[p], zeta[p], mahony,
                 s, q, g)
-        ss = 0.0
-        cnt = 0
-        for i in range(n):
-            if mask[a + i]:
-                r0, r1, r2, r3 = qref[a + i, 0], qref[a + i, 1], qref[a + i, 2], qref[a + i, 3]
-                if r0 == r0 and r1 == r1 and r2 == r2 and r3 == r3:
-                    w = abs(q[i, 0] * r0 + q[i, 1] * r1 + q[i, 2] * r2 + q[i, 3] * r3)
-                    w = w / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-                    e = 2.0 * np.arccos(min(w, 1.0))
-                    ss += e * e
-                    cnt += 1
-        out[p, j] = np.degrees(np.sqrt(ss / cnt)) if cnt > 0 else np.nan
+        out[p, j] = _masked_rmse_deg(q, qref, mask, a)
 
 
 @dataclass(frozen=True)
@@ -363,18 +370,7 @@ def _ekf_swarm_kernel(gyr, acc, mag, qref, mask, offsets, states0, mrefs, dts, t
         ekf_series(gyr[a:b], acc[a:b], mag[a:b], True, dt, coef, np.array([v[0], v[1]]), np.array([v[2]]),
                    np.array([v[3], v[4]]), np.array([v[5]]), np.array([v[6], v[7]]), np.array([v[8]]), mrefs[t], s,
                    q, aux, lv)
-        ss = 0.0
-        cnt = 0
-        for i in range(n):
-            if mask[a + i]:
-                r0, r1, r2, r3 = qref[a + i, 0], qref[a + i, 1], qref[a + i, 2], qref[a + i, 3]
-                if r0 == r0 and r1 == r1 and r2 == r2 and r3 == r3:
-                    w = abs(q[i, 0] * r0 + q[i, 1] * r1 + q[i, 2] * r2 + q[i, 3] * r3)
-                    w = w / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-                    e = 2.0 * np.arccos(min(w, 1.0))
-                    ss += e * e
-                    cnt += 1
-        out[p, j] = np.degrees(np.sqrt(ss / cnt)) if cnt > 0 else np.nan
+        out[p, j] = _masked_rmse_deg(q, qref, mask, a)
 
 
 def ekf_swarm_errors(X: np.ndarray, data: EKFSwarmData, trials: Sequence[int] | None = None) -> np.ndarray:
