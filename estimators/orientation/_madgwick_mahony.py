@@ -31,6 +31,7 @@ from numba import njit
 
 from estimators.orientation._dcf_kernel import _qmul, _qrot
 from estimators.orientation._fqa import fqa
+from estimators.orientation._fullstate_kernel import _level
 from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.orientation._yun_cf import _check_inputs
 
@@ -75,15 +76,6 @@ class MahonyParams:
     s_mag: tuple[float, ...] = ()
     static_bias: bool = False
     init_s: float = 0.5
-
-
-@njit(cache=True)
-def _level(delta, thr):
-    lv = 0
-    for j in range(thr.shape[0]):
-        if delta >= thr[j]:
-            lv = j + 1
-    return lv
 
 
 #: online state layout: 0:4 q [w x y z] sensor→ENU, 4:7 Madgwick gyro-drift estimate ω_b / Mahony integral

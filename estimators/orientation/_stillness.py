@@ -13,23 +13,23 @@ from numba import njit
 GRAVITY = 9.81
 
 
+@njit(cache=True, inline="always")
+def fsm_step(state, count, c, gamma):
+    """One sample of the A4 consecutive-count FSM: leave the current state (rest / motion) after ``gamma``
+    consecutive samples whose rest condition ``c`` disagrees with it. Returns (state, count)."""
+    count = count + 1 if c != state else 0
+    if count >= gamma:
+        return not state, 0
+    return state, count
+
+
 @njit(cache=True)
 def _fsm(rest_cond, gamma, out):
     """Consecutive-count FSM (A4 pseudo-code, real-time: transitions reported Γ samples late)."""
     state = True          # start in stance (recordings start at rest, spec A7.2 sequencing)
     count = 0
     for i in range(rest_cond.shape[0]):
-        c = rest_cond[i]
-        if state:
-            count = count + 1 if not c else 0
-            if count >= gamma:
-                state = False
-                count = 0
-        else:
-            count = count + 1 if c else 0
-            if count >= gamma:
-                state = True
-                count = 0
+        state, count = fsm_step(state, count, rest_cond[i], gamma)
         out[i] = state
 
 

@@ -26,7 +26,7 @@ from numba import njit
 
 from estimators.orientation._fqa import fqa_azimuth_1, fqa_tilt_1
 from estimators.orientation._frames import ned_to_enu
-from estimators.orientation._stillness import detect_rest
+from estimators.orientation._stillness import detect_rest, fsm_step
 from estimators.orientation._types import OnlineFilter, OrientationResult
 from estimators.quaternion import quat_exp_step_1, quat_mul_1
 
@@ -172,16 +172,7 @@ def _yun_online_series(gyr, acc, mag, use_mag, stance_in, use_stance_in, dt, k_s
         else:
             c = (np.sqrt(gx * gx + gy * gy + gz * gz) <= rest_g) and \
                 (abs(np.sqrt(ax * ax + ay * ay + az * az) - 9.81) <= rest_a)
-            if state:
-                count = count + 1 if not c else 0
-                if count >= gamma:
-                    state = False
-                    count = 0
-            else:
-                count = count + 1 if c else 0
-                if count >= gamma:
-                    state = True
-                    count = 0
+            state, count = fsm_step(state, count, c, gamma)
             still = state
         out_still[i] = still
         out_q[i, 0], out_q[i, 1], out_q[i, 2], out_q[i, 3] = q0, q1, q2, q3
