@@ -17,6 +17,9 @@ from warehouse.catalog import Warehouse, first
 from warehouse.read import connect_snapshot, read_imu, read_orientation
 from warehouse.store import read_table
 
+from tests.pipeline._lab import df as _df
+from tests.pipeline._lab import run_with, use_registry, write_lab_session
+
 LOWER = {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right"}
 
 
@@ -38,25 +41,13 @@ def _registry(with_gait: bool):
     return [ori_stage.STAGE, cal_stage.STAGE, GAIT, ja_stage.STAGE]
 
 
-def _patch(monkeypatch, reg):
-    monkeypatch.setattr(runner, "registry", lambda: reg)
-    monkeypatch.setattr(stages, "registry", lambda: reg)
+_patch = use_registry
 
 
 @pytest.fixture(scope="module")
 def lab_files(tmp_path_factory):
     """One simulated lab session (calibration trial + one 30-s walking trial) as MCAP files."""
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_lab_session, study_participants
-    m = load_manifest(DEFAULT_MANIFEST)
-    m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=False, optical_reference=False))
-    d = tmp_path_factory.mktemp("inbox")
-    files, truths = [], []
-    for rec, truth in simulate_lab_session(m, study_participants(m, 1)[0], 0):
-        files.append(write_recording(rec, d / f"{rec.name}.mcap"))
-        truths.append(truth)
-    return files, truths
+    return write_lab_session(tmp_path_factory.mktemp("inbox"), distance_sensors=False, optical_reference=False)
 
 
 @pytest.fixture(scope="module")
@@ -67,20 +58,10 @@ def warehouse(lab_files, tmp_path_factory):
     try:
         with Warehouse.open(root) as wh:
             wh.con.execute("CREATE TABLE IF NOT EXISTS gait_events (session_id VARCHAR, side VARCHAR, type VARCHAR, t_ns BIGINT)")
-        _patch(mp, _registry(with_gait=True))
-        summary = runner.run(root, None, files=files)
-        assert not summary.failed, summary.failed
+        run_with(mp, root, files, _registry(with_gait=True))
     finally:
         mp.undo()
     return root
-
-
-def _df(root, sql, params=()):
-    con = connect_snapshot(root)
-    try:
-        return con.execute(sql, list(params)).df()
-    finally:
-        con.close()
 
 
 def test_calibration_rows_equal_the_estimator_on_the_same_arrays(warehouse):

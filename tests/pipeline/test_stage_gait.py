@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,38 +15,22 @@ from warehouse.catalog import Warehouse
 from warehouse.read import connect_snapshot, read_imu
 from warehouse.store import read_table
 
+from tests.pipeline._lab import df as _df
+from tests.pipeline._lab import run_with, use_registry, write_lab_session
+
 
 def _registry():
     return [ori_stage.STAGE, gait_stage.STAGE]
 
 
 def _patch(mp):
-    mp.setattr(runner, "registry", _registry)
-    mp.setattr(stages, "registry", _registry)
-
-
-def _df(root, sql, params=()):
-    con = connect_snapshot(root)
-    try:
-        return con.execute(sql, list(params)).df()
-    finally:
-        con.close()
+    use_registry(mp, _registry())
 
 
 @pytest.fixture(scope="module")
 def lab_files(tmp_path_factory):
     """One simulated lab session (calibration trial + one 30-s walking trial with distance sensors)."""
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_lab_session, study_participants
-    m = load_manifest(DEFAULT_MANIFEST)
-    m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=True, optical_reference=True))
-    d = tmp_path_factory.mktemp("inbox")
-    files, truths = [], []
-    for rec, truth in simulate_lab_session(m, study_participants(m, 1)[0], 0):
-        files.append(write_recording(rec, d / f"{rec.name}.mcap"))
-        truths.append(truth)
-    return files, truths
+    return write_lab_session(tmp_path_factory.mktemp("inbox"), distance_sensors=True, optical_reference=True)
 
 
 @pytest.fixture(scope="module")
@@ -56,9 +39,7 @@ def warehouse(lab_files, tmp_path_factory):
     root = tmp_path_factory.mktemp("wh") / "wh"
     mp = pytest.MonkeyPatch()
     try:
-        _patch(mp)
-        summary = runner.run(root, None, files=files)
-        assert not summary.failed, summary.failed
+        run_with(mp, root, files, _registry())
     finally:
         mp.undo()
     return root
