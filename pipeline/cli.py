@@ -78,6 +78,15 @@ def _print_summary(summary, as_json: bool) -> None:
         err_console.print(f"  failed: {f}", markup=False)
 
 
+#: exit codes of ``ingest`` and ``run`` (docs/operations.md "Exit codes"); 2 is ``UserError``/click usage errors
+EXIT_OK, EXIT_PROBLEMS, EXIT_COULD_NOT_RUN = 0, 1, 2
+
+
+def exit_code(summary) -> int:
+    """1 when this run quarantined a file, a stage of a session failed or a report could not be written."""
+    return EXIT_PROBLEMS if (summary.quarantined or summary.failed) else EXIT_OK
+
+
 def _run_with_progress(**kw):
     """Run the pipeline with a progress bar per phase (ingest, then each stage) on stderr."""
     import duckdb
@@ -170,8 +179,7 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
                                  command="ingest")
     _print_summary(summary, as_json)
-    if summary.quarantined:
-        raise SystemExit(1)
+    raise SystemExit(exit_code(summary))
 
 
 @main.command()
@@ -191,8 +199,9 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
 def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
-    A second run started while one is active refuses with a clear message. Failures of one session
-    are recorded in the ledger and do not block the others (exit code 1 if any failed).
+    A second run started while one is active refuses with a clear message (exit code 2). Failures of
+    one session are recorded in the ledger and do not block the others. Exit codes: 0 all ok, 1 some
+    file quarantined or some stage failed, 2 the run could not start or had to stop.
 
     \b
     Examples:
@@ -209,14 +218,14 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
                                  scheduler=scheduler)
     if not no_reports:
-        summary.reports = _write_reports(_wh(warehouse_dir), summary.run_id, reports_dir)
+        summary.reports = _write_reports(_wh(warehouse_dir), summary.run_id, reports_dir, summary.failed)
     _print_summary(summary, as_json)
-    if summary.failed:
-        raise SystemExit(1)
+    raise SystemExit(exit_code(summary))
 
 
-def _write_reports(wh: Path, run_id: str, reports_dir: Path | None) -> list[str]:
-    """Reports for the participants whose results changed in this run (errors do not fail the run)."""
+def _write_reports(wh: Path, run_id: str, reports_dir: Path | None, failed: list[str] | None = None) -> list[str]:
+    """Reports for the participants whose results changed in this run; a report that fails is appended to
+    ``failed`` (exit code 1) and does not stop the others."""
     from pipeline.config import default_reports
     from pipeline.console import err_console
     from warehouse.read import connect_snapshot
@@ -238,6 +247,8 @@ def _write_reports(wh: Path, run_id: str, reports_dir: Path | None) -> list[str]
             out.append(str(paths["pdf"]))
         except Exception as e:  # noqa: BLE001 - a report problem must not fail the nightly run
             err_console.print(f"warning: report for {study}/{pid} failed: {e}", markup=False)
+            if failed is not None:
+                failed.append(f"report {study}/{pid}: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
     return out
 
 
