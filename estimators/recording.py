@@ -22,11 +22,12 @@ SESSION_KINDS = ("lab", "free_living", "calibration")
 
 @dataclass
 class ImuData:
-    """One IMU: ``t_ns`` (N,) int64 sensor time; ``acc`` (N, 3) m/s²; ``gyr`` (N, 3) rad/s;
-    ``mag`` (N, 3) µT on the same time grid, or None when the sensor has no magnetometer."""
+    """One IMU: ``t_ns`` (N,) int64 sensor time; ``acc`` (N, 3) m/s²; ``gyr`` (N, 3) rad/s, or None for an
+    accelerometer-only device; ``mag`` (N, 3) µT on the same time grid, or None when the sensor has no
+    magnetometer."""
     t_ns: np.ndarray
     acc: np.ndarray
-    gyr: np.ndarray
+    gyr: np.ndarray | None
     mag: np.ndarray | None = None
 
 

@@ -182,6 +182,53 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
     raise SystemExit(exit_code(summary))
 
 
+def _format_choices() -> list[str]:
+    from pipeline.importers import FORMATS
+    return sorted(FORMATS)
+
+
+@main.command("import")
+@click.argument("fmt", metavar="FORMAT", type=click.Choice(_format_choices()))
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the MCAP files go [default: $STRIDELAB_HOME/inbox].")
+@click.option("--study", default=None, help="Study id of the session records [default: imported].")
+@click.option("--session", "session_items", multiple=True, metavar="FIELD=VALUE",
+              help="Session field (repeatable): participant, session, trial, kind, protocol, timezone, start "
+                   "(ISO 8601 time of the first sample for files without a clock).")
+@click.option("--placement", default=None, help="Placement of a single-sensor file (e.g. foot_left, chest).")
+@click.option("--json", "as_json", is_flag=True, help="Print the written files and the errors as JSON.")
+def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> None:
+    """Convert device exports (FORMAT: xio, gaitmap, uci, broad, apdm, cwa, ...) into recording-format MCAP.
+
+    References the file carries (optical poses, annotated events, activity labels) become reference topics.
+    Session fields: format defaults, then a sidecar <file>.session.toml, then --session. A bad file gets one
+    line and nothing is written for it; the others go on (exit 1 if any failed).
+
+    \b
+    Examples:
+      stridelab import xio walk1.csv walk2.csv --placement foot_left --session participant=P07
+      stridelab import gaitmap ../shared/data/gaitmap_example --study public
+      stridelab import apdm opals.h5 --inbox /data/inbox --session kind=lab --session trial=tug
+      stridelab import cwa day1.cwa --placement chest --session participant=P12 --session timezone=Europe/Zurich
+    """
+    from pipeline.config import default_inbox
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.importers import ImportRejected, import_paths, parse_session_options
+    try:
+        overrides = parse_session_options(session_items)
+    except ImportRejected as e:
+        raise UserError(str(e)) from None
+    res = import_paths(fmt, paths, inbox or default_inbox(), study=study, session=overrides, placement=placement,
+                       on_file=lambda m: None if as_json else err_console.print(m, markup=False, highlight=False))
+    if as_json:
+        emit_json({"written": [str(p) for p in res.written], "errors": res.errors})
+    else:
+        err_console.print(f"{len(res.written)} recordings written, {len(res.errors)} files refused", markup=False)
+    if res.errors:
+        raise SystemExit(1)
+
+
 @main.command()
 @click.option("--inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Inbox directory scanned for *.mcap [default: $STRIDELAB_HOME/inbox].")

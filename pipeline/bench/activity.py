@@ -46,38 +46,15 @@ from pipeline.console import UserError, emit_json, err_console, progress
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_UCI = PROJECT_ROOT.parent / "shared" / "data" / "uci_chest"
-BENCH_CLASSES = ("sitting", "standing", "walking", "stairs")
-LABEL_TO_CLASS = {1: 0, 3: 1, 7: 1, 4: 2, 6: 2, 5: 3}
-#: estimators.activity.CLASSES -> BENCH_CLASSES
-CLASS_MAP = np.array([0, 0, 1, 2, 3, 3, 1])
+from estimators.activity.evaluation import CLASS_MAP, SCORED_CLASSES as BENCH_CLASSES, WINDOW_S, scores  # noqa: E402,F401
+from estimators.activity.evaluation import window_confusion as _window_confusion  # noqa: E402
+from pipeline.formats.uci_chest import LABEL_TO_CLASS  # noqa: E402
 DEVELOPMENT = ("1", "2", "3", "4")
-WINDOW_S = 10.0
 
 
 def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, window_s: float = WINDOW_S) -> np.ndarray:
-    """(4, 4) confusion (rows reference, columns predicted) over 10-s windows inside one scored label."""
-    n = labels.shape[0]
-    w = int(round(window_s * fs))
-    sec = (np.arange(n) / fs).astype(np.int64)
-    sec = np.minimum(sec, second_class.shape[0] - 1)
-    C = np.zeros((4, 4), dtype=np.int64)
-    for i in range(0, n - w + 1, w):
-        lab = labels[i:i + w]
-        if (lab != lab[0]).any() or int(lab[0]) not in LABEL_TO_CLASS:
-            continue
-        pred = np.bincount(CLASS_MAP[second_class[sec[i:i + w]]], minlength=4).argmax()
-        C[LABEL_TO_CLASS[int(lab[0])], pred] += 1
-    return C
-
-
-def scores(C: np.ndarray) -> dict:
-    """Accuracy and balanced accuracy (mean recall over the reference classes present)."""
-    tot = C.sum()
-    present = C.sum(axis=1) > 0
-    rec = np.diag(C)[present] / C.sum(axis=1)[present]
-    return {"accuracy": float(np.trace(C) / tot) if tot else None,
-            "balanced_accuracy": float(rec.mean()) if rec.size else None,
-            "windows": int(tot), "confusion": C.tolist()}
+    """The one activity scorer (:func:`estimators.activity.evaluation.window_confusion`) with the UCI label codes."""
+    return _window_confusion(second_class, labels, fs, LABEL_TO_CLASS, window_s)
 
 
 #: fixed hyper-parameters of the learned LOSO method (not tuned on the held-out participants)

@@ -68,7 +68,8 @@ def recording_channels(rec: Recording) -> list[ChannelData]:
 
     for pl, imu in rec.imu.items():
         ros(f"/imu/{pl}", "sensor_msgs/msg/Imu", imu.t_ns,
-            lambda a, b, x=imu, pl=pl: ros2_cdr.encode_imu(x.t_ns[a:b], x.acc[a:b], x.gyr[a:b], pl))
+            lambda a, b, x=imu, pl=pl: ros2_cdr.encode_imu(x.t_ns[a:b], x.acc[a:b],
+                                                          None if x.gyr is None else x.gyr[a:b], pl))
         if imu.mag is not None:
             ros(f"/mag/{pl}", "sensor_msgs/msg/MagneticField", imu.t_ns,
                 lambda a, b, x=imu, pl=pl: ros2_cdr.encode_mag(x.t_ns[a:b], x.mag[a:b], pl))
@@ -156,7 +157,10 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
     total_bytes = sum((c.payload.shape[1] if isinstance(c.payload, np.ndarray) else c.msg_size) * len(c.log_time)
                       + _MSG_HEAD * len(c.log_time) for c in channels)
     n_windows = max(1, int(np.ceil(total_bytes / chunk_bytes)))
-    edges = np.linspace(t_min, t_max + 1, n_windows + 1).astype(np.int64)
+    # integer edges: float64 has ~256 ns resolution at today's epoch ns, so a float linspace could put the last
+    # edge at or below t_max and silently drop the last message(s)
+    span = t_max + 1 - t_min
+    edges = t_min + (np.arange(n_windows + 1, dtype=np.int64) * span) // n_windows
 
     crc = 0
     pos = 0

@@ -90,12 +90,16 @@ def encode_doubles(schema: str, t_ns: np.ndarray, values: np.ndarray, frame_id: 
 
 
 def encode_imu(t_ns, acc, gyr, frame_id: str) -> np.ndarray:
-    """sensor_msgs/Imu: orientation unknown (identity, covariance[0] = -1 per REP-145)."""
+    """sensor_msgs/Imu: orientation unknown (identity, covariance[0] = -1 per REP-145). ``gyr`` None: an
+    accelerometer-only device (angular velocity zero with angular_velocity_covariance[0] = -1, REP-145)."""
     n = len(t_ns)
     v = np.zeros((n, 37))
     v[:, 3] = 1.0          # orientation w
     v[:, 4] = -1.0         # orientation_covariance[0] = -1: no orientation estimate
-    v[:, 13:16] = gyr
+    if gyr is None:
+        v[:, 16] = -1.0    # angular_velocity_covariance[0] = -1: no angular velocity
+    else:
+        v[:, 13:16] = gyr
     v[:, 25:28] = acc
     return encode_doubles("sensor_msgs/msg/Imu", t_ns, v, frame_id)
 

@@ -1,0 +1,332 @@
+"""``stridelab import``: device exports -> recording-format MCAP files in an inbox (DESIGN.md "Recording format").
+
+One converter per format turns what the format's reader in ``pipeline/formats`` returns into
+:class:`estimators.recording.Recording` objects: StrideLab units (the readers convert), the ``session`` record
+filled (defaults per format, then a sidecar ``<file>.session.toml``, then ``--session FIELD=VALUE``), and the
+references the file carries written as reference topics (``/reference/pose/<placement>``,
+``/reference/events``). The MCAP is written by :func:`pipeline.formats.mcap_write.write_recording`, atomically
+(temporary file + rename): a bad file leaves nothing behind and gets one line (file, what is wrong, what to do).
+
+Times: formats without an absolute clock start at the session field ``start`` (ISO 8601, default
+``2000-01-01T00:00:00Z``). Extra session fields the stages read:
+``reference_frame = "sensor_enu"`` (the optical orientation is the sensor's own frame in ENU, as in BROAD: the
+orientation stage scores it without a mounting/heading alignment) and ``accelerometer_only`` (comma-separated
+placements without a gyroscope; the orientation stage skips them).
+"""
+from __future__ import annotations
+
+import json
+import re
+import tomllib
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from estimators.recording import ImuData, PLACEMENTS, PoseData, Recording
+
+DEFAULT_START = "2000-01-01T00:00:00Z"
+_NOT_SESSION = ("start",)          # import options, not written into the session record
+
+
+class ImportRejected(ValueError):
+    """One file cannot be imported; ``str(err)`` is the one-line reason (what is wrong, what to do)."""
+
+
+@dataclass(frozen=True)
+class Converted:
+    """One recording to write: ``rec`` with times relative to the recording start (ns), the default session
+    fields of the format, and the output name stem."""
+    rec: Recording
+    defaults: dict
+    stem: str
+    t0_ns: int | None = None        # absolute start when the file has a clock (else the session 'start')
+
+
+@dataclass(frozen=True)
+class Format:
+    name: str
+    description: str
+    convert: Callable[[Path, str | None], list[Converted]]
+    suffixes: tuple[str, ...]       # files picked from a directory argument ("" = the directory itself)
+
+
+@dataclass
+class ImportResult:
+    written: list[Path] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+
+
+def _rel_ns(n: int, fs: float) -> np.ndarray:
+    return np.rint(np.arange(n) * (1e9 / fs)).astype(np.int64)
+
+
+def _slug(s: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", s).strip("._-") or "x"
+
+
+def _pick_placement(placement: str | None, default: str) -> str:
+    return placement or default
+
+
+# ---- converters (one per format; the parsing is in pipeline/formats) ----------------------------
+
+def _xio(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.loop_csv import load_loop_csv
+    r = load_loop_csv(path)
+    pl = _pick_placement(placement, "foot_right")
+    t = _rel_ns(len(r.acc), r.sampling_rate_hz)
+    rec = Recording(metadata={}, imu={pl: ImuData(t, r.acc, r.gyr, r.mag)}, name=path.stem)
+    return [Converted(rec, {"participant": "xio01", "trial": _slug(path.stem), "kind": "lab",
+                            "protocol": "x-io CSV"}, f"xio-{_slug(path.stem)}")]
+
+
+def _gaitmap(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.c3d import MarkerData, cluster_orientation
+    from pipeline.formats.gaitmap import load_gaitmap_example
+    from estimators.quaternion import quat_from_matrix
+    d = path if path.is_dir() else path.parent
+    ex = load_gaitmap_example(d)
+    imu, poses, events = {}, {}, []
+    for foot in (ex.left, ex.right):
+        pl = f"foot_{foot.side}"
+        t = _rel_ns(len(foot.acc), ex.sampling_rate_hz)
+        imu[pl] = ImuData(t, foot.acc, foot.gyr, None)
+        # heel marker position; foot orientation from the rigid heel-toe-5th-metatarsal triangle (lab frame, z up)
+        names = ("FCC", "TOE", "FM5")
+        md = MarkerData(labels=names, pos_m=np.stack([foot.markers[n] for n in names], axis=1),
+                        rate_hz=ex.mocap_rate_hz, first_frame=0, units="m")
+        R = cluster_orientation(md, names)
+        ok = np.isfinite(R).all(axis=(1, 2))
+        q = np.full((len(R), 4), np.nan)
+        q[ok] = quat_from_matrix(R[ok])
+        poses[pl] = PoseData(_rel_ns(len(R), ex.mocap_rate_hz), foot.markers["FCC"], q)
+        for col, typ in ((2, "IC"), (3, "TC")):
+            for i in foot.strides[:, col]:
+                events.append({"t_ns": int(t[min(int(i), len(t) - 1)]), "type": typ, "side": foot.side,
+                               "source": "gaitmap stride_events_sample.csv (mocap)"})
+    rec = Recording(metadata={}, imu=imu, reference_poses=poses, events=events, name="gaitmap_example")
+    return [Converted(rec, {"participant": "gaitmap01", "trial": "walk", "kind": "lab",
+                            "protocol": "2x20 m straight walk"}, "gaitmap-example")]
+
+
+def _uci(path: Path, placement: str | None) -> list[Converted]:
+    from estimators.activity.evaluation import SCORED_CLASSES
+    from pipeline.formats.uci_chest import LABEL_TO_CLASS, load_uci_participant
+    u = load_uci_participant(path)
+    pl = _pick_placement(placement, "chest")
+    t = _rel_ns(len(u.acc), u.sampling_rate_hz)
+    events = []
+    lab = u.labels
+    cut = np.flatnonzero(np.diff(lab)) + 1
+    for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(lab)]])):
+        code = int(lab[a])
+        cls = LABEL_TO_CLASS.get(code)
+        end = int(t[b - 1]) + int(round(1e9 / u.sampling_rate_hz))
+        events.append({"t_ns": int(t[a]), "end_ns": end, "type": "activity", "code": code,
+                       "label": SCORED_CLASSES[cls] if cls is not None else "unscored",
+                       "source": "UCI chest label column"})
+    rec = Recording(metadata={}, imu={pl: ImuData(t, u.acc, None, None)}, events=events, name=path.stem)
+    return [Converted(rec, {"participant": f"uci{_slug(u.participant).zfill(2)}", "trial": "day",
+                            "kind": "free_living", "protocol": "UCI chest activities",
+                            "accelerometer_only": pl, "counts_per_g": f"{u.counts_per_g:.3f}"},
+                      f"uci-{_slug(u.participant)}")]
+
+
+def _broad(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.broad import load_broad
+    out = []
+    pl = _pick_placement(placement, "hand")
+    for tr in load_broad(path):
+        t = _rel_ns(len(tr.acc), tr.sampling_rate_hz)
+        pos = tr.pos_ref if tr.pos_ref is not None else np.full((len(t), 3), np.nan)
+        q = tr.quat_ref.copy()
+        events = []
+        m = tr.movement.astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], m, [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            events.append({"t_ns": int(t[a]), "end_ns": int(t[b - 1]), "type": "score", "label": "movement",
+                           "placement": pl, "source": "BROAD movement mask"})
+        rec = Recording(metadata={}, imu={pl: ImuData(t, tr.acc, tr.gyr, tr.mag)},
+                        reference_poses={pl: PoseData(t, pos, q)}, events=events, name=tr.name)
+        trial = _slug(tr.name.replace("/", "-"))
+        out.append(Converted(rec, {"participant": "broad01", "trial": trial, "kind": "lab",
+                                   "protocol": "BROAD " + ("disturbed" if tr.disturbed else "undisturbed"),
+                                   "reference_frame": "sensor_enu"}, f"broad-{trial}"))
+    return out
+
+
+def _apdm(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.apdm import load_apdm
+    r = load_apdm(path)
+    imu = {}
+    for s in r.sensors:
+        pl = s.placement
+        if placement and len(r.sensors) == 1:
+            pl = placement
+        if pl in imu:
+            raise ImportRejected(f"{path}: two sensors map to placement '{pl}' (labels "
+                                 f"{', '.join(x.label for x in r.sensors)}); relabel them")
+        imu[pl] = ImuData(s.t_ns - r.t0_ns, s.acc, s.gyr, s.mag)
+    rec = Recording(metadata={}, imu=imu, name=path.stem)
+    return [Converted(rec, {"participant": "apdm01", "trial": _slug(path.stem), "kind": "lab",
+                            "protocol": "APDM Opal"}, f"apdm-{_slug(path.stem)}", t0_ns=r.t0_ns)]
+
+
+def _cwa(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.axivity import load_cwa
+    r = load_cwa(path)
+    pl = _pick_placement(placement, "chest")
+    rec = Recording(metadata={}, imu={pl: ImuData(r.t_ns - r.t_ns[0], r.acc, r.gyr, r.mag)}, name=path.stem)
+    d = {"participant": f"ax{r.device_id}", "trial": "day", "kind": "free_living", "protocol": "Axivity CWA"}
+    if r.gyr is None:
+        d["accelerometer_only"] = pl
+    return [Converted(rec, d, f"cwa-{_slug(path.stem)}", t0_ns=int(r.t_ns[0]))]
+
+
+FORMATS: dict[str, Format] = {f.name: f for f in (
+    Format("xio", "x-io / NGIMU CSV (Time (s), Gyroscope X (deg/s) ..., Accelerometer X (g) ...)", _xio, (".csv",)),
+    Format("gaitmap", "gaitmap / NilsPod example folder (imu_sample.csv + mocap_sample.csv + stride events)",
+           _gaitmap, ("",)),
+    Format("uci", "UCI single chest-mounted accelerometer CSV (seq,x,y,z,label counts)", _uci, (".csv",)),
+    Format("broad", "BROAD HDF5 trial (IMU + optical orientation)", _broad, (".hdf5", ".h5")),
+    Format("apdm", "APDM Opal HDF5, v5 layout (Sensors/<id>/Accelerometer ...)", _apdm, (".h5", ".hdf5")),
+    Format("cwa", "Axivity AX3/AX6 .cwa (read by scikit-digital-health)", _cwa, (".cwa",)),
+)}
+
+
+def register(fmt: Format) -> None:
+    """Add a format (used by readers that live in their own modules)."""
+    FORMATS[fmt.name] = fmt
+
+
+# ---- session record ------------------------------------------------------------------------
+
+def parse_session_options(items) -> dict:
+    """``FIELD=VALUE`` pairs -> dict (raises ImportRejected naming the bad item)."""
+    out = {}
+    for it in items or ():
+        k, sep, v = it.partition("=")
+        if not sep or not k.strip():
+            raise ImportRejected(f"--session {it!r}: expected FIELD=VALUE (e.g. --session participant=P07)")
+        out[k.strip()] = v.strip()
+    return out
+
+
+def read_sidecar(path: Path) -> dict:
+    """Fields of ``<file>.session.toml`` beside ``path`` (a ``[session]`` table or top-level keys), {} if none."""
+    side = path.with_name(path.name + ".session.toml")
+    if not side.is_file():
+        return {}
+    try:
+        d = tomllib.loads(side.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ImportRejected(f"{side}: invalid TOML ({str(e).splitlines()[0]}); fix the sidecar") from None
+    d = d.get("session", d)
+    return {k: str(v) for k, v in d.items() if not isinstance(v, dict)}
+
+
+def _t0_ns(start: str, where: Path) -> int:
+    try:
+        dt = datetime.fromisoformat(start.replace("Z", "+00:00"))
+    except ValueError:
+        raise ImportRejected(f"{where}: session start {start!r} is not an ISO 8601 time "
+                             f"(e.g. --session start=2024-05-01T09:00:00Z)") from None
+    if dt.tzinfo is None:
+        dt = dt.replace(tzinfo=timezone.utc)
+    return int(round(dt.timestamp() * 1e9))
+
+
+def session_record(c: Converted, path: Path, study: str | None, sidecar: dict, overrides: dict) -> tuple[dict, int]:
+    """(session record, absolute start ns) from the format defaults, the sidecar and ``--session``."""
+    from pipeline.ingest import IngestRejected, check_session_metadata
+    from pipeline.pseudonym import SITE_KEYS
+    s = {"study": study or "imported", **c.defaults, **sidecar, **overrides}
+    if "session" not in sidecar and "session" not in overrides:
+        s["session"] = _slug(f"{s['participant']}-{s.get('trial') or c.stem}")
+    s.setdefault("timezone", "UTC")
+    start = s.pop("start", None)
+    t0 = c.t0_ns if c.t0_ns is not None and start is None else _t0_ns(start or DEFAULT_START, path)
+    if not any(s.get(k) for k in SITE_KEYS):
+        try:
+            check_session_metadata({"session": s})
+        except IngestRejected as e:
+            raise ImportRejected(f"{path}: {e}; set it with --session FIELD=VALUE or a sidecar "
+                                 f"{path.name}.session.toml") from None
+    return s, t0
+
+
+def _shift(rec: Recording, t0: int) -> None:
+    for x in list(rec.imu.values()) + list(rec.reference_poses.values()):
+        x.t_ns = np.asarray(x.t_ns, np.int64) + t0
+    for e in rec.events:
+        e["t_ns"] = int(e["t_ns"]) + t0
+        if e.get("end_ns") is not None:
+            e["end_ns"] = int(e["end_ns"]) + t0
+
+
+# ---- driver ---------------------------------------------------------------------------------
+
+def expand(fmt: Format, paths) -> list[Path]:
+    """Files (or folders, for folder formats) named by ``paths``; a directory argument is searched for the
+    format's suffixes (non-recursive)."""
+    out = []
+    for p in map(Path, paths):
+        if p.is_dir() and "" not in fmt.suffixes:
+            out += sorted(x for x in p.iterdir() if x.is_file() and x.suffix.lower() in fmt.suffixes
+                          and not x.name.startswith("."))
+        else:
+            out.append(p)
+    return out
+
+
+def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None, session: dict | None = None,
+                 placement: str | None = None, limit: int | None = None,
+                 on_file: Callable[[str], None] = lambda m: None) -> ImportResult:
+    """Convert every file; bad files are reported (one line each) and do not stop the others."""
+    from pipeline.formats.mcap_write import write_recording
+    fmt = FORMATS[fmt_name]
+    if placement is not None and placement not in PLACEMENTS:
+        on_file(f"note: placement '{placement}' is not one of the standard placements {', '.join(PLACEMENTS)}")
+    inbox = Path(inbox)
+    inbox.mkdir(parents=True, exist_ok=True)
+    res = ImportResult()
+    files = expand(fmt, paths)
+    if not files:
+        res.errors.append(f"{', '.join(map(str, paths))}: no {fmt.name} files found "
+                          f"(expected {', '.join(s or 'a folder' for s in fmt.suffixes)})")
+    for path in files:
+        if limit is not None and len(res.written) >= limit:
+            break
+        try:
+            if not path.exists():
+                raise ImportRejected(f"{path}: no such file or folder")
+            try:
+                converted = fmt.convert(path, placement)
+            except ImportRejected:
+                raise
+            except (ValueError, KeyError, OSError, IndexError) as e:
+                msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+                raise ImportRejected(f"{path}: not a readable {fmt.name} file ({msg}); "
+                                     f"check the format name (stridelab import --help)") from None
+            sidecar = read_sidecar(path)
+            for c in converted:
+                if limit is not None and len(res.written) >= limit:
+                    break
+                meta, t0 = session_record(c, path, study, sidecar, dict(session or {}))
+                c.rec.metadata = meta
+                _shift(c.rec, t0)
+                out = inbox / f"{c.stem}.mcap"
+                write_recording(c.rec, out)
+                res.written.append(out)
+                on_file(f"wrote {out} (session {meta['session']}, {', '.join(sorted(c.rec.imu))})")
+        except ImportRejected as e:
+            res.errors.append(str(e))
+            on_file(str(e))
+    return res
+
+
+def events_json(events: list[dict]) -> str:
+    return json.dumps(events, sort_keys=True)

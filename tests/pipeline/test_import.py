@@ -1,0 +1,264 @@
+"""``stridelab import``: one test per format on a small file written here from the format's documented layout
+(values and units checked against what was written), the public file when ../shared/data has it, and bad files
+(one line each, nothing written)."""
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from pipeline.cli import main
+from pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
+from pipeline.importers import import_paths
+from tests.conftest import shared_data
+
+G0 = 9.80665
+
+
+def read_mcap(path):
+    """{topic: (t_ns, values)}, events, session record of an MCAP file, through the project's own reader."""
+    res = ReadResult()
+    topics, events = {}, []
+    for b in iter_blocks(path, res):
+        if b.kind == "events":
+            events += list(b.values)
+            continue
+        t, v = topics.get(b.topic, (np.zeros(0, np.int64), None))
+        topics[b.topic] = (np.concatenate([t, b.t_ns]), b.values if v is None else np.vstack([v, b.values]))
+    meta = read_metadata(path) or res.metadata
+    return topics, events, meta["session"]
+
+
+def _imu(topics, pl):
+    t, v = topics[f"/imu/{pl}"]
+    return t, v[:, :3], v[:, 3:6]        # t, gyr rad/s, acc m/s²
+
+
+def _no_leftovers(d):
+    assert not [p.name for p in d.iterdir() if p.name.startswith(".")], "temporary files left behind"
+
+
+# ---- x-io / NGIMU CSV -----------------------------------------------------------------------
+
+def _write_xio(path, n=2000, fs=400.0, mag=True):
+    rng = np.random.default_rng(1)
+    t = np.arange(n) / fs
+    gyr_dps = rng.normal(0, 30, (n, 3))
+    acc_g = rng.normal(0, 0.1, (n, 3)) + [0, 0, 1]
+    cols = ["Time (s)", "Gyroscope X (deg/s)", "Gyroscope Y (deg/s)", "Gyroscope Z (deg/s)",
+            "Accelerometer X (g)", "Accelerometer Y (g)", "Accelerometer Z (g)"]
+    data = [t, gyr_dps, acc_g]
+    mag_ut = rng.normal(0, 5, (n, 3)) + [20, 0, -40]
+    if mag:
+        cols += ["Magnetometer X (uT)", "Magnetometer Y (uT)", "Magnetometer Z (uT)"]
+        data.append(mag_ut)
+    np.savetxt(path, np.column_stack(data), delimiter=",", header=",".join(cols), comments="", fmt="%.6f")
+    return np.round(gyr_dps, 6), np.round(acc_g, 6), np.round(mag_ut, 6)
+
+
+def test_xio_csv_units_placement_and_session(tmp_path):
+    gyr, acc, mag = _write_xio(tmp_path / "walk.csv")
+    (tmp_path / "walk.csv.session.toml").write_text('[session]\nparticipant = "P07"\ntrial = "loop1"\n')
+    inbox = tmp_path / "inbox"
+    r = CliRunner().invoke(main, ["import", "xio", str(tmp_path / "walk.csv"), "--inbox", str(inbox),
+                                  "--placement", "foot_left", "--session", "study=s1",
+                                  "--session", "start=2024-05-01T09:00:00Z", "--json"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)["written"]
+    topics, events, sess = read_mcap(out[0])
+    assert sess["study"] == "s1" and sess["participant"] == "P07" and sess["trial"] == "loop1"
+    assert sess["kind"] == "lab" and "start" not in sess
+    t, g, a = _imu(topics, "foot_left")
+    np.testing.assert_allclose(g, np.deg2rad(gyr), atol=1e-12)        # deg/s -> rad/s
+    np.testing.assert_allclose(a, acc * G0, atol=1e-12)                # g -> m/s²
+    np.testing.assert_allclose(topics["/mag/foot_left"][1] * 1e6, mag, atol=1e-9)   # µT (tesla on the wire)
+    assert t[0] == 1714554000 * 10**9 and np.all(np.diff(t) == 2_500_000)
+    _no_leftovers(inbox)
+
+
+def test_xio_without_magnetometer_has_no_mag_topic(tmp_path):
+    _write_xio(tmp_path / "a.csv", mag=False)
+    res = import_paths("xio", [tmp_path / "a.csv"], tmp_path / "inbox")
+    topics, _, _ = read_mcap(res.written[0])
+    assert "/imu/foot_right" in topics and not any(k.startswith("/mag/") for k in topics)
+
+
+# ---- gaitmap / NilsPod ----------------------------------------------------------------------
+
+def _write_gaitmap(d, n=2048):
+    """The three files of the gaitmap example layout (data README): two header rows, acc m/s², gyr deg/s,
+    markers mm at 100 Hz, stride events in IMU samples."""
+    import pandas as pd
+    rng = np.random.default_rng(2)
+    d.mkdir()
+    cols = pd.MultiIndex.from_product([["left_sensor", "right_sensor"],
+                                       ["acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z"]], names=["sensor", "axis"])
+    imu = pd.DataFrame(rng.normal(0, 1, (n, 12)) + np.tile([0, 0, 9.81, 0, 0, 0], 2), columns=cols)
+    imu.to_csv(d / "imu_sample.csv")
+    m = n * 100 // 2048
+    mcols = pd.MultiIndex.from_product([["L_TOE", "L_FCC", "L_FM5", "R_TOE", "R_FCC", "R_FM5"], ["x", "y", "z"]])
+    base = np.array([[200, 0, 50], [0, 0, 50], [150, -40, 30]] * 2, float).ravel()
+    mocap = pd.DataFrame(base + np.linspace(0, 1000, m)[:, None] * np.tile([1, 0, 0], 6), columns=mcols)
+    mocap.to_csv(d / "mocap_sample.csv")
+    ev = pd.DataFrame({"s_id": [0, 1, 0], "foot": ["left", "left", "right"], "start": [100, 400, 150],
+                       "end": [400, 700, 450], "ic": [300, 600, 350], "tc": [200, 500, 250],
+                       "min_vel": [100, 400, 150], "pre_ic": [50, 300, 100]})
+    ev.to_csv(d / "stride_events_sample.csv", index=False)
+    return imu
+
+
+def test_gaitmap_folder_feet_markers_and_events(tmp_path):
+    imu = _write_gaitmap(tmp_path / "gm")
+    res = import_paths("gaitmap", [tmp_path / "gm"], tmp_path / "inbox", study="public")
+    assert not res.errors
+    topics, events, sess = read_mcap(res.written[0])
+    t, g, a = _imu(topics, "foot_left")
+    np.testing.assert_allclose(g, np.deg2rad(imu["left_sensor"][["gyr_x", "gyr_y", "gyr_z"]].to_numpy()), atol=1e-12)
+    np.testing.assert_allclose(a, imu["left_sensor"][["acc_x", "acc_y", "acc_z"]].to_numpy(), atol=1e-12)
+    assert np.median(np.diff(t)) == pytest.approx(1e9 / 204.8, abs=1)
+    tp, pose = topics["/reference/pose/foot_right"]
+    assert pose[0, :3] == pytest.approx([0.0, 0.0, 0.05])              # heel marker, mm -> m
+    assert np.median(np.diff(tp)) == pytest.approx(1e7, abs=1)          # 100 Hz
+    assert np.allclose(np.linalg.norm(pose[:, 3:], axis=1), 1.0)         # foot orientation from 3 markers
+    ic = sorted(e["t_ns"] for e in events if e["type"] == "IC" and e["side"] == "left")
+    assert ic == [int(t[300]), int(t[600])]
+    assert sess["kind"] == "lab" and sess["study"] == "public"
+
+
+@pytest.mark.realdata
+def test_gaitmap_public_example(tmp_path):
+    d = shared_data("gaitmap_example")
+    from pipeline.formats.gaitmap import load_gaitmap_example
+    ex = load_gaitmap_example(d)
+    res = import_paths("gaitmap", [d], tmp_path / "inbox")
+    topics, events, _ = read_mcap(res.written[0])
+    _, g, a = _imu(topics, "foot_right")
+    np.testing.assert_array_equal(g, ex.right.gyr)
+    np.testing.assert_array_equal(a, ex.right.acc)
+    assert sum(e["type"] == "IC" for e in events) == len(ex.left.strides) + len(ex.right.strides)
+
+
+# ---- UCI chest ------------------------------------------------------------------------------
+
+def test_uci_chest_counts_become_m_s2_and_labels_events(tmp_path):
+    n, fs = int(120 * 52), 52.0
+    rng = np.random.default_rng(3)
+    counts = np.round(2048 + 400 * np.tile([0.0, 1.0, 0.0], (n, 1)) + rng.normal(0, 2, (n, 3)))
+    labels = np.where(np.arange(n) < n // 2, 3, 4)
+    np.savetxt(tmp_path / "5.csv", np.column_stack([np.arange(n), counts, labels]), delimiter=",", fmt="%d")
+    res = import_paths("uci", [tmp_path], tmp_path / "inbox")
+    topics, events, sess = read_mcap(res.written[0])
+    t, g, a = _imu(topics, "chest")
+    assert np.median(np.linalg.norm(a, axis=1)) == pytest.approx(G0, rel=0.01)
+    assert not g.any()                                      # no gyroscope: zeros flagged as missing (REP-145)
+    assert sess["kind"] == "free_living" and sess["accelerometer_only"] == "chest" and sess["participant"] == "uci05"
+    assert [(e["label"], e["code"]) for e in events] == [("standing", 3), ("walking", 4)]
+    assert events[1]["t_ns"] == int(t[n // 2])
+    assert 52 * 0.999 < 1e9 / np.median(np.diff(t)) < 52 * 1.001
+
+
+# ---- BROAD ----------------------------------------------------------------------------------
+
+def test_broad_optical_reference_and_movement_spans(tmp_path):
+    n, fs = 600, 285.7
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[10:20] = np.nan
+    mov = np.zeros(n, bool)
+    mov[100:300] = True
+    with h5py.File(tmp_path / "t1.hdf5", "w") as h:
+        for k, v in (("imu_gyr", rng.normal(size=(n, 3))), ("imu_acc", rng.normal(size=(n, 3)) + [0, 0, 9.8]),
+                     ("imu_mag", rng.normal(size=(n, 3)) * 10), ("opt_quat", q), ("opt_pos", rng.normal(size=(n, 3))),
+                     ("movement", mov)):
+            h[k] = v
+        h.attrs["sampling_rate"] = fs
+        gyr = h["imu_gyr"][()]
+    res = import_paths("broad", [tmp_path / "t1.hdf5"], tmp_path / "inbox", placement="hand")
+    topics, events, sess = read_mcap(res.written[0])
+    t, g, _ = _imu(topics, "hand")
+    np.testing.assert_array_equal(g, gyr)
+    ref = topics["/reference/pose/hand"][1]
+    np.testing.assert_array_equal(ref[:, 3:], q)
+    assert sess["reference_frame"] == "sensor_enu"
+    (sp,) = [e for e in events if e["type"] == "score"]
+    assert (sp["t_ns"], sp["end_ns"]) == (int(t[100]), int(t[299]))
+
+
+# ---- APDM Opal HDF5 v5 ----------------------------------------------------------------------
+
+def write_apdm(path, labels=("Right Foot", "Lumbar"), n=1280, fs=128.0, t0_us=1_700_000_000_000_000):
+    """An APDM v5 file from the documented layout (Sensors/<id>/{Accelerometer, Gyroscope, Magnetometer, Time},
+    Sensors/<id>/Configuration attrs 'Label 0', 'Sample Rate')."""
+    rng = np.random.default_rng(5)
+    out = {}
+    with h5py.File(path, "w") as h:
+        h.attrs["FileFormatVersion"] = np.int32(5)
+        for k, lab in enumerate(labels):
+            g = h.create_group(f"Sensors/{1000 + k}")
+            d = {"Accelerometer": rng.normal(size=(n, 3)).astype(np.float32) + np.float32(9.8),
+                 "Gyroscope": rng.normal(size=(n, 3)).astype(np.float32),
+                 "Magnetometer": rng.normal(size=(n, 3)).astype(np.float32) * 20,
+                 "Time": (t0_us + np.round(np.arange(n) * 1e6 / fs)).astype(np.uint64)}
+            for name, v in d.items():
+                g[name] = v
+            c = g.create_group("Configuration")
+            c.attrs["Label 0"] = np.bytes_(lab)
+            c.attrs["Sample Rate"] = np.uint16(fs)
+            out[lab] = d
+    return out
+
+
+def test_apdm_v5_sensors_by_label_with_their_clock(tmp_path):
+    d = write_apdm(tmp_path / "opals.h5")
+    res = import_paths("apdm", [tmp_path / "opals.h5"], tmp_path / "inbox")
+    assert not res.errors, res.errors
+    topics, _, sess = read_mcap(res.written[0])
+    t, g, a = _imu(topics, "foot_right")
+    np.testing.assert_array_equal(g, d["Right Foot"]["Gyroscope"].astype(np.float64))
+    np.testing.assert_array_equal(a, d["Right Foot"]["Accelerometer"].astype(np.float64))
+    np.testing.assert_allclose(topics["/mag/pelvis"][1] * 1e6, d["Lumbar"]["Magnetometer"], rtol=1e-6)
+    assert t[0] == 1_700_000_000_000_000_000                        # µs since epoch -> ns
+    assert np.array_equal(t, d["Right Foot"]["Time"].astype(np.int64) * 1000)
+
+
+def test_apdm_older_layout_is_refused_with_one_line(tmp_path):
+    with h5py.File(tmp_path / "old.h5", "w") as h:
+        h.attrs["FileFormatVersion"] = np.int32(3)
+        h["1000/Calibrated/Accelerometers"] = np.zeros((10, 3))
+    res = import_paths("apdm", [tmp_path / "old.h5"], tmp_path / "inbox")
+    assert not res.written and len(res.errors) == 1
+    assert "old.h5" in res.errors[0] and "v5" in res.errors[0] and "\n" not in res.errors[0]
+
+
+# ---- bad files ------------------------------------------------------------------------------
+
+def test_bad_files_one_line_each_nothing_written(tmp_path):
+    (tmp_path / "empty.csv").write_text("")
+    (tmp_path / "wrong.csv").write_text("a,b,c\n1,2,3\n")
+    (tmp_path / "bin.hdf5").write_bytes(b"\x00" * 100)
+    _write_xio(tmp_path / "good.csv")
+    inbox = tmp_path / "inbox"
+    r = CliRunner().invoke(main, ["import", "xio", str(tmp_path / "empty.csv"), str(tmp_path / "wrong.csv"),
+                                  str(tmp_path / "good.csv"), "--inbox", str(inbox), "--json"])
+    assert r.exit_code == 1
+    out = json.loads(r.stdout)
+    assert [p.rsplit("/", 1)[1] for p in out["written"]] == ["xio-good.mcap"]
+    assert len(out["errors"]) == 2 and all("\n" not in e for e in out["errors"])
+    assert "empty.csv" in out["errors"][0] and "wrong.csv" in out["errors"][1] and "missing column" in out["errors"][1]
+    res = import_paths("broad", [tmp_path / "bin.hdf5"], inbox)
+    assert res.errors and "bin.hdf5" in res.errors[0]
+    assert sorted(p.name for p in inbox.iterdir()) == ["xio-good.mcap"]
+
+
+def test_bad_session_field_is_refused_before_writing(tmp_path):
+    _write_xio(tmp_path / "a.csv")
+    res = import_paths("xio", [tmp_path / "a.csv"], tmp_path / "inbox", session={"kind": "party"})
+    assert not res.written and "kind 'party'" in res.errors[0] and "--session" in res.errors[0]
+    res = import_paths("xio", [tmp_path / "a.csv"], tmp_path / "inbox", session={"start": "yesterday"})
+    assert not res.written and "ISO 8601" in res.errors[0]
+    r = CliRunner().invoke(main, ["import", "xio", str(tmp_path / "a.csv"), "--session", "participant"])
+    assert r.exit_code != 0 and "FIELD=VALUE" in r.output
