@@ -53,6 +53,29 @@ def bench() -> None:
 
 # ---- shared options -------------------------------------------------------------------------
 
+def _session_options(f):
+    f = click.option("--topic-map", "topic_map", multiple=True, metavar="TOPIC=PLACEMENT",
+                     help="Map a topic (sensor_msgs/Imu or MagneticField) to a placement; repeatable. "
+                          "Also: a [topics] table in the study manifest.")(f)
+    return click.option("--session", "session_fields", multiple=True, metavar="FIELD=VALUE",
+                        help="Session metadata field for every recording (study, participant, session, kind, "
+                             "trial, timezone, ...); repeatable. Must agree with the recording's own metadata.")(f)
+
+
+def _ingest_options(session_fields, topic_map) -> dict | None:
+    from pipeline.console import UserError
+    from pipeline.session_sources import parse_assignments
+    try:
+        opts = {"session": parse_assignments(session_fields, "--session"),
+                "topic_map": parse_assignments(topic_map, "--topic-map")}
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    bad = [t for t in opts["topic_map"] if not t.startswith("/")]
+    if bad:
+        raise UserError(f"--topic-map: topic '{bad[0][:60]}' must start with '/'")
+    return opts if opts["session"] or opts["topic_map"] else None
+
+
 def _warehouse_option(f):
     return click.option("--warehouse", "warehouse_dir", type=click.Path(file_okay=False, path_type=Path),
                         default=None, help="Warehouse directory [default: $STRIDELAB_HOME/warehouse].")(f)
@@ -162,9 +185,11 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
 @click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, path_type=Path))
 @_warehouse_option
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes.")
+@_session_options
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def ingest(paths, warehouse_dir, jobs, as_json) -> None:
-    """Load MCAP recordings (files or directories) into the warehouse; idempotent by content.
+def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, as_json) -> None:
+    """Load recordings (MCAP files, rosbag2 bag directories, or folders holding them) into the
+    warehouse; idempotent by content.
 
     Bad files are quarantined with a one-line reason and do not stop the others.
 
@@ -172,12 +197,16 @@ def ingest(paths, warehouse_dir, jobs, as_json) -> None:
     Examples:
       stridelab ingest stridelab-home/inbox
       stridelab ingest session1.mcap session2.mcap --warehouse /data/wh
+      stridelab ingest rosbag2_2026_03_02-09_00_00/ --session study=gait2026 --session participant=P001
+      stridelab ingest walk.mcap --topic-map /foot_left/imu/data_raw=foot_left
     """
+    from pipeline.formats.rosbag2 import is_bag
+    from pipeline.runner import inbox_recordings
     files = []
     for p in paths:
-        files += sorted(x for x in p.rglob("*.mcap") if not x.name.startswith(".")) if p.is_dir() else [p]
+        files += inbox_recordings(p) if p.is_dir() and not is_bag(p) else [p]
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
-                                 command="ingest")
+                                 command="ingest", ingest_options=_ingest_options(session_fields, topic_map))
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
 
@@ -242,8 +271,10 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> N
 @click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Where to write the reports of participants with new results [default: $STRIDELAB_HOME/reports].")
 @click.option("--no-reports", is_flag=True, help="Do not write participant reports.")
+@_session_options
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
-def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, as_json) -> None:
+def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, session_fields, topic_map,
+        as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
     A second run started while one is active refuses with a clear message (exit code 2). Failures of
@@ -263,7 +294,7 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
         raise UserError("--scheduler needs --engine dask")
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
-                                 scheduler=scheduler)
+                                 scheduler=scheduler, ingest_options=_ingest_options(session_fields, topic_map))
     if not no_reports:
         summary.reports = _write_reports(_wh(warehouse_dir), summary.run_id, reports_dir, summary.failed)
     _print_summary(summary, as_json)

@@ -1,7 +1,9 @@
-"""Ingest: MCAP file -> validated series in the Parquet store + catalog rows (one transaction).
+"""Ingest: MCAP file or rosbag2 bag -> validated series in the Parquet store + catalog rows (one transaction).
 
-:func:`prepare` runs in a worker process: it streams the file once (decoding, validating and
-hashing on the same pass), writes the series files atomically and returns the catalog rows.
+:func:`prepare` runs in a worker process: it streams the recording once (decoding, validating and
+hashing on the same pass; per-topic clock policy in :mod:`pipeline.ingest_series`; session metadata
+sources and topic mapping in :mod:`pipeline.session_sources`), writes the series files atomically and
+returns the catalog rows.
 :func:`commit` runs in the single writing process. A file that fails any check is quarantined
 with a one-line reason; nothing of it reaches the catalog, so it is never half-written.
 """
@@ -16,31 +18,20 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.formats.mcap_read import Block, McapFormatError, ReadResult, iter_blocks, read_metadata
+from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
+from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
+from pipeline.ingest_series import FLUSH_ROWS, GAP_WARN_S, SCHEMAS as _SCHEMAS, SeriesRejected, TopicSeries  # noqa: F401
+from pipeline.session_sources import NO_SESSION, SessionSourceError, gather_session, placement_for
 from warehouse.catalog import first, Warehouse
-from warehouse.store import SeriesWriter, check_identifier, series_relpath
+from warehouse.store import check_identifier, series_relpath
 
-GAP_WARN_S = 1.0            # gaps longer than this are recorded as warnings (the data are kept)
 RATE_RANGE_HZ = (5.0, 5000.0)
-FLUSH_ROWS = 1 << 20
 _PERSONAL_KEYS = re.compile(r"(^|_)(name|first_?name|last_?name|surname|email|e_?mail|birth|dob|address|phone)($|_)",
                             re.I)
 _EMAIL = re.compile(r"[^@\s]+@[^@\s]+\.[A-Za-z]{2,}")
-
-_SCHEMAS = {
-    "imu": pa.schema([("t_ns", pa.int64()), ("log_ns", pa.int64())]
-                     + [(c, pa.float64()) for c in ("gyr_x", "gyr_y", "gyr_z", "acc_x", "acc_y", "acc_z")]),
-    "mag": pa.schema([("t_ns", pa.int64()), ("log_ns", pa.int64())]
-                     + [(c, pa.float64()) for c in ("mag_x", "mag_y", "mag_z")]),
-    "reference_pose": pa.schema([("t_ns", pa.int64()), ("log_ns", pa.int64())]
-                                + [(c, pa.float64()) for c in ("px", "py", "pz", "qw", "qx", "qy", "qz")]),
-    "range": pa.schema([("t_ns", pa.int64()), ("log_ns", pa.int64())]
-                       + [(c, pa.float64()) for c in ("field_of_view", "min_range_m", "max_range_m", "range_m")]),
-}
 
 
 class IngestRejected(ValueError):
@@ -106,89 +97,20 @@ def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None)
     return s
 
 
-def _placement_of(topic: str, kind: str) -> tuple[str, str]:
-    """(placement, series name prefix) of a recording-format topic."""
-    parts = topic.strip("/").split("/")
-    if kind == "reference_pose":
-        return parts[2] if len(parts) > 2 else "", "reference_pose"
-    if kind == "range":
-        return parts[1] if len(parts) > 1 else "", f"range-{parts[2] if len(parts) > 2 else 'A'}"
-    return parts[1] if len(parts) > 1 else "", kind
+@dataclass
+class IngestOptions:
+    """Per-run choices: ``session`` fields (``--session FIELD=VALUE``) and ``topic_map`` (``--topic-map
+    TOPIC=PLACEMENT``) applied to every recording of the run."""
+    session: dict[str, str] = field(default_factory=dict)
+    topic_map: dict[str, str] = field(default_factory=dict)
 
 
-class _TopicState:
-    """Streaming validation and buffered Parquet writing for one topic."""
-
-    def __init__(self, topic: str, kind: str):
-        self.topic, self.kind = topic, kind
-        self.placement, self.prefix = _placement_of(topic, kind)
-        self.last_t: int | None = None
-        self.n = 0
-        self.t0: int | None = None
-        self.buf: list[Block] = []
-        self.buf_rows = 0
-        self.writer: SeriesWriter | None = None
-        self.dt_medians: list[float] = []
-        self.acc_norm_medians: list[float] = []
-        self.gyr_p99: list[float] = []
-        self.gaps: list[tuple[int, float]] = []
-        self.n_nan = 0
-
-    def add(self, b: Block) -> None:
-        t = b.t_ns
-        if len(t) == 0:
-            return
-        if self.kind == "range":
-            pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
-        elif self.kind == "reference_pose" and not np.isinf(b.values).any():
-            self.n_nan += int(np.isnan(b.values).any(axis=1).sum())      # occluded markers: kept as NaN
-        elif not np.isfinite(b.values).all():
-            bad = np.flatnonzero(~np.isfinite(b.values).all(axis=1))
-            raise IngestRejected(f"{self.topic}: {len(bad)} samples with NaN/inf values (first at sample "
-                                 f"{self.n + int(bad[0])}); fix or drop them at export")
-        full = t if self.last_t is None else np.concatenate([[self.last_t], t])
-        d = np.diff(full)
-        if len(d) and d.min() <= 0:
-            i = int(np.flatnonzero(d <= 0)[0])
-            what = "duplicated timestamp" if d[i] == 0 else "timestamps go backwards"
-            at = self.n + i - (0 if self.last_t is None else 1) + 1
-            raise IngestRejected(f"{self.topic}: {what} at sample {at} (header.stamp {int(full[i + 1])} ns "
-                                 f"after {int(full[i])} ns); the sensor clock must increase strictly")
-        if len(d):
-            self.dt_medians.append(float(np.median(d[::7])))      # a subsample is plenty for a median
-        if self.t0 is None:
-            self.t0 = int(t[0])
-        if self.kind == "imu":
-            sub = b.values[::7]
-            gyr, acc = sub[:, :3], sub[:, 3:]
-            self.acc_norm_medians.append(float(np.median(np.linalg.norm(acc, axis=1))))
-            self.gyr_p99.append(float(np.percentile(np.abs(gyr), 99)))
-        if len(d):
-            big = np.flatnonzero(d > GAP_WARN_S * 1e9)
-            for i in big[:20]:
-                self.gaps.append((int(full[i]), float(d[i]) / 1e9))
-        self.last_t = int(t[-1])
-        self.n += len(t)
-        self.buf.append(b)
-        self.buf_rows += len(t)
-
-    def table(self) -> pa.Table:
-        t = np.concatenate([b.t_ns for b in self.buf])
-        log = np.concatenate([b.log_ns for b in self.buf])
-        v = np.concatenate([b.values for b in self.buf])
-        if self.kind == "mag":
-            v = v * 1e6          # tesla on the wire -> µT in the warehouse
-        schema = _SCHEMAS[self.kind]
-        cols = [pa.array(t), pa.array(log)] + [pa.array(np.ascontiguousarray(v[:, k])) for k in range(v.shape[1])]
-        self.buf, self.buf_rows = [], 0
-        return pa.Table.from_arrays(cols, schema=schema)
-
-    @property
-    def rate_hz(self) -> float:
-        return 1e9 / float(np.median(self.dt_medians)) if self.dt_medians else float("nan")
+#: IMU clocks whose offsets to the host clock (median log_time - header.stamp) differ by more than
+#: this are reported as independent clocks (the multi-IMU stages then align them on log_time)
+CLOCK_OFFSET_WARN_S = 0.05
 
 
-def _check_units(st: _TopicState) -> None:
+def _check_units(st: TopicSeries) -> None:
     acc_med = float(np.median(st.acc_norm_medians))
     if 0.5 < acc_med < 2.0:
         raise IngestRejected(f"{st.topic}: acceleration median norm is {acc_med:.2f}, which looks like g; "
@@ -202,98 +124,149 @@ def _check_units(st: _TopicState) -> None:
                              f"the recording format needs rad/s")
 
 
-def prepare(path: str | os.PathLike, root: str | os.PathLike) -> Prepared:
-    """Decode, validate and store one MCAP file; never raises for a bad file (quarantines it)."""
-    path = Path(path)
+def _stat_signature(path: Path) -> tuple[int, int]:
+    """(size, mtime) of a file, or of the data files of a bag directory (sum, newest)."""
+    if path.is_dir():
+        files = [p for p in path.iterdir() if p.is_file()]
+        return sum(p.stat().st_size for p in files), max((p.stat().st_mtime_ns for p in files), default=0)
     st = path.stat()
-    out = Prepared(source_path=str(path.resolve()), file_name=path.name, size_bytes=st.st_size,
-                   mtime_ns=st.st_mtime_ns)
-    states: dict[str, _TopicState] = {}
+    return st.st_size, st.st_mtime_ns
+
+
+def _blocks(path: Path, res: ReadResult):
+    """(block iterator, rosbag2 custom data) of a recording file or bag directory."""
+    if path.is_dir():
+        info = bag_info(path)
+        return iter_bag_blocks(info, res), info.custom_data
+    if path.suffix == ".db3":
+        raise IngestRejected("a .db3 file is read with its bag directory: ingest the directory that holds "
+                             "metadata.yaml")
+    return iter_blocks(path, res), None
+
+
+def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOptions | dict | None = None) -> Prepared:
+    """Decode, validate and store one recording (MCAP file or rosbag2 bag directory); never raises for a
+    bad recording (quarantines it)."""
+    path = Path(path)
+    if isinstance(options, dict):
+        options = IngestOptions(**options)
+    options = options or IngestOptions()
+    size, mtime = _stat_signature(path)
+    out = Prepared(source_path=str(path.resolve()), file_name=path.name, size_bytes=size, mtime_ns=mtime)
+    states: dict[str, TopicSeries] = {}
     res = ReadResult()
-    session: dict | None = None
     try:
-        meta = read_metadata(path) if st.st_size else {}
-        if meta:
-            session = check_session_metadata(meta, root)
-        for b in iter_blocks(path, res):
+        blocks, custom = _blocks(path, res)
+        for b in blocks:
             if b.kind == "events":
                 out.events += [dict(v) for v in b.values]
                 continue
             s = states.get(b.topic)
             if s is None:
-                s = states[b.topic] = _TopicState(b.topic, b.kind)
+                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(root))
             s.add(b)
-            if s.buf_rows >= FLUSH_ROWS:
-                _flush(s, root, session, res, path)
         out.content_hash = res.sha256
-        if session is None:
-            session = check_session_metadata(res.metadata, root)
+        if custom is None:
+            custom = custom_data_of_mcap(res.metadata)
+        fields, _sources = gather_session(path, res.metadata, custom, options.session)
+        if not fields:
+            raise IngestRejected(NO_SESSION)
+        session = check_session_metadata({"session": fields}, root)
         out.metadata = session
-        if not any(s.kind == "imu" for s in states.values()):
-            raise IngestRejected("no /imu/<placement> topic with samples")
         for s in states.values():
+            s.finish()
+        topic_map = {**_manifest_topics(session["study"]), **options.topic_map}
+        mapped: dict[tuple[str, str], TopicSeries] = {}
+        placement_of: dict[str, tuple[str, str]] = {}
+        for s in states.values():
+            pl = placement_for(s.topic, s.kind, topic_map)
+            if pl is None or s.n == 0:
+                if pl is None:
+                    out.ignored_topics.append(s.topic)
+                s.abort()
+                continue
+            if pl in mapped:
+                raise IngestRejected(f"topics {mapped[pl].topic} and {s.topic} both map to {pl[1]} of placement "
+                                     f"{pl[0]}; map only one of them")
+            mapped[pl] = s
+            placement_of[s.topic] = pl
+        imu = [s for s in mapped.values() if s.kind == "imu"]
+        if not imu:
+            found = ", ".join(res.found_topics()[:8]) or "none"
+            raise IngestRejected(f"no IMU topic with samples mapped to a placement (topics found: {found}); "
+                                 f"name them /imu/<placement> or map them with --topic-map TOPIC=PLACEMENT "
+                                 f"(or a [topics] table in the study manifest)")
+        for s in mapped.values():
+            placement = placement_of[s.topic][0]
             if s.kind == "imu":
                 _check_units(s)
             rate = s.rate_hz
             if s.kind in ("imu", "mag") and not (RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]):
                 raise IngestRejected(f"{s.topic}: sample rate {rate:.2f} Hz is outside "
                                      f"{RATE_RANGE_HZ[0]:g}–{RATE_RANGE_HZ[1]:g} Hz")
-            if s.kind == "imu" and s.placement not in PLACEMENTS:
+            if s.kind == "imu" and placement not in PLACEMENTS:
                 out.issues.append({"severity": "warning", "topic": s.topic,
-                                   "message": f"placement '{s.placement}' is not a standard placement"})
-            check_identifier(s.placement, f"placement of topic {s.topic}")
-        for s in states.values():
-            _flush(s, root, session, res, path)
-        for s in states.values():
-            if s.n_nan:
-                out.issues.append({"severity": "warning", "topic": s.topic,
-                                   "message": f"{s.n_nan} reference samples without a pose (occlusion), kept as NaN"})
-            for t_gap, dur in s.gaps:
-                when = datetime.fromtimestamp(t_gap / 1e9, tz=timezone.utc).isoformat(timespec="seconds")
-                out.issues.append({"severity": "warning", "topic": s.topic,
-                                   "message": f"gap of {dur:.1f} s after {when} (data kept; estimators "
-                                              f"treat the two sides as separate segments)"})
-            rel = s.writer.commit(s.writer.relpath.replace("-pending.parquet", f"-{res.sha256[:16]}.parquet"))
-            out.sensors.append({"topic": s.topic, "placement": s.placement, "kind": s.kind, "n_samples": s.n,
+                                   "message": f"placement '{placement}' is not a standard placement"})
+            check_identifier(placement, f"placement of topic {s.topic}")
+        offsets = {s.topic: s.clock_offset_s for s in imu}
+        if len(imu) > 1 and max(offsets.values()) - min(offsets.values()) > CLOCK_OFFSET_WARN_S:
+            spread = max(offsets.values()) - min(offsets.values())
+            out.issues.append({"severity": "warning", "topic": None,
+                               "message": f"the IMUs run on independent clocks (their offsets to log_time differ by "
+                                          f"{spread:.3f} s): multi-IMU stages align them on log_time and resample "
+                                          f"onto one grid"})
+        for (placement, prefix), s in sorted(mapped.items(), key=lambda kv: kv[1].topic):
+            for m in s.warnings():
+                out.issues.append({"severity": "warning", "topic": s.topic, "message": m})
+            rel = s.writer.commit(series_relpath(session["study"], session["participant"], session["session"],
+                                                 placement, f"{prefix}-{res.sha256[:16]}"))
+            s.writer = None
+            out.sensors.append({"topic": s.topic, "placement": placement, "kind": s.kind, "n_samples": s.n,
                                 "sampling_rate_hz": s.rate_hz, "start_ns": s.t0, "end_ns": s.last_t,
                                 "series_path": rel})
             if s.kind == "imu":
                 out.n_samples += s.n
-        imu = [s for s in states.values() if s.kind == "imu"]
         out.start_ns = min(s.t0 for s in imu)
         out.end_ns = max(s.last_t for s in imu)
-        out.ignored_topics = res.ignored_topics
+        out.ignored_topics = sorted(set(out.ignored_topics) | set(res.ignored_topics))
         for e in out.events:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
-    except (IngestRejected, McapFormatError, ValueError) as e:
+    except (IngestRejected, McapFormatError, SeriesRejected, SessionSourceError, ValueError) as e:
         for s in states.values():
-            if s.writer is not None:
-                s.writer.abort()
+            s.abort()
         out.status = "quarantined"
         out.reason = str(e).splitlines()[0] if str(e) else type(e).__name__
         out.sensors, out.events = [], []
         if not out.content_hash:
-            out.content_hash = _sha256(path)
+            out.content_hash = _content_hash(path)
+    except BaseException:
+        for s in states.values():
+            s.abort()
+        raise
     return out
 
 
-def _flush(s: _TopicState, root, session, res: ReadResult, path: Path) -> None:
-    if not s.buf:
-        return
-    if session is None:
-        raise IngestRejected("no 'session' metadata index; re-export the file with a summary section")
-    if s.writer is None:
-        # the content hash is known only after the full pass: the file gets its final name
-        # (kind + content hash) when it is committed
-        rel = series_relpath(session["study"], session["participant"], session["session"], s.placement,
-                             f"{s.prefix}-pending")
-        s.writer = SeriesWriter(Path(root), rel, _SCHEMAS[s.kind])
-    s.writer.write(s.table())
+def _manifest_topics(study: str) -> dict[str, str]:
+    """The study manifest's ``[topics]`` table (topic -> placement), {} when there is none."""
+    from pipeline.config import study_manifest
+    t = study_manifest(study).get("topics", {})
+    return {str(k): str(v) for k, v in t.items()} if isinstance(t, dict) else {}
+
+
+def _content_hash(path: Path) -> str:
+    """SHA-256 of a file; for a bag directory, of its files' SHA-256 in name order."""
+    if path.is_dir():
+        import hashlib
+        files = sorted(p for p in path.iterdir() if p.is_file())
+        return hashlib.sha256("\n".join(_sha256(p) for p in files).encode()).hexdigest()
+    return _sha256(path)
 
 
 def _sha256(path: Path) -> str:
     import hashlib
+    if path.is_dir():
+        return _content_hash(path)
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for b in iter(lambda: f.read(1 << 22), b""):
@@ -308,10 +281,10 @@ class CommitResult:
 
 
 def known_hash(wh: Warehouse, path: Path) -> str | None:
-    """Content hash of a file seen before with the same path, size and mtime (no read needed)."""
-    st = path.stat()
+    """Content hash of a file (or bag directory) seen before with the same path, size and mtime (no read needed)."""
+    size, mtime = _stat_signature(path)
     r = first(wh.con.execute("SELECT content_hash FROM inbox_seen WHERE source_path = ? AND size_bytes = ? AND mtime_ns = ?",
-                       [str(path.resolve()), st.st_size, st.st_mtime_ns]))
+                       [str(path.resolve()), size, mtime]))
     return r[0] if r else None
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 from pipeline import ingest as ingest_mod
+from pipeline.formats.rosbag2 import is_bag
 from pipeline.engines import make_engine
 from pipeline.config import stage_params
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
@@ -115,18 +116,18 @@ def _no_phase(name: str, total: int) -> None:
 
 def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
                  on_progress: Callable[[str], None] = lambda m: None,
-                 on_phase: Callable[[str, int], None] = _no_phase) -> None:
+                 on_phase: Callable[[str, int], None] = _no_phase, options: dict | None = None) -> None:
     todo = []
     for f in files:
         f = Path(f)
-        if not f.is_file():
-            summary.quarantined.append(f"{f}: not a file")
+        if not (f.is_file() or is_bag(f)):
+            summary.quarantined.append(f"{f}: not a recording file or rosbag2 bag directory (metadata.yaml)")
             continue
         h = ingest_mod.known_hash(wh, f)
         if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
             summary.duplicates.append(f.name)
             continue
-        todo.append((str(f), str(wh.root)))
+        todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
     on_phase("ingest", len(todo))
 
     def done(item, res):
@@ -144,6 +145,21 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
         on_progress(r.message)
 
     ex.run_all(ingest_mod.prepare, todo, done)
+
+
+def inbox_recordings(inbox: Path) -> list[Path]:
+    """Recordings of an inbox: ``*.mcap`` files and rosbag2 bag directories (a bag is one recording,
+    its files are not listed on their own); ``.db3`` files outside a bag are listed so that they are
+    reported, never skipped silently."""
+    bags = sorted(p.parent for p in inbox.rglob("metadata.yaml") if not p.parent.name.startswith("."))
+    out = list(bags)
+    for p in sorted(inbox.rglob("*")):
+        if p.name.startswith(".") or p.suffix not in (".mcap", ".db3") or not p.is_file():
+            continue
+        if any(b == p.parent or b in p.parents for b in bags):
+            continue
+        out.append(p)
+    return sorted(out)
 
 
 def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInput:
@@ -261,12 +277,14 @@ def _stage_task_4(stage_name, inp, params, st):
 
 def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | None = None, stages: bool = True,
         command: str = "run", engine: str = "local", scheduler: str | None = None,
+        ingest_options: dict | None = None,
         on_progress: Callable[[str], None] = lambda m: None,
         on_phase: Callable[[str, int], None] = _no_phase) -> RunSummary:
     """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout.
 
     ``on_phase(name, total)`` announces a phase (ingest, then each stage) and its number of tasks;
     ``on_progress(message)`` reports each completed task (a committed file or session).
+    ``ingest_options``: ``{"session": {...}, "topic_map": {...}}`` for every recording (see ingest.IngestOptions).
     """
     t0 = time.perf_counter()
     root = Path(root)
@@ -285,8 +303,8 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
             try:
                 todo = list(files or [])
                 if inbox is not None and Path(inbox).is_dir():
-                    todo += sorted(p for p in Path(inbox).rglob("*.mcap") if not p.name.startswith("."))
-                ingest_files(wh, todo, ex, summary, on_progress, on_phase)
+                    todo += inbox_recordings(Path(inbox))
+                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options)
                 if stages:
                     run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
                 status = "failed" if summary.failed else "ok"

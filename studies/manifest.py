@@ -118,6 +118,8 @@ class StudyManifest:
     free_living: FreeLivingSpec = FreeLivingSpec()
     sensor_model: SensorModelSpec = SensorModelSpec()
     stages: MappingProxyType = field(default_factory=lambda: MappingProxyType({}), compare=False)
+    #: ``[topics]``: recording topic -> placement, for recordings whose topics are not /imu/<placement>
+    topics: MappingProxyType = field(default_factory=lambda: MappingProxyType({}), compare=False)
     path: Path | None = field(default=None, compare=False)
 
     def with_free_living_hours(self, hours: float) -> "StudyManifest":
@@ -135,7 +137,7 @@ class StudyManifest:
 
 # ---- loading and validation ----------------------------------------------------------------
 
-_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages"}
+_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages", "topics"}
 
 
 class _Ctx:
@@ -311,10 +313,17 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
     stages = raw.get("stages", {})
     if not isinstance(stages, dict):
         raise ctx.err("stages", "expected a table of [stages.<name>] tables")
+    topics = raw.get("topics", {})
+    if not isinstance(topics, dict):
+        raise ctx.err("topics", "expected a table of \"/topic\" = \"placement\" entries")
+    for k, v in topics.items():
+        if not k.startswith("/") or not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", v):
+            raise ctx.err(f"topics.{k}", "expected \"/topic\" = \"placement\" (letters, digits, '_', '-')")
     return StudyManifest(name=study["name"], seed=int(study["seed"]), timezone=tmp.timezone,
                          sampling_rate_hz=tmp.sampling_rate_hz, first_lab_date=tmp.first_lab_date,
                          lab_start_local=tmp.lab_start_local, participants=tuple(parts), lab=lab,
-                         free_living=fl, sensor_model=sm, stages=MappingProxyType(stages), path=path)
+                         free_living=fl, sensor_model=sm, stages=MappingProxyType(stages),
+                         topics=MappingProxyType(dict(topics)), path=path)
 
 
 @dataclass(frozen=True)

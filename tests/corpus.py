@@ -78,12 +78,9 @@ def build_bad_corpus(d: Path) -> dict[str, Path]:
     out["unknown_schema"] = write_mcap(d / "unknown_schema.mcap", chans, {"session": good.metadata})
     out["no_session"] = write_mcap(d / "no_session.mcap", recording_channels(good), {})
 
-    t = good.imu["foot_left"].t_ns.copy()
-    t[500], t[501] = t[501], t[500]
-    out["non_monotonic"] = write_recording(_with_imu(good, "foot_left", t_ns=t, mag=None), d / "non_monotonic.mcap")
-    t = good.imu["foot_left"].t_ns.copy()
-    t[700] = t[699]
-    out["duplicated"] = write_recording(_with_imu(good, "foot_left", t_ns=t, mag=None), d / "duplicated.mcap")
+    # no time base at all: every stamp of a topic repeats one instant with different values
+    t = np.full_like(good.imu["foot_left"].t_ns, good.imu["foot_left"].t_ns[0])
+    out["no_time_base"] = write_recording(_with_imu(good, "foot_left", t_ns=t, mag=None), d / "no_time_base.mcap")
     acc = good.imu["foot_left"].acc.copy()
     acc[300:305, 1] = np.nan
     acc[900, 2] = np.inf

@@ -1,17 +1,30 @@
-"""Vectorised reader for StrideLab MCAP recordings.
+"""Vectorised reader for any valid MCAP file (spec v0) carrying the recording format's messages.
 
-Records are streamed in file order with the ``mcap`` library (one Python step per *chunk*, not per
-message); inside a chunk a numba kernel locates the message records and the CDR decoders of
-:mod:`pipeline.formats.ros2_cdr` turn a whole channel into arrays at once. The file's SHA-256 is
-computed on the same pass. Errors are raised as :class:`McapFormatError` with a one-line reason.
+What it accepts: Schema and Channel records anywhere (top level, inside chunks, or only in the
+summary), chunked or unchunked files, zstd, lz4 or uncompressed chunks, messages in any order and
+overlapping chunks. What it verifies: the magic at both ends, the summary CRC (footer), the
+data-section CRC (DataEnd), every chunk's CRC, the declared sizes of every record, the payload size of
+every message of a fixed-size schema, channels that are defined twice with different content, and the
+per-channel message counts of the Statistics record. Every failure is a :class:`McapFormatError` with
+a one-line reason (what is wrong and what to do); no low-level exception leaks out.
+
+How it is fast: the file is read in large blocks; a numba kernel splits a block (or a decompressed
+chunk) into records, so Python runs once per chunk, never once per message; chunks are decompressed,
+checked and decoded by a small thread pool (zstandard, lz4, the CRC and the numba kernels release the
+GIL), and the CDR decoders of :mod:`pipeline.formats.ros2_cdr` turn a whole channel of a chunk into
+arrays at once. Blocks are yielded in file order while at most a bounded number of chunks is in flight,
+so memory does not grow with the length of the recording. The file's SHA-256 and the data-section CRC
+are computed on the same pass, on a separate thread.
 """
 from __future__ import annotations
 
 import hashlib
 import io
 import json
+import os
 import struct
-import zlib
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
@@ -20,20 +33,49 @@ import lz4.frame
 import numpy as np
 import zstandard
 from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
-from mcap.opcode import Opcode
-from mcap.records import Channel, Chunk, Metadata, Schema
+from mcap.records import Channel, Metadata, Schema, Statistics
 from numba import njit
 
 from pipeline.formats import ros2_cdr
 
+try:                                   # ISA-L's CRC32 is ~4x faster than zlib's; same polynomial
+    from isal.isal_zlib import crc32
+except ImportError:                    # pragma: no cover - isal is a dependency; zlib is the fallback
+    from zlib import crc32
+
+MAGIC = b"\x89MCAP0\r\n"
+#: largest uncompressed chunk accepted (a chunk must fit in memory; standard writers use 1-8 MiB)
+MAX_CHUNK_BYTES = 256 << 20
+#: largest record outside chunks that is read into memory (attachments, metadata, schemas)
+MAX_RECORD_BYTES = 256 << 20
+READ_BLOCK = 8 << 20
+#: uncompressed bytes of chunks decoded ahead of the consumer (bounds memory)
+MAX_IN_FLIGHT_BYTES = 192 << 20
+
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
+OP_METADATA, OP_DATA_END, OP_STATISTICS = 0x0C, 0x0F, 0x0B
+
+#: schema -> kind of decoded block
+SCHEMA_KINDS = {"sensor_msgs/msg/Imu": "imu", "sensor_msgs/msg/MagneticField": "mag",
+                "sensor_msgs/msg/Range": "range", "geometry_msgs/msg/PoseStamped": "reference_pose",
+                ros2_cdr.ANNOTATION: "events"}
 #: schema expected on each topic family of the recording format
 TOPIC_SCHEMAS = {"/imu/": "sensor_msgs/msg/Imu", "/mag/": "sensor_msgs/msg/MagneticField",
                  "/range/": "sensor_msgs/msg/Range", "/reference/pose/": "geometry_msgs/msg/PoseStamped"}
+_FIELDS = {"imu": ros2_cdr.IMU_FIELDS, "mag": ros2_cdr.MAG_FIELDS, "reference_pose": ros2_cdr.POSE_FIELDS}
+_N_DOUBLES = {"imu": 37, "mag": 12, "reference_pose": 7}
+_FIX = "the file is corrupt: export or copy it again"
 
 
-MAGIC = b"\x89MCAP0\r\n"
-_WANTED = {Opcode.SCHEMA, Opcode.CHANNEL, Opcode.CHUNK, Opcode.MESSAGE, Opcode.METADATA}
+def read_threads() -> int:
+    """Threads decoding chunks (env ``STRIDELAB_READ_THREADS``; default: the CPUs this process may use)."""
+    env = os.environ.get("STRIDELAB_READ_THREADS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, min(4, len(os.sched_getaffinity(0))))
+    except AttributeError:          # pragma: no cover - not Linux
+        return max(1, min(4, os.cpu_count() or 1))
 
 
 class McapFormatError(ValueError):
@@ -42,7 +84,7 @@ class McapFormatError(ValueError):
 
 @dataclass
 class Block:
-    """Decoded messages of one channel from one chunk.
+    """Decoded messages of one channel from one chunk (or one block of unchunked messages).
 
     ``values`` columns: imu ``gyr xyz, acc xyz``; mag ``xyz`` (tesla); pose ``pos xyz, quat wxyz``;
     range ``fov, min, max, range``; events: ``values`` is a list of dicts.
@@ -59,7 +101,8 @@ class TopicInfo:
     topic: str
     schema_name: str
     message_encoding: str
-    kind: str
+    kind: str | None              # None: a topic StrideLab does not decode
+    range_variance: bool = False  # sensor_msgs/Range with the ``variance`` field (ROS 2 Jazzy and later)
 
 
 @dataclass
@@ -70,201 +113,546 @@ class ReadResult:
     topics: dict[int, TopicInfo] = field(default_factory=dict)
     ignored_topics: list[str] = field(default_factory=list)
     n_bytes: int = 0
+    message_counts: dict[int, int] = field(default_factory=dict)
+    statistics: Statistics | None = None
+
+    def found_topics(self) -> list[str]:
+        """``topic (schema)`` of every channel of the file, for messages that list what was found."""
+        return sorted({f"{t.topic} ({t.schema_name or 'no schema'})" for t in self.topics.values()})
 
 
-class _HashingReader:
-    """File wrapper that feeds every byte read into SHA-256."""
+# ---- record scanning kernels -----------------------------------------------------------------
 
-    def __init__(self, f):
-        self._f = f
-        self.h = hashlib.sha256()
-        self.n = 0
-
-    def read(self, n=-1):
-        b = self._f.read(n)
-        self.h.update(b)
-        self.n += len(b)
-        return b
-
-    def readinto(self, buf):                 # pragma: no cover - used by some BufferedReader paths
-        n = self._f.readinto(buf)
-        self.h.update(memoryview(buf)[:n])
-        self.n += n
-        return n
+@njit(cache=True, nogil=True)
+def _u64(buf, p):
+    v = np.uint64(0)
+    for b in range(8):
+        v |= np.uint64(buf[p + b]) << np.uint64(8 * b)
+    return v
 
 
-@njit(cache=True)
-def _scan_messages(buf, ch_out, log_out, start_out, len_out):
-    """Locate Message records (opcode 0x05) in uncompressed chunk bytes; returns count or -1 if malformed."""
-    p = 0
-    k = 0
-    n = buf.shape[0]
-    while p < n:
-        if p + 9 > n:
-            return -1
+@njit(cache=True, nogil=True)
+def _count_records(buf, p, end, stop_at_footer):
+    """(records, messages, position after the last complete record, status) from ``p`` up to ``end``.
+
+    status 0: stopped at ``end`` or at an incomplete record; 2: a footer record was passed;
+    -1: a record declares a length that runs past 2**62 (garbage).
+    """
+    n_rec = 0
+    n_msg = 0
+    while p + 9 <= end:
+        length = _u64(buf, p + 1)
+        if length > np.uint64(1) << np.uint64(62):
+            return n_rec, n_msg, p, -1
+        if p + 9 + np.int64(length) > end:
+            break
         op = buf[p]
-        length = np.int64(0)
-        for b in range(8):
-            length |= np.int64(buf[p + 1 + b]) << (8 * b)
-        if length < 0 or p + 9 + length > n:
-            return -1
+        n_rec += 1
+        if op == 5:
+            n_msg += 1
+        p += 9 + np.int64(length)
+        if stop_at_footer and op == 2:
+            return n_rec, n_msg, p, 2
+    return n_rec, n_msg, p, 0
+
+
+@njit(cache=True, nogil=True)
+def _split_records(buf, p, end, stop_at_footer, o_op, o_start, o_len, m_ch, m_log, m_start, m_len):
+    """Fill record tables (non-message records and message records separately); returns 0 or the
+    index + 1 of the first message record shorter than its fixed header (corrupt)."""
+    i = 0
+    k = 0
+    while p + 9 <= end:
+        length = np.int64(_u64(buf, p + 1))
+        if p + 9 + length > end:
+            break
+        op = buf[p]
         if op == 5:
             if length < 22:
-                return -1
+                return k + 1
             q = p + 9
-            ch_out[k] = np.int64(buf[q]) | (np.int64(buf[q + 1]) << 8)
-            t = np.int64(0)
-            for b in range(8):
-                t |= np.int64(buf[q + 6 + b]) << (8 * b)
-            log_out[k] = t
-            start_out[k] = q + 22
-            len_out[k] = length - 22
+            m_ch[k] = np.int64(buf[q]) | (np.int64(buf[q + 1]) << 8)
+            m_log[k] = np.int64(_u64(buf, q + 6))
+            m_start[k] = q + 22
+            m_len[k] = length - 22
             k += 1
+        else:
+            o_op[i] = op
+            o_start[i] = p + 9
+            o_len[i] = length
+            i += 1
         p += 9 + length
-    return k
+        if stop_at_footer and op == 2:
+            break
+    return 0
 
 
-def _kind_of(topic: str, schema_name: str) -> str | None:
-    """Kind of a topic in the recording format, None for topics StrideLab does not use."""
-    if topic == "/reference/events":
-        return "events"
+@dataclass
+class _Records:
+    """Records of one buffer: non-message records (op, body start, body length) and message records."""
+    buf: np.ndarray
+    ops: np.ndarray
+    starts: np.ndarray
+    lengths: np.ndarray
+    m_ch: np.ndarray
+    m_log: np.ndarray
+    m_start: np.ndarray
+    m_len: np.ndarray
+    end: int                       # position after the last complete record
+    footer: bool
+
+
+def _scan(buf: np.ndarray, p: int, end: int, stop_at_footer: bool) -> _Records:
+    n_rec, n_msg, stop, status = _count_records(buf, p, end, stop_at_footer)
+    if status < 0:
+        raise McapFormatError(f"a record declares an impossible length; {_FIX}")
+    n_oth = n_rec - n_msg
+    o = [np.empty(n_oth, np.uint8), np.empty(n_oth, np.int64), np.empty(n_oth, np.int64)]
+    m = [np.empty(n_msg, np.int64) for _ in range(4)]
+    bad = _split_records(buf, p, stop, stop_at_footer, *o, *m)
+    if bad:
+        raise McapFormatError(f"a Message record is shorter than its fixed fields; {_FIX}")
+    return _Records(buf, *o, *m, end=int(stop), footer=status == 2)
+
+
+def _parse(cls, body, what: str):
+    """Parse one record body with the mcap library; any failure becomes a readable reason."""
+    try:
+        return cls.read(ReadDataStream(io.BytesIO(bytes(body))))
+    except UnicodeDecodeError:
+        raise McapFormatError(f"a {what} record holds text that is not UTF-8; {_FIX}") from None
+    except Exception:  # noqa: BLE001 - EndOfFile, struct errors: all mean a corrupt record
+        raise McapFormatError(f"a {what} record is malformed (its fields run past its length); {_FIX}") from None
+
+
+# ---- channel registry ------------------------------------------------------------------------
+
+def _normalise_schema(name: str) -> str:
+    """``sensor_msgs/Imu`` (ROS 1 style name) -> ``sensor_msgs/msg/Imu``."""
+    parts = name.split("/")
+    return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else name
+
+
+def _topic_info(ch: Channel, sch: Schema | None) -> TopicInfo:
+    name = _normalise_schema(sch.name) if sch else ""
+    kind = SCHEMA_KINDS.get(name)
+    if ch.topic == "/reference/events" and (ch.message_encoding == "json" or kind == "events"):
+        kind = "events"
     for prefix, expected in TOPIC_SCHEMAS.items():
-        if topic.startswith(prefix):
-            if schema_name != expected:
-                raise McapFormatError(f"topic {topic} has schema '{schema_name or '(none)'}', expected {expected}")
-            return {"/imu/": "imu", "/mag/": "mag", "/range/": "range", "/reference/pose/": "reference_pose"}[prefix]
-    return None
+        if ch.topic.startswith(prefix) and name != expected:
+            raise McapFormatError(f"topic {ch.topic} has schema '{name or '(none)'}', expected {expected}; "
+                                  f"fix the exporter or rename the topic")
+    if kind is not None and kind != "events" and ch.message_encoding != "cdr":
+        raise McapFormatError(f"topic {ch.topic} ({name}) uses message encoding '{ch.message_encoding}', "
+                              f"expected cdr (ROS 2); convert it with a ROS 2 tool")
+    variance = bool(kind == "range" and sch is not None and b"float32 variance" in
+                    bytes(sch.data).split(b"=" * 80)[0])
+    return TopicInfo(ch.topic, name, ch.message_encoding, kind, variance)
 
 
-def _decompress(chunk: Chunk) -> bytes:
-    if chunk.compression == "zstd":
-        return zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
-    if chunk.compression == "lz4":
-        return lz4.frame.decompress(chunk.data)
-    if chunk.compression == "":
-        return chunk.data
-    raise McapFormatError(f"unsupported chunk compression '{chunk.compression}'")
+class _Registry:
+    """Schemas and channels as defined so far; a second definition must repeat the first exactly."""
+
+    def __init__(self, schemas: dict[int, Schema] | None = None):
+        self.schemas: dict[int, Schema] = dict(schemas or {})
+        self.channels: dict[int, Channel] = {}
+        self.topics: dict[int, TopicInfo] = {}
+
+    def add_schema(self, s: Schema) -> None:
+        old = self.schemas.get(s.id)
+        if old is None:
+            if s.id == 0:
+                raise McapFormatError(f"a Schema record uses the reserved id 0; {_FIX}")
+            self.schemas[s.id] = s
+        elif (old.name, old.encoding, bytes(old.data)) != (s.name, s.encoding, bytes(s.data)):
+            raise McapFormatError(f"schema id {s.id} is defined twice with different content; {_FIX}")
+
+    def add_channel(self, c: Channel) -> None:
+        old = self.channels.get(c.id)
+        if old is not None:
+            if (old.topic, old.schema_id, old.message_encoding, dict(old.metadata)) != \
+                    (c.topic, c.schema_id, c.message_encoding, dict(c.metadata)):
+                raise McapFormatError(f"channel id {c.id} is defined twice with different content "
+                                      f"({old.topic} / {c.topic}); {_FIX}")
+            return
+        if c.schema_id and c.schema_id not in self.schemas:
+            raise McapFormatError(f"channel {c.topic} refers to schema id {c.schema_id}, which no Schema "
+                                  f"record defines; {_FIX}")
+        if any(t.topic == c.topic for t in self.topics.values()):
+            raise McapFormatError(f"topic {c.topic} appears on two channels; re-export with one channel per topic")
+        self.channels[c.id] = c
+        self.topics[c.id] = _topic_info(c, self.schemas.get(c.schema_id))
+
+    def snapshot(self) -> tuple[dict[int, Schema], dict[int, TopicInfo]]:
+        return dict(self.schemas), dict(self.topics)
 
 
-def _decode(topic: TopicInfo, buf: np.ndarray, starts, lengths, log_ns) -> Block:
-    if topic.kind == "events":
+# ---- decoding --------------------------------------------------------------------------------
+
+_STATUS = {1: "big-endian or unknown CDR encapsulation", 2: "message shorter than its schema",
+           3: "payload size does not match the schema (a message of another type on this channel?)",
+           4: "header.stamp nanoseconds out of range"}
+
+
+def _decode(ti: TopicInfo, buf: np.ndarray, starts, lengths, log_ns) -> Block:
+    if ti.kind == "events":
         vals = []
         for s, n in zip(starts.tolist(), lengths.tolist()):
+            raw = bytes(buf[s:s + n])
             try:
-                vals.append(json.loads(bytes(buf[s:s + n])))
-            except ValueError as e:
-                raise McapFormatError(f"{topic.topic}: message is not valid JSON ({e})") from None
-        t = np.array([int(v.get("t_ns", lt)) for v, lt in zip(vals, log_ns.tolist())], dtype=np.int64)
-        return Block(topic.topic, "events", t, log_ns, vals)
-    if topic.kind == "range":
-        t, vals, status = ros2_cdr.decode_range(buf, starts, lengths)
+                vals.append(ros2_cdr.decode_annotation(raw) if ti.message_encoding == "cdr" else json.loads(raw))
+            except (ValueError, UnicodeDecodeError, IndexError, struct.error):
+                raise McapFormatError(f"{ti.topic}: an annotation message cannot be decoded; {_FIX}") from None
+            if not isinstance(vals[-1], dict):
+                raise McapFormatError(f"{ti.topic}: an annotation message is not a JSON object")
+        try:
+            t = np.array([int(v.get("t_ns", lt)) for v, lt in zip(vals, log_ns.tolist())], dtype=np.int64)
+        except (TypeError, ValueError, OverflowError):
+            raise McapFormatError(f"{ti.topic}: an annotation has a 't_ns' that is not an integer") from None
+        return Block(ti.topic, "events", t, log_ns, vals)
+    if ti.kind == "range":
+        t, vals, status = ros2_cdr.decode_range(buf, starts, lengths, ti.range_variance)
     else:
-        fields = {"imu": ros2_cdr.IMU_FIELDS, "mag": ros2_cdr.MAG_FIELDS,
-                  "reference_pose": ros2_cdr.POSE_FIELDS}[topic.kind]
-        t, vals, status = ros2_cdr.decode_doubles(buf, starts, lengths, fields)
+        t, vals, status = ros2_cdr.decode_doubles(buf, starts, lengths, _FIELDS[ti.kind], _N_DOUBLES[ti.kind])
     if status.any():
         i = int(np.flatnonzero(status)[0])
-        why = "big-endian or unknown CDR encapsulation" if status[i] == 1 else "message shorter than its schema"
-        raise McapFormatError(f"{topic.topic}: {why} (message {i} of a chunk)")
-    return Block(topic.topic, topic.kind, t, log_ns, vals)
+        raise McapFormatError(f"{ti.topic} ({ti.schema_name}): {_STATUS[int(status[i])]} "
+                              f"(message {i} of a chunk); {_FIX}")
+    return Block(ti.topic, ti.kind, t, log_ns, vals)
 
 
-def iter_blocks(path: str | Path, result: ReadResult) -> Iterator[Block]:
-    """Stream decoded blocks of every StrideLab topic of ``path``; fills ``result`` along the way.
+@dataclass
+class _Piece:
+    """Result of one chunk (or block of top-level messages): decoded blocks, the records that define
+    schemas/channels (to be registered in file order), and messages whose channel was not known yet."""
+    blocks: list[Block]
+    defs: list[tuple[int, object]]
+    counts: dict[int, int]
+    pending: tuple | None = None          # (buf, ch, log, start, len) of unresolved messages
 
-    Raises McapFormatError (one-line reason) for empty, truncated or corrupt files, CRC mismatches
-    and unexpected schemas on recording-format topics.
+
+def _decode_records(recs: _Records, snap, with_defs: bool) -> _Piece:
+    schemas, known = snap
+    defs = []
+    if with_defs:
+        local = _Registry(schemas)
+        for op, s, n in zip(recs.ops.tolist(), recs.starts.tolist(), recs.lengths.tolist()):
+            if op == OP_SCHEMA:
+                sch = _parse(Schema, recs.buf[s:s + n], "Schema")
+                local.add_schema(sch)
+                defs.append((op, sch))
+            elif op == OP_CHANNEL:
+                ch = _parse(Channel, recs.buf[s:s + n], "Channel")
+                local.add_channel(ch)
+                defs.append((op, ch))
+        known = {**known, **local.topics}
+    blocks, counts, pend = [], {}, None
+    if len(recs.m_ch):
+        order = np.argsort(recs.m_ch, kind="stable")
+        ch_sorted = recs.m_ch[order]
+        ids, first = np.unique(ch_sorted, return_index=True)
+        bounds = list(first) + [len(order)]
+        missing = []
+        for j, cid in enumerate(ids.tolist()):
+            sel = order[bounds[j]:bounds[j + 1]]
+            counts[cid] = len(sel)
+            ti = known.get(cid)
+            if ti is None:
+                missing.append(sel)
+                continue
+            if ti.kind is None:
+                continue
+            blocks.append(_decode(ti, recs.buf, recs.m_start[sel], recs.m_len[sel], recs.m_log[sel]))
+        if missing:
+            sel = np.sort(np.concatenate(missing))
+            pend = (recs.buf, recs.m_ch[sel], recs.m_log[sel], recs.m_start[sel], recs.m_len[sel])
+    return _Piece(blocks, defs, counts, pend)
+
+
+def _decompress(compression: str, data, size: int) -> bytes:
+    """Decompress at most ``size`` bytes (a zip bomb cannot make it allocate more)."""
+    if compression == "zstd":
+        declared = zstandard.frame_content_size(data)
+        if declared not in (-1, size):
+            raise McapFormatError(f"a zstd chunk declares {declared} bytes but its header says {size}; {_FIX}")
+        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+    if compression == "lz4":
+        d = lz4.frame.LZ4FrameDecompressor()
+        return d.decompress(data, max_length=size + 1)
+    if compression == "":
+        return bytes(data)
+    raise McapFormatError(f"unsupported chunk compression '{compression[:20]}'; rewrite the file with "
+                          f"`mcap compress --compression zstd`")
+
+
+def _chunk_task(body: memoryview, snap) -> _Piece:
+    """Decompress, verify and decode one chunk record (runs on a pool thread)."""
+    if len(body) < 40:
+        raise McapFormatError(f"a Chunk record is shorter than its fixed fields; {_FIX}")
+    size, crc = struct.unpack_from("<QI", body, 16)
+    clen = struct.unpack_from("<I", body, 28)[0]
+    if 32 + clen + 8 > len(body):
+        raise McapFormatError(f"a Chunk record's compression field runs past the record; {_FIX}")
+    try:
+        compression = bytes(body[32:32 + clen]).decode()
+    except UnicodeDecodeError:
+        raise McapFormatError(f"a Chunk record's compression name is not text; {_FIX}") from None
+    rlen = struct.unpack_from("<Q", body, 32 + clen)[0]
+    data = body[40 + clen:]
+    if rlen != len(data):
+        raise McapFormatError(f"a Chunk record's data length disagrees with the record length; {_FIX}")
+    try:
+        raw = _decompress(compression, data, size)
+    except McapFormatError:
+        raise
+    except (zstandard.ZstdError, RuntimeError, ValueError, MemoryError) as e:
+        raise McapFormatError(f"a {compression} chunk cannot be decompressed ({type(e).__name__}); {_FIX}") from None
+    if len(raw) != size:
+        raise McapFormatError(f"a chunk decompresses to a size other than the one its header declares; {_FIX}")
+    if crc and crc32(raw) != crc:
+        raise McapFormatError(f"chunk CRC mismatch (data changed after writing); {_FIX}")
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    recs = _scan(buf, 0, len(buf), False)
+    if recs.end != len(buf):
+        raise McapFormatError(f"the records inside a chunk do not fill it exactly; {_FIX}")
+    return _decode_records(recs, snap, bool(((recs.ops == OP_SCHEMA) | (recs.ops == OP_CHANNEL)).any()))
+
+
+# ---- hashing thread --------------------------------------------------------------------------
+
+class _Hasher:
+    """SHA-256 of the whole file and CRC32 of its data section, fed in order on one thread."""
+
+    def __init__(self):
+        self.sha = hashlib.sha256()
+        self.crc = 0
+        self.n = 0
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-hash")
+        self._last: Future | None = None
+
+    def feed(self, view, crc_upto: int | None) -> None:
+        """``view`` starts at file offset ``self.n``; CRC covers bytes before ``crc_upto`` (None: all)."""
+        start = self.n
+        self.n += len(view)
+        self._last = self._pool.submit(self._work, view, start, crc_upto)
+
+    def _work(self, view, start, crc_upto):
+        self.sha.update(view)
+        if crc_upto is None:
+            self.crc = crc32(view, self.crc)
+        elif crc_upto > start:
+            self.crc = crc32(view[:crc_upto - start], self.crc)
+
+    def finish(self) -> None:
+        if self._last is not None:
+            self._last.result()
+        self._pool.shutdown(wait=True)
+
+
+# ---- the pass over the file ------------------------------------------------------------------
+
+@dataclass
+class _Summary:
+    start: int = 0
+    registry_defs: list = field(default_factory=list)
+    statistics: Statistics | None = None
+
+
+def _read_summary(f, size: int) -> _Summary:
+    """Check both magics and the footer; read and CRC-check the summary section if there is one."""
+    if size < 8 + 9 + 4 + 29 + 8:
+        raise McapFormatError("not an MCAP recording (file too short)" if size else "empty file (0 bytes)")
+    if f.read(8) != MAGIC:
+        raise McapFormatError("not an MCAP file (bad magic bytes at the start)")
+    f.seek(size - 37)
+    tail = f.read(37)
+    if tail[29:] != MAGIC or tail[0] != OP_FOOTER or int.from_bytes(tail[1:9], "little") != 20:
+        raise McapFormatError("truncated MCAP: the file does not end with a footer and the closing magic "
+                              "(copy interrupted? try `mcap recover`, or copy it again)")
+    s_start, s_off, s_crc = struct.unpack_from("<QQI", tail, 9)
+    out = _Summary(start=s_start)
+    if s_start == 0:
+        return out
+    if not (8 < s_start <= size - 37) or (s_off and not (s_start <= s_off <= size - 37)):
+        raise McapFormatError(f"the footer points outside the file; {_FIX}")
+    f.seek(s_start)
+    summary = f.read(size - 37 - s_start)
+    if s_crc and crc32(tail[:25], crc32(summary)) != s_crc:
+        raise McapFormatError(f"summary CRC mismatch (channel list, index or statistics changed after "
+                              f"writing); {_FIX}")
+    buf = np.frombuffer(summary, dtype=np.uint8)
+    recs = _scan(buf, 0, len(buf), False)
+    if recs.end != len(buf) or len(recs.m_ch):
+        raise McapFormatError(f"the summary section holds malformed records; {_FIX}")
+    for op, s, n in zip(recs.ops.tolist(), recs.starts.tolist(), recs.lengths.tolist()):
+        if op == OP_SCHEMA:
+            out.registry_defs.append((op, _parse(Schema, buf[s:s + n], "Schema")))
+        elif op == OP_CHANNEL:
+            out.registry_defs.append((op, _parse(Channel, buf[s:s + n], "Channel")))
+        elif op == OP_STATISTICS:
+            out.statistics = _parse(Statistics, buf[s:s + n], "Statistics")
+    return out
+
+
+def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None) -> Iterator[Block]:
+    """Stream decoded blocks of every decodable channel of ``path``; fills ``result`` along the way.
+
+    Raises McapFormatError (one-line reason) for empty, truncated or corrupt files, CRC mismatches,
+    payloads that do not fit their schema and unexpected schemas on recording-format topics.
     """
     path = Path(path)
     size = path.stat().st_size
-    if size == 0:
-        raise McapFormatError("empty file (0 bytes)")
-    schemas: dict[int, Schema] = {}
-    with open(path, "rb") as raw:
-        f = _HashingReader(raw)
-        try:
-            for op, body in _records(f):
-                if op == Opcode.SCHEMA:
-                    rec = Schema.read(ReadDataStream(io.BytesIO(body)))
-                    schemas[rec.id] = rec
-                elif op == Opcode.CHANNEL:
-                    rec = Channel.read(ReadDataStream(io.BytesIO(body)))
-                    if rec.id in result.topics or rec.topic in result.ignored_topics:
-                        continue
-                    sch = schemas.get(rec.schema_id)
-                    name = sch.name if sch else ""
-                    kind = _kind_of(rec.topic, name)
-                    if kind is None:
-                        result.ignored_topics.append(rec.topic)
-                        continue
-                    if kind != "events" and rec.message_encoding != "cdr":
-                        raise McapFormatError(f"topic {rec.topic} uses message encoding "
-                                              f"'{rec.message_encoding}', expected cdr")
-                    result.topics[rec.id] = TopicInfo(rec.topic, name, rec.message_encoding, kind)
-                elif op == Opcode.CHUNK:
-                    rec = Chunk.read(ReadDataStream(io.BytesIO(body)))
-                    data = _decompress(rec)
-                    if len(data) != rec.uncompressed_size:
-                        raise McapFormatError("chunk size does not match its header (corrupt chunk)")
-                    if rec.uncompressed_crc and zlib.crc32(data) != rec.uncompressed_crc:
-                        raise McapFormatError(f"chunk CRC mismatch at chunk starting "
-                                              f"{rec.message_start_time} ns (corrupt file)")
-                    yield from _blocks_from_records(np.frombuffer(data, dtype=np.uint8), result)
-                elif op == Opcode.MESSAGE:
-                    buf = np.frombuffer(b"\x05" + len(body).to_bytes(8, "little") + body, dtype=np.uint8)
-                    yield from _blocks_from_records(buf, result)
-                elif op == Opcode.METADATA:
-                    rec = Metadata.read(ReadDataStream(io.BytesIO(body)))
-                    result.metadata[rec.name] = dict(rec.metadata)
-        except McapFormatError:
-            raise
-        except (McapError, ValueError, KeyError, UnicodeDecodeError, struct.error, zstandard.ZstdError) as e:
-            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-            raise McapFormatError(f"corrupt MCAP: {msg}") from None
-    result.sha256 = f.h.hexdigest()
-    result.n_bytes = f.n
+    threads = threads or read_threads()
+    reg = _Registry()
+    hasher = _Hasher()
+    pool = ThreadPoolExecutor(threads, thread_name_prefix="mcap-chunk")
+    inflight: deque[tuple[Future, int]] = deque()
+    held = [0]
+    dataend_crc: list[int] = []
+    try:
+        with open(path, "rb") as f:
+            summ = _read_summary(f, size)
+            for op, rec in summ.registry_defs:
+                (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
+            result.statistics = summ.statistics
+            f.seek(0)
+
+            def finish(piece: _Piece) -> Iterator[Block]:
+                for op, rec in piece.defs:
+                    (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
+                for cid, n in piece.counts.items():
+                    result.message_counts[cid] = result.message_counts.get(cid, 0) + n
+                yield from piece.blocks
+                if piece.pending is not None:
+                    buf, ch, log, st, ln = piece.pending
+                    unknown = sorted(set(ch.tolist()) - set(reg.topics))
+                    if unknown:
+                        raise McapFormatError(f"messages on channel id {unknown[0]}, which no Channel record "
+                                              f"defines; {_FIX}")
+                    recs = _Records(buf, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64),
+                                    ch, log, st, ln, 0, False)
+                    p = _decode_records(recs, reg.snapshot(), False)
+                    yield from p.blocks
+
+            def drain(limit_bytes: int) -> Iterator[Block]:
+                while inflight and (held[0] > limit_bytes or inflight[0][0].done()):
+                    fut, nb = inflight.popleft()
+                    held[0] -= nb
+                    yield from finish(fut.result())
+
+            for kind, payload, nbytes in _top_level(f, size, summ, hasher, reg, result, dataend_crc):
+                if kind == "chunk":
+                    inflight.append((pool.submit(_chunk_task, payload, reg.snapshot()), nbytes))
+                else:
+                    inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False), nbytes))
+                held[0] += nbytes
+                yield from drain(MAX_IN_FLIGHT_BYTES)
+            yield from drain(-1)
+        hasher.finish()
+        if dataend_crc and dataend_crc[0] and dataend_crc[0] != hasher.crc:
+            raise McapFormatError(f"data-section CRC mismatch (the file changed after writing); {_FIX}")
+        _check_statistics(result, reg)
+        result.topics = dict(reg.topics)
+        result.ignored_topics = sorted(t.topic for t in reg.topics.values() if t.kind is None)
+        result.sha256 = hasher.sha.hexdigest()
+        result.n_bytes = hasher.n
+    finally:
+        for fut, _ in inflight:
+            fut.cancel()
+        pool.shutdown(wait=True, cancel_futures=True)
+        hasher.finish()
 
 
-def _records(f) -> Iterator[tuple[int, bytes]]:
-    """(opcode, body) of every record up to the footer; index records are read (for the hash) but skipped."""
-    if f.read(8) != MAGIC:
-        raise McapFormatError("not an MCAP file (bad magic bytes at the start)")
+def _check_statistics(result: ReadResult, reg: _Registry) -> None:
+    st = result.statistics
+    if st is None or not st.channel_message_counts:
+        return
+    for cid, ti in reg.topics.items():
+        declared = st.channel_message_counts.get(cid, 0)
+        seen = result.message_counts.get(cid, 0)
+        if declared != seen:
+            raise McapFormatError(f"{ti.topic}: the Statistics record counts {declared} messages but the file "
+                                  f"holds {seen} (truncated or corrupt file); copy or export it again")
+
+
+def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, result: ReadResult,
+               dataend_crc: list[int]) -> Iterator[tuple[str, object, int]]:
+    """Walk the top-level records in file order; registers definitions and metadata inline and
+    yields ("chunk", body, uncompressed bytes) and ("messages", _Records, bytes) work items."""
+    data_end = summ.start or (size - 37)
+    rest = b""
+    offset = 0                              # file offset of rest[0]
+    first = True
+    crc_upto: int | None = None
     while True:
-        head = f.read(9)
-        if len(head) < 9:
-            raise McapFormatError("truncated MCAP: the file ends before its footer "
-                                  "(copy interrupted? try `mcap recover`)")
-        op, length = struct.unpack("<BQ", head)
-        if length > (4 << 30):
-            raise McapFormatError(f"corrupt MCAP: record of {length} bytes")
-        body = f.read(length)
-        if len(body) < length:
+        need = READ_BLOCK
+        if len(rest) >= 9:
+            length = int.from_bytes(rest[1:9], "little")
+            if rest[0] == OP_CHUNK and length > MAX_CHUNK_BYTES + (1 << 16):
+                raise McapFormatError(f"a chunk of {length} bytes exceeds the {MAX_CHUNK_BYTES >> 20} MiB "
+                                      f"limit; rewrite the file with smaller chunks (`mcap compress`)")
+            if length > MAX_RECORD_BYTES + (1 << 16):
+                raise McapFormatError(f"a record of {length} bytes exceeds the {MAX_RECORD_BYTES >> 20} MiB "
+                                      f"limit; {_FIX}")
+            if offset + 9 + length > size:
+                raise McapFormatError(f"a record at byte {offset} runs past the end of the file "
+                                      f"(truncated or corrupt file); copy or export it again")
+            need = max(need, 9 + length - len(rest))
+        data = f.read(need)
+        if not data and len(rest) < 9 + (int.from_bytes(rest[1:9], "little") if len(rest) >= 9 else 0):
             raise McapFormatError("truncated MCAP: the file ends inside a record "
                                   "(copy interrupted? try `mcap recover`)")
-        if op == Opcode.FOOTER:
-            if f.read(8) != MAGIC:
-                raise McapFormatError("truncated MCAP: no closing magic after the footer")
+        buf_bytes = rest + data if rest else data
+        buf = np.frombuffer(buf_bytes, dtype=np.uint8)
+        p = 0
+        if first:
+            p, first = 8, False
+            hasher.feed(memoryview(buf_bytes)[:8], None)
+            offset += 8
+        recs = _scan(buf, p, len(buf), True)
+        consumed = recs.end
+        # chunks: check the declared size before any allocation; definitions and metadata inline
+        for op, s, n in zip(recs.ops.tolist(), recs.starts.tolist(), recs.lengths.tolist()):
+            if offset + (s - 9 - p) >= data_end:
+                continue                   # summary section: already read
+            if op == OP_CHUNK:
+                if n < 40:
+                    raise McapFormatError(f"a Chunk record is shorter than its fixed fields; {_FIX}")
+                usize = int.from_bytes(buf_bytes[s + 16:s + 24], "little")
+                if usize > MAX_CHUNK_BYTES:
+                    raise McapFormatError(f"a chunk declares {usize} bytes uncompressed, above the "
+                                          f"{MAX_CHUNK_BYTES >> 20} MiB limit; rewrite the file with smaller "
+                                          f"chunks (`mcap compress`) if it is genuine")
+                yield "chunk", memoryview(buf_bytes)[s:s + n], usize
+            elif op == OP_SCHEMA:
+                reg.add_schema(_parse(Schema, buf[s:s + n], "Schema"))
+            elif op == OP_CHANNEL:
+                reg.add_channel(_parse(Channel, buf[s:s + n], "Channel"))
+            elif op == OP_METADATA:
+                md = _parse(Metadata, buf[s:s + n], "Metadata")
+                if md.name in result.metadata:
+                    raise McapFormatError(f"two Metadata records are named '{md.name[:40]}'; re-export with one")
+                result.metadata[md.name] = dict(md.metadata)
+            elif op == OP_DATA_END:
+                if n < 4:
+                    raise McapFormatError(f"the DataEnd record is malformed; {_FIX}")
+                dataend_crc.append(int.from_bytes(buf_bytes[s:s + 4], "little"))
+                crc_upto = offset + (s - 9 - p)
+        if len(recs.m_ch):
+            yield "messages", recs, int(recs.m_len.sum())
+        hasher.feed(memoryview(buf_bytes)[p:consumed], crc_upto)
+        offset += consumed - p
+        if recs.footer:
+            tail = f.read()
+            tail = buf_bytes[consumed:] + tail
+            if tail != MAGIC:
+                raise McapFormatError(f"unexpected bytes after the footer; {_FIX}")
+            hasher.feed(tail, crc_upto)
             return
-        if op in _WANTED:
-            yield op, body
-
-
-def _blocks_from_records(buf: np.ndarray, result: ReadResult) -> Iterator[Block]:
-    cap = len(buf) // 31 + 1
-    ch = np.empty(cap, np.int64)
-    log = np.empty(cap, np.int64)
-    st = np.empty(cap, np.int64)
-    ln = np.empty(cap, np.int64)
-    n = _scan_messages(buf, ch, log, st, ln)
-    if n < 0:
-        raise McapFormatError("malformed records inside a chunk (corrupt file)")
-    ch, log, st, ln = ch[:n], log[:n], st[:n], ln[:n]
-    for cid in np.unique(ch):
-        ti = result.topics.get(int(cid))
-        if ti is None:
-            continue
-        m = ch == cid
-        yield _decode(ti, buf, st[m], ln[m], log[m])
+        rest = buf_bytes[consumed:]
+        if not data and not rest:
+            raise McapFormatError("truncated MCAP: the file ends before its footer "
+                                  "(copy interrupted? try `mcap recover`)")
 
 
 def read_metadata(path: str | Path) -> dict[str, dict[str, str]]:

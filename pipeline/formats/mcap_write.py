@@ -1,17 +1,18 @@
 """Vectorised MCAP writer for the StrideLab recording format (DESIGN.md "Recording format").
 
 The file is standard MCAP (zstd chunks, message indexes, chunk indexes, statistics, summary
-offsets) readable by Foxglove, the ``mcap`` CLI and ROS 2. Message records of one channel have a
-fixed size, so a chunk is assembled as NumPy structured arrays instead of one Python call per
-message (the ``mcap`` library's writer manages about 20,000 messages/s; a 24 h, 100 Hz recording
-has 8.6 million).
+offsets, data-section and summary CRCs) readable by Foxglove, the ``mcap`` CLI, rosbags and ROS 2:
+every schema is a ``ros2msg`` definition (annotations included, as ``stridelab_msgs/msg/Annotation``),
+messages inside a chunk are in log-time order, chunks cover consecutive integer log-time windows (no
+message can fall between two), and the Statistics record is computed from the messages written.
+Message records of one channel have a fixed size, so a chunk is assembled as NumPy structured arrays
+instead of one Python call per message (the ``mcap`` library's writer manages about 20,000
+messages/s; a 24 h, 100 Hz recording has 8.6 million).
 """
 from __future__ import annotations
 
-import json
 import os
-import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -21,17 +22,13 @@ from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema,
                           Statistics, SummaryOffset)
+from numba import njit
 
 from estimators.recording import Recording
 from pipeline.formats import ros2_cdr
+from pipeline.formats.mcap_read import crc32
 
 MAGIC = b"\x89MCAP0\r\n"
-EVENTS_SCHEMA = {
-    "type": "object", "title": "stridelab/Annotation",
-    "properties": {"t_ns": {"type": "integer"}, "type": {"type": "string"}, "end_ns": {"type": "integer"},
-                   "side": {"type": "string"}, "placement": {"type": "string"}, "label": {"type": "string"}},
-    "required": ["t_ns", "type"],
-}
 _MSG_HEAD = 1 + 8 + 2 + 4 + 8 + 8   # opcode, length, channel_id, sequence, log_time, publish_time
 
 
@@ -82,10 +79,10 @@ def recording_channels(rec: Recording) -> list[ChannelData]:
             lambda a, b, x=pose, pl=pl: ros2_cdr.encode_pose(x.t_ns[a:b], x.pos[a:b], x.quat[a:b], pl))
     if rec.events:
         ev = sorted(rec.events, key=lambda e: int(e["t_ns"]))
-        chans.append(ChannelData("/reference/events", "stridelab/Annotation", "jsonschema",
-                                 json.dumps(EVENTS_SCHEMA).encode(), "json",
+        chans.append(ChannelData("/reference/events", ros2_cdr.ANNOTATION, "ros2msg",
+                                 ros2_cdr.SCHEMAS[ros2_cdr.ANNOTATION].encode(), "cdr",
                                  np.array([int(e["t_ns"]) for e in ev], dtype=np.int64),
-                                 [json.dumps(e, sort_keys=True).encode() for e in ev]))
+                                 [ros2_cdr.encode_annotation(e) for e in ev]))
     return chans
 
 
@@ -118,6 +115,20 @@ def _message_records(channel_id: int, log_time: np.ndarray, seq0: int, payload) 
     return b"".join(parts), sizes
 
 
+@njit(cache=True, nogil=True)
+def _gather(src, src_off, sizes, order, dst, dst_off):
+    """Copy records ``order[k]`` of ``src`` (at ``src_off``, ``sizes`` bytes) one after the other into
+    ``dst``; ``dst_off[order[k]]`` receives where each landed."""
+    q = 0
+    for k in range(order.shape[0]):
+        i = order[k]
+        a = src_off[i]
+        n = sizes[i]
+        dst[q:q + n] = src[a:a + n]
+        dst_off[i] = q
+        q += n
+
+
 def _message_index(channel_id: int, log_time: np.ndarray, offsets: np.ndarray) -> bytes:
     n = len(log_time)
     head = np.zeros(1, dtype=np.dtype({"names": ["op", "len", "ch", "blen"], "formats": ["u1", "<u8", "<u2", "<u4"],
@@ -127,6 +138,17 @@ def _message_index(channel_id: int, log_time: np.ndarray, offsets: np.ndarray) -
     entries[:, 0] = log_time
     entries[:, 1] = offsets
     return head.tobytes() + entries.tobytes()
+
+
+def _log_time_sorted(ch: ChannelData) -> ChannelData:
+    """The channel with its messages in log-time order (stable), materialising the payload if needed."""
+    t = np.asarray(ch.log_time, dtype=np.int64)
+    if len(t) < 2 or not (np.diff(t) < 0).any():
+        return ch
+    perm = np.argsort(t, kind="stable")
+    pay = ch.encoded(0, len(t))
+    pay = pay[perm] if isinstance(pay, np.ndarray) else [pay[i] for i in perm.tolist()]
+    return replace(ch, log_time=t[perm], payload=pay)
 
 
 def _record(rec) -> bytes:
@@ -139,6 +161,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
                *, chunk_bytes: int = 8 << 20, zstd_level: int = 1) -> Path:
     """Write channels and metadata records to ``path`` atomically (temporary file + rename)."""
     path = Path(path)
+    channels = [_log_time_sorted(c) for c in channels]
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     comp = zstandard.ZstdCompressor(level=zstd_level)
     schemas: dict[str, int] = {}
@@ -156,11 +179,10 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
     # time windows holding about chunk_bytes of uncompressed messages
     total_bytes = sum((c.payload.shape[1] if isinstance(c.payload, np.ndarray) else c.msg_size) * len(c.log_time)
                       + _MSG_HEAD * len(c.log_time) for c in channels)
-    n_windows = max(1, int(np.ceil(total_bytes / chunk_bytes)))
-    # integer edges: float64 has ~256 ns resolution at today's epoch ns, so a float linspace could put the last
-    # edge at or below t_max and silently drop the last message(s)
+    n_windows = max(1, min(int(np.ceil(total_bytes / chunk_bytes)), t_max - t_min + 1))
+    # integer window edges: [t_min, t_max + 1) split exactly, so every message falls in one window
     span = t_max + 1 - t_min
-    edges = t_min + (np.arange(n_windows + 1, dtype=np.int64) * span) // n_windows
+    edges = [t_min + span * w // n_windows for w in range(n_windows)] + [t_max + 1]
 
     crc = 0
     pos = 0
@@ -170,7 +192,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
         def out(b: bytes) -> None:
             nonlocal crc, pos
             f.write(b)
-            crc = zlib.crc32(b, crc)
+            crc = crc32(b, crc)
             pos += len(b)
 
         out(MAGIC)
@@ -178,32 +200,40 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
         for r in schema_recs + channel_recs:
             out(_record(r))
         for w in range(n_windows):
-            parts, index_parts, offset = [], [], 0
-            c_start, c_end = None, None
+            parts, sizes_l, times_l, ids_l, offset = [], [], [], [], 0
             for ch_id, ch in enumerate(channels, start=1):
                 a, b = np.searchsorted(ch.log_time, [edges[w], edges[w + 1]])
                 if b <= a:
                     continue
                 t = ch.log_time[a:b]
-                pay = ch.encoded(a, b)
-                data, sizes = _message_records(ch_id, t, a, pay)
-                offs = offset + np.concatenate([[0], np.cumsum(sizes)[:-1]])
+                data, sizes = _message_records(ch_id, t, a, ch.encoded(a, b))
                 parts.append(data)
-                index_parts.append((ch_id, t, offs))
-                offset += len(data)
+                sizes_l.append(sizes)
+                times_l.append(t)
+                ids_l.append(np.full(len(t), ch_id, dtype=np.int64))
                 counts[ch_id] += b - a
-                c_start = int(t.min()) if c_start is None else min(c_start, int(t.min()))
-                c_end = int(t.max()) if c_end is None else max(c_end, int(t.max()))
             if not parts:
                 continue
-            raw = b"".join(parts)
+            # messages of all channels in log-time order (ties: channel order) inside the chunk
+            src = np.frombuffer(b"".join(parts), dtype=np.uint8)
+            sizes = np.concatenate(sizes_l)
+            times = np.concatenate(times_l)
+            ids = np.concatenate(ids_l)
+            src_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            order = np.lexsort((ids, times))
+            dst = np.empty(len(src), dtype=np.uint8)
+            dst_off = np.empty(len(sizes), dtype=np.int64)
+            _gather(src, src_off, sizes, order, dst, dst_off)
+            raw = dst.tobytes()
+            index_parts = [(int(cid), times[ids == cid], dst_off[ids == cid]) for cid in np.unique(ids)]
+            c_start, c_end = int(times.min()), int(times.max())
             compressed = comp.compress(raw)
             chunk_start = pos
             head = RecordBuilder()
             head.start_record(Opcode.CHUNK)
             for v in (c_start, c_end, len(raw)):
                 head.write8(v)
-            head.write4(zlib.crc32(raw))
+            head.write4(crc32(raw))
             head.write_prefixed_string("zstd")
             head.write8(len(compressed))
             head.finish_record()
@@ -253,7 +283,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
         # the footer CRC covers the summary section and the footer's fields before the CRC
         foot_head = bytes([int(Opcode.FOOTER)]) + (20).to_bytes(8, "little") + \
             summary_start.to_bytes(8, "little") + summary_offset_start.to_bytes(8, "little")
-        summary_crc = zlib.crc32(foot_head, zlib.crc32(bytes(summary)))
+        summary_crc = crc32(foot_head, crc32(bytes(summary)))
         f.write(_record(Footer(summary_start=summary_start, summary_offset_start=summary_offset_start,
                                summary_crc=summary_crc)))
         f.write(MAGIC)

@@ -29,14 +29,23 @@ SCHEMAS = {
     "sensor_msgs/msg/MagneticField": (
         "std_msgs/Header header\ngeometry_msgs/Vector3 magnetic_field\nfloat64[9] magnetic_field_covariance\n"
         + _SEP + _HEADER + _SEP + _TIME + _SEP + _VEC3),
+    # as in ROS 2 Jazzy and later (``variance`` added after ``range``)
     "sensor_msgs/msg/Range": (
         "uint8 ULTRASOUND=0\nuint8 INFRARED=1\nstd_msgs/Header header\nuint8 radiation_type\n"
-        "float32 field_of_view\nfloat32 min_range\nfloat32 max_range\nfloat32 range\n"
+        "float32 field_of_view\nfloat32 min_range\nfloat32 max_range\nfloat32 range\nfloat32 variance\n"
         + _SEP + _HEADER + _SEP + _TIME),
     "geometry_msgs/msg/PoseStamped": (
         "std_msgs/Header header\ngeometry_msgs/Pose pose\n"
         + _SEP + _HEADER + _SEP + _TIME + _SEP + _POSE + _SEP + _POINT + _SEP + _QUAT),
 }
+
+#: reference annotations (gait events, activity labels) on ``/reference/events``
+ANNOTATION = "stridelab_msgs/msg/Annotation"
+SCHEMAS[ANNOTATION] = (
+    "# A reference annotation: an instant (end_ns = -1) or an interval, in warehouse time (UTC ns)\n"
+    "int64 t_ns\nint64 end_ns\nstring type\nstring side\nstring placement\nstring label\n"
+    "# every field of the annotation as a JSON object (fields beyond those above included)\n"
+    "string json\n")
 
 #: number of float64 after the header for the all-double message types
 N_DOUBLES = {"sensor_msgs/msg/Imu": 37, "sensor_msgs/msg/MagneticField": 12,
@@ -118,38 +127,82 @@ def encode_pose(t_ns, pos, quat_wxyz, frame_id: str) -> np.ndarray:
     return encode_doubles("geometry_msgs/msg/PoseStamped", t_ns, v, frame_id)
 
 
-def encode_range(t_ns, range_m, min_range, max_range, frame_id: str, field_of_view=0.05) -> np.ndarray:
-    """sensor_msgs/Range (INFRARED), float32 fields aligned to 4."""
+def encode_range(t_ns, range_m, min_range, max_range, frame_id: str, field_of_view=0.05,
+                 variance=0.0) -> np.ndarray:
+    """sensor_msgs/Range (INFRARED) as in ROS 2 Jazzy (five float32, the last ``variance``), aligned to 4."""
     fid = frame_id.encode()
     pos = _header_size(fid)                       # radiation_type (uint8) right after the string
     start = _align(pos + 1, 4)
     dt = np.dtype({"names": ["encap", "sec", "nsec", "slen", "frame", "rad", "f"],
-                   "formats": ["(4,)u1", "<i4", "<u4", "<u4", f"S{len(fid) + 1}", "u1", "(4,)<f4"],
-                   "offsets": [0, 4, 8, 12, 16, pos, start], "itemsize": start + 16})
+                   "formats": ["(4,)u1", "<i4", "<u4", "<u4", f"S{len(fid) + 1}", "u1", "(5,)<f4"],
+                   "offsets": [0, 4, 8, 12, 16, pos, start], "itemsize": start + 20})
     n = len(t_ns)
     out = np.zeros(n, dtype=dt)
     out["encap"] = (0, 1, 0, 0)
     sec, nsec = np.divmod(np.asarray(t_ns, dtype=np.int64), 1_000_000_000)
     out["sec"], out["nsec"], out["slen"], out["frame"], out["rad"] = sec, nsec, len(fid) + 1, fid, 1
     out["f"] = np.stack([np.full(n, field_of_view), np.full(n, min_range), np.full(n, max_range),
-                         np.asarray(range_m)], axis=1)
+                         np.asarray(range_m), np.full(n, variance)], axis=1)
     return out.view(np.uint8).reshape(n, dt.itemsize)
+
+
+def _cdr_string(out: bytearray, text: str) -> None:
+    b = text.encode() + b"\0"
+    out += b"\0" * (-(len(out) - 4) % 4)
+    out += len(b).to_bytes(4, "little") + b
+
+
+def encode_annotation(ev: dict) -> bytes:
+    """One ``stridelab_msgs/msg/Annotation`` (CDR, little endian)."""
+    import json
+    out = bytearray(b"\x00\x01\x00\x00")
+    end = ev.get("end_ns")
+    out += int(ev["t_ns"]).to_bytes(8, "little", signed=True)
+    out += int(-1 if end is None else end).to_bytes(8, "little", signed=True)
+    for k in ("type", "side", "placement", "label"):
+        _cdr_string(out, "" if ev.get(k) is None else str(ev[k]))
+    _cdr_string(out, json.dumps(ev, sort_keys=True))
+    return bytes(out)
+
+
+def decode_annotation(raw: bytes) -> dict:
+    """The annotation dict of one ``stridelab_msgs/msg/Annotation`` (from its ``json`` field, checked
+    against the typed fields); raises ValueError when the message is malformed."""
+    import json
+    if len(raw) < 20 or raw[:2] != b"\x00\x01":
+        raise ValueError("not a little-endian CDR message")
+    t_ns = int.from_bytes(raw[4:12], "little", signed=True)
+    p = 20
+    texts = []
+    for _ in range(5):
+        p += -(p - 4) % 4
+        n = int.from_bytes(raw[p:p + 4], "little")
+        if n < 1 or p + 4 + n > len(raw) or raw[p + 3 + n] != 0:
+            raise ValueError("string runs past the message")
+        texts.append(raw[p + 4:p + 3 + n].decode())
+        p += 4 + n
+    ev = json.loads(texts[4])
+    if not isinstance(ev, dict) or int(ev.get("t_ns", t_ns)) != t_ns or str(ev.get("type", "")) != texts[0]:
+        raise ValueError("json field disagrees with the typed fields")
+    return ev
 
 
 # ---- decoding kernels --------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _u32(buf, p):
     return np.uint32(buf[p]) | (np.uint32(buf[p + 1]) << 8) | (np.uint32(buf[p + 2]) << 16) | (np.uint32(buf[p + 3]) << 24)
 
 
-@njit(cache=True)
-def decode_doubles_kernel(buf, starts, lengths, fields, out_t, out_vals_u8, status):
+@njit(cache=True, nogil=True)
+def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_vals_u8, status):
     """Decode header stamp and selected float64 fields of N messages.
 
     ``buf`` uint8 chunk bytes; ``starts``/``lengths`` payload positions; ``fields`` indices of the
-    doubles to extract; ``out_vals_u8`` is the uint8 view of a float64 (N, len(fields)) array.
-    ``status[i]``: 0 ok, 1 big-endian or unknown encapsulation, 2 message too short.
+    doubles to extract; ``n_doubles`` float64 after the header in the schema; ``out_vals_u8`` is the
+    uint8 view of a float64 (N, len(fields)) array. ``status[i]``: 0 ok, 1 big-endian or unknown
+    encapsulation, 2 message too short, 3 payload size not the schema's (up to 3 bytes of end padding
+    allowed), 4 nanoseconds >= 1e9.
     """
     nf = fields.shape[0]
     for i in range(starts.shape[0]):
@@ -164,9 +217,15 @@ def decode_doubles_kernel(buf, starts, lengths, fields, out_t, out_vals_u8, stat
         slen = np.int64(_u32(buf, p + 12))
         rel = 16 + slen - 4
         body = 4 + (rel + 7) // 8 * 8
-        need = body + 8 * (fields.max() + 1)
+        need = body + 8 * n_doubles
         if need > L:
             status[i] = 2
+            continue
+        if L - need > 3:
+            status[i] = 3
+            continue
+        if nsec >= 1_000_000_000:
+            status[i] = 4
             continue
         for k in range(nf):
             src = p + body + 8 * fields[k]
@@ -175,9 +234,10 @@ def decode_doubles_kernel(buf, starts, lengths, fields, out_t, out_vals_u8, stat
                 out_vals_u8[dst + b] = buf[src + b]
 
 
-@njit(cache=True)
-def decode_range_kernel(buf, starts, lengths, out_t, out_vals_u8, status):
-    """Decode sensor_msgs/Range: stamp and the four float32 (fov, min, max, range)."""
+@njit(cache=True, nogil=True)
+def decode_range_kernel(buf, starts, lengths, n_floats, out_t, out_vals_u8, status):
+    """Decode sensor_msgs/Range: stamp and the first four float32 (fov, min, max, range) of
+    ``n_floats`` (5 with Jazzy's ``variance``, 4 before); status codes as decode_doubles_kernel."""
     for i in range(starts.shape[0]):
         p = starts[i]
         L = lengths[i]
@@ -185,33 +245,41 @@ def decode_range_kernel(buf, starts, lengths, out_t, out_vals_u8, status):
             status[i] = 1 if L >= 16 else 2
             continue
         sec = np.int64(np.int32(_u32(buf, p + 4)))
-        out_t[i] = sec * 1_000_000_000 + np.int64(_u32(buf, p + 8))
+        nsec = np.int64(_u32(buf, p + 8))
+        out_t[i] = sec * 1_000_000_000 + nsec
         slen = np.int64(_u32(buf, p + 12))
         pos = 16 + slen + 1
         rel = pos - 4
         start = 4 + (rel + 3) // 4 * 4
-        if start + 16 > L:
+        if start + 4 * n_floats > L:
             status[i] = 2
+            continue
+        if L - (start + 4 * n_floats) > 3:
+            status[i] = 3
+            continue
+        if nsec >= 1_000_000_000:
+            status[i] = 4
             continue
         for b in range(16):
             out_vals_u8[i * 16 + b] = buf[p + start + b]
 
 
-def decode_doubles(buf: np.ndarray, starts, lengths, fields: np.ndarray):
+def decode_doubles(buf: np.ndarray, starts, lengths, fields: np.ndarray, n_doubles: int):
     """Vectorised decode; returns (t_ns int64 (N,), values float64 (N, len(fields)), status uint8 (N,))."""
     n = len(starts)
     t = np.zeros(n, dtype=np.int64)
     vals = np.zeros((n, len(fields)), dtype=np.float64)
     status = np.zeros(n, dtype=np.uint8)
-    decode_doubles_kernel(buf, starts, lengths, fields.astype(np.int64), t, vals.reshape(-1).view(np.uint8), status)
+    decode_doubles_kernel(buf, starts, lengths, fields.astype(np.int64), n_doubles, t,
+                          vals.reshape(-1).view(np.uint8), status)
     return t, vals, status
 
 
-def decode_range(buf: np.ndarray, starts, lengths):
+def decode_range(buf: np.ndarray, starts, lengths, variance: bool = True):
     """Vectorised decode of sensor_msgs/Range; values columns fov, min, max, range (float32 -> float64)."""
     n = len(starts)
     t = np.zeros(n, dtype=np.int64)
     vals = np.zeros((n, 4), dtype=np.float32)
     status = np.zeros(n, dtype=np.uint8)
-    decode_range_kernel(buf, starts, lengths, t, vals.reshape(-1).view(np.uint8), status)
+    decode_range_kernel(buf, starts, lengths, 5 if variance else 4, t, vals.reshape(-1).view(np.uint8), status)
     return t, vals.astype(np.float64), status

@@ -1,0 +1,151 @@
+"""rosbag2 bag directories (``metadata.yaml`` + one or more ``.mcap`` or ``.db3`` files) as one recording.
+
+MCAP storage is read file by file with the vectorised reader of :mod:`pipeline.formats.mcap_read`;
+sqlite3 storage (``.db3``) and file-compressed bags go through ``rosbags`` (a maintained pure-Python
+rosbag2 reader), whose raw CDR messages are decoded in batches by the same vectorised decoders.
+The content hash of a bag is the SHA-256 of its data files' SHA-256 (in the order metadata.yaml lists
+them), so a bag copied elsewhere is still the same recording.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path, PurePath
+from typing import Iterator
+
+import numpy as np
+import yaml
+
+from pipeline.formats.mcap_read import (Block, McapFormatError, ReadResult, TopicInfo, _decode, _normalise_schema,
+                                        SCHEMA_KINDS, iter_blocks)
+
+BATCH = 1 << 16           # messages per channel decoded at once from a .db3 bag
+
+
+@dataclass
+class BagInfo:
+    path: Path
+    storage: str                       # mcap | sqlite3
+    files: list[Path]
+    compression_mode: str
+    custom_data: dict[str, str] = field(default_factory=dict)
+
+
+def is_bag(path: Path) -> bool:
+    return path.is_dir() and (path / "metadata.yaml").is_file()
+
+
+def bag_info(path: Path) -> BagInfo:
+    """Parse ``metadata.yaml`` (raises McapFormatError with a one-line reason)."""
+    meta = path / "metadata.yaml"
+    if not meta.is_file():
+        raise McapFormatError("a directory without metadata.yaml is not a rosbag2 bag; ingest the .mcap files "
+                              "themselves or copy the whole bag directory")
+    try:
+        doc = yaml.safe_load(meta.read_text(encoding="utf-8"))
+        info = doc["rosbag2_bagfile_information"]
+        files = [path / PurePath(x).name for x in info["relative_file_paths"]]
+        storage = str(info["storage_identifier"])
+    except (yaml.YAMLError, UnicodeDecodeError, KeyError, TypeError) as e:
+        raise McapFormatError(f"metadata.yaml is not rosbag2 bag metadata ({type(e).__name__}); "
+                              f"recreate it with `ros2 bag reindex`") from None
+    missing = [f.name for f in files if not f.is_file()]
+    if missing:
+        raise McapFormatError(f"the bag lists {missing[0]} but it is missing; copy the whole bag directory")
+    if not files:
+        raise McapFormatError("the bag's metadata.yaml lists no storage files; recreate it with `ros2 bag reindex`")
+    if storage not in ("mcap", "sqlite3"):
+        raise McapFormatError(f"rosbag2 storage '{storage[:20]}' is not supported; convert the bag to mcap "
+                              f"(`ros2 bag convert`)")
+    custom = info.get("custom_data") or {}
+    return BagInfo(path, storage, files, str(info.get("compression_mode") or "").lower(),
+                   {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else {})
+
+
+def custom_data_of_mcap(metadata: dict[str, dict[str, str]]) -> dict[str, str]:
+    """custom_data of the ``rosbag2`` metadata record that rosbag2 writes into each MCAP file."""
+    text = metadata.get("rosbag2", {}).get("serialized_metadata")
+    if not text:
+        return {}
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise McapFormatError("the 'rosbag2' metadata record is not valid YAML; re-export the bag") from None
+    if isinstance(doc, dict) and "rosbag2_bagfile_information" in doc:
+        doc = doc["rosbag2_bagfile_information"]
+    custom = doc.get("custom_data") if isinstance(doc, dict) else None
+    return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else {}
+
+
+def iter_bag_blocks(info: BagInfo, result: ReadResult) -> Iterator[Block]:
+    """Blocks of every decodable topic of the bag, file after file; fills ``result``."""
+    if info.storage == "mcap" and info.compression_mode in ("", "none", "message"):
+        shas = []
+        for f in info.files:
+            part = ReadResult()
+            try:
+                yield from iter_blocks(f, part)
+            except McapFormatError as e:
+                raise McapFormatError(f"{f.name}: {e}") from None
+            for name, md in part.metadata.items():
+                if name in result.metadata and name != "rosbag2" and result.metadata[name] != md:
+                    raise McapFormatError(f"the split files disagree on the '{name[:40]}' metadata record; "
+                                          f"re-export the bag")
+                result.metadata.setdefault(name, md)
+            for t in part.topics.values():
+                if t.topic not in {x.topic for x in result.topics.values()}:
+                    result.topics[len(result.topics) + 1] = t
+            result.n_bytes += part.n_bytes
+            shas.append(part.sha256)
+        result.ignored_topics = sorted({t.topic for t in result.topics.values() if t.kind is None})
+        result.sha256 = hashlib.sha256("\n".join(shas).encode()).hexdigest()
+        return
+    yield from _rosbags_blocks(info, result)
+
+
+def _rosbags_blocks(info: BagInfo, result: ReadResult) -> Iterator[Block]:
+    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2.errors import ReaderError
+    shas = []
+    for f in info.files:
+        h = hashlib.sha256()
+        with open(f, "rb") as fh:
+            for b in iter(lambda: fh.read(1 << 22), b""):
+                h.update(b)
+        shas.append(h.hexdigest())
+        result.n_bytes += f.stat().st_size
+    try:
+        with Reader(info.path) as reader:
+            infos: dict[int, TopicInfo] = {}
+            for c in reader.connections:
+                name = _normalise_schema(c.msgtype)
+                kind = SCHEMA_KINDS.get(name)
+                if kind == "events" and c.topic != "/reference/events":
+                    kind = None
+                variance = bool(kind == "range" and "float32 variance" in str(c.msgdef.data).split("=" * 80)[0])
+                infos[c.id] = TopicInfo(c.topic, name, "cdr", kind, variance)
+            result.topics = dict(infos)
+            wanted = [c for c in reader.connections if infos[c.id].kind is not None]
+            batches: dict[int, list] = {}
+            for conn, stamp, raw in (reader.messages(connections=wanted) if wanted else ()):
+                b = batches.setdefault(conn.id, [])
+                b.append((stamp, bytes(raw)))
+                if len(b) >= BATCH:
+                    yield _decode_batch(infos[conn.id], b)
+                    batches[conn.id] = []
+            for cid, b in batches.items():
+                if b:
+                    yield _decode_batch(infos[cid], b)
+    except ReaderError as e:
+        raise McapFormatError(f"rosbag2 bag cannot be read ({str(e).splitlines()[0][:120]}); "
+                              f"check it with `ros2 bag info`") from None
+    result.ignored_topics = sorted(t.topic for t in result.topics.values() if t.kind is None)
+    result.sha256 = hashlib.sha256("\n".join(shas).encode()).hexdigest()
+
+
+def _decode_batch(ti: TopicInfo, batch: list[tuple[int, bytes]]) -> Block:
+    lengths = np.array([len(r) for _, r in batch], dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    buf = np.frombuffer(b"".join(r for _, r in batch), dtype=np.uint8)
+    log = np.array([s for s, _ in batch], dtype=np.int64)
+    return _decode(ti, buf, starts, lengths, log)
