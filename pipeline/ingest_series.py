@@ -221,7 +221,7 @@ class TopicSeries:
         step = np.where(np.isfinite(room), np.minimum(self.period_ns, room), self.period_ns)
         batch = np.repeat(np.arange(len(starts)), sizes)
         k = np.arange(len(t)) - starts[batch]
-        return (t[starts][batch] + np.round(k * step[batch])).astype(np.int64)
+        return t[starts][batch] + np.round(k * step[batch]).astype(np.int64)   # int64 + int64: no float rounding
 
     def _stats(self, t: np.ndarray) -> None:
         full = t if self.last_t is None else np.concatenate([[self.last_t], t])

@@ -57,10 +57,22 @@ def common_grid(t_by_placement: dict[str, np.ndarray]) -> np.ndarray:
     return np.asarray(grid if grid is not None else [], np.int64)
 
 
+#: when the stamps shared by every sensor are fewer than this share of the shortest sensor's, the
+#: sensors run on independent clocks and are resampled onto one grid (see :func:`read_recording`)
+EXACT_GRID_SHARE = 0.9
+
+
 def read_recording(inp: SessionInput, rec: dict, orientation_rows: list[dict], placements) -> dict:
     """acc, gyr, quat (placement -> (N, ·) on the common grid), t_ns and sampling_rate_hz of one recording.
 
     Placements without an IMU are left out; ``quat`` only holds placements with orientation rows.
+    Sensors sharing one clock meet on the stamps they all have (no interpolation). Sensors on
+    independent clocks (offsets up to seconds, jitter, slightly different rates: the shared stamps are
+    fewer than :data:`EXACT_GRID_SHARE` of the shortest sensor's) are aligned through the host clock:
+    each sensor's ``log_time - header.stamp`` is fitted by a straight line (offset and rate), which maps
+    every stamp into the clock of the first placement, and the others are interpolated (linearly; the
+    orientation by normalised linear interpolation) onto that sensor's stamps where all overlap.
+    ``resampled`` tells which case applied; the grid is empty when the sensors do not overlap.
     """
     series, quat_t = {}, {}
     ori = {r["placement"]: r for r in orientation_rows if r["content_hash"] == rec["content_hash"]}
@@ -76,15 +88,70 @@ def read_recording(inp: SessionInput, rec: dict, orientation_rows: list[dict], p
             quat_t[p] = (t.column("t_ns").to_numpy(),
                          np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")]))
     grid = common_grid({p: s.t_ns for p, s in series.items()})
+    shortest = min((len(s.t_ns) for s in series.values()), default=0)
+    if len(series) > 1 and len(grid) < EXACT_GRID_SHARE * shortest:
+        return _resampled(inp, rec, series, quat_t, rate)
 
     def on_grid(t, x):
         return x[np.searchsorted(t, grid)]
 
-    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}}
+    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}, "resampled": False}
     for p, s in series.items():
         out["acc"][p], out["gyr"][p] = on_grid(s.t_ns, s.acc), on_grid(s.t_ns, s.gyr)
         if p in quat_t and np.isin(grid, quat_t[p][0]).all():
             out["quat"][p] = on_grid(*quat_t[p])
+    return out
+
+
+def _clock_fit(t: np.ndarray, log: np.ndarray) -> tuple[float, float, float]:
+    """(t0, offset at t0, rate) of the straight line log - t = offset + rate * (t - t0), in ns and ns/ns."""
+    k = max(1, len(t) // 20000)
+    tt, off = t[::k].astype(np.float64), (log[::k] - t[::k]).astype(np.float64)
+    t0 = float(tt[0])
+    if len(tt) < 3 or np.ptp(tt) == 0:
+        return t0, float(np.median(off)), 0.0
+    b, a = np.polyfit(tt - t0, off, 1)
+    return t0, float(a), float(b)
+
+
+def _nlerp(t_src: np.ndarray, q: np.ndarray, t_dst: np.ndarray) -> np.ndarray:
+    q = q.copy()
+    flip = np.cumsum(np.r_[False, (q[1:] * q[:-1]).sum(axis=1) < 0]) % 2 == 1
+    q[flip] *= -1                                   # sign continuity before interpolating
+    out = np.column_stack([np.interp(t_dst, t_src, q[:, k]) for k in range(4)])
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def _resampled(inp: SessionInput, rec: dict, series: dict, quat_t: dict, rate: float) -> dict:
+    """The independent-clock case of :func:`read_recording`."""
+    fits = {}
+    for p in series:
+        tab = read_table(inp.root, rec["sensors"][p]["imu"]["series_path"], columns=["t_ns", "log_ns"])
+        fits[p] = _clock_fit(tab.column("t_ns").to_numpy(), tab.column("log_ns").to_numpy())
+    ref = next(iter(series))
+    r0, ra, rb = fits[ref]
+
+    def to_ref(p, t):
+        t0, a, b = fits[p]
+        host = t.astype(np.float64) + a + b * (t.astype(np.float64) - t0)
+        return (host - ra + rb * r0) / (1.0 + rb)     # solve host = t_r + ra + rb (t_r - r0)
+
+    mapped = {p: to_ref(p, s.t_ns) for p, s in series.items()}
+    lo = max(m[0] for m in mapped.values())
+    hi = min(m[-1] for m in mapped.values())
+    t_ref = series[ref].t_ns
+    keep = (t_ref >= lo) & (t_ref <= hi)
+    grid = t_ref[keep]
+    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}, "resampled": True}
+    g = grid.astype(np.float64)
+    for p, s in series.items():
+        if p == ref:
+            out["acc"][p], out["gyr"][p] = s.acc[keep], s.gyr[keep]
+        else:
+            out["acc"][p] = np.column_stack([np.interp(g, mapped[p], s.acc[:, k]) for k in range(3)])
+            out["gyr"][p] = np.column_stack([np.interp(g, mapped[p], s.gyr[:, k]) for k in range(3)])
+        if p in quat_t and len(quat_t[p][0]) >= 2 and len(grid):
+            out["quat"][p] = _nlerp(to_ref(p, quat_t[p][0]), quat_t[p][1], g)
     return out
 
 
@@ -141,10 +208,12 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                            note="calibration trial missing")
     data = read_recording(inp, rec, inp.upstream.get("orientation", []), DEFAULT_PLACEMENTS)
     fs = data["sampling_rate_hz"]
-    if fs is None:
-        cal = missing_calibration(DEFAULT_PLACEMENTS, reason="calibration trial has no lower-limb IMU", params=cp)
+    if fs is None or len(data["t_ns"]) < 2:
+        why = ("calibration trial has no lower-limb IMU" if fs is None else
+               "the IMUs of the calibration trial do not overlap in time")
+        cal = missing_calibration(DEFAULT_PLACEMENTS, reason=why, params=cp)
         return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, None, params)},
-                           note="calibration trial has no lower-limb IMU")
+                           note=why)
     cal = calibrate_session(data["acc"], data["gyr"], sampling_rate_hz=fs,
                             windows=manual_windows(params, sid, fs), params=cp,
                             quats=data["quat"] or None, placements=DEFAULT_PLACEMENTS)

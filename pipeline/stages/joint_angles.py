@@ -108,6 +108,11 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
         if fs is None or not data["quat"]:
             notes.append(f"{rec['trial']}: no lower-limb orientation")
             continue
+        if len(t) < 2:
+            notes.append(f"{rec['trial']}: the IMUs do not overlap in time")
+            continue
+        if data.get("resampled"):
+            notes.append(f"{rec['trial']}: IMUs on independent clocks, resampled onto one grid")
         standing = None
         if params["offset_removal"]:
             standing = first_quiet_standing(data["acc"], data["gyr"], sampling_rate_hz=fs, params=cal.params)
