@@ -14,9 +14,10 @@ with T = −0.2, N_ref = N_w = round(0.15 f_s) (15 at 100 Hz), strict TC → IC 
 
 Extension when a stance mask is given (batch ``foot_kinematics`` passes its zero-velocity samples; not in the
 thesis, off without a mask):
-    (R4) a foot lifted *flat* (turning, side or shuffling step) has no push-off, so s never passes below T and
-    (R2) finds no TC; strict alternation then also blocks the next heel strike. If, while flag = 0, the foot has
-    stood still for ≥ N_ref samples in a stance run that began after the last IC and then left it (sample e,
+    (R4) a foot lifted *flat* (turning, side or shuffling step, the first step out of quiet standing) has no
+    push-off, so s never passes below T and (R2) finds no TC; strict alternation then also blocks the next heel
+    strike. If, while flag = 0, the foot has stood still for ≥ N_ref samples in a stance run that began after the
+    last IC (or anywhere before the first IC) and then left it (sample e,
     first moving sample), a local maximum at j = k − 1 (R1, reversed) with s_k > T and
     s_j > s_e + M_ic (M_ic = 0.05 ≈ 3° toes up above the pitch held at the lift: a few times the stance pitch noise,
     σ ≈ 0.01, so that the normal heel-off → push-off fall of s can never satisfy it) is a heel strike: TC at e
@@ -107,7 +108,7 @@ def _step(state, fstate, buf, s, stance, thr, n_ref, n_w, need, margin):
             state[_RSTART] = k
         state[_RUN] += 1
     elif stance == 0:
-        if state[_RUN] >= n_ref and state[_LIC] >= 0 and state[_RSTART] > state[_LIC] - 1 and state[_FLAG] == 0:
+        if state[_RUN] >= n_ref and state[_RSTART] > state[_LIC] - 1 and state[_FLAG] == 0:
             state[_EXIT] = k
             fstate[0] = s
         state[_RUN] = 0

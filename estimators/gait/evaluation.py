@@ -118,30 +118,39 @@ class EventAccuracy:
     pairs_s: np.ndarray
 
 
-def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERANCE_S) -> EventAccuracy:
+def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERANCE_S,
+                   spans_s=None) -> EventAccuracy:
     """Match detected to reference events per trial (:func:`match_events` on a 1 µs grid) and pool the counts.
 
     ``detected_s`` / ``reference_s``: sequences (one entry per trial) of 1-D arrays of event times in seconds
-    (any common origin per trial). Detections more than ``tolerance_s`` outside the span the reference annotates
-    in that trial ([first − tol, last + tol]) are not counted (the reference says nothing there); a trial
+    (any common origin per trial). ``spans_s``: optional (start, end) per trial, the part the reference annotates
+    (e.g. Voisard's ``TrialBoundaries``); None = [first − tol, last + tol] of the trial's reference events.
+    Only reference events inside the span count; detections within ``tolerance_s`` of the span may match them,
+    and unmatched detections outside the span are not counted (the reference says nothing there). A trial
     without reference events contributes nothing.
     """
     if tolerance_s < 0:
         raise ValueError(f"tolerance_s must be >= 0, got {tolerance_s}")
-    if len(detected_s) != len(reference_s):
-        raise ValueError("detected_s and reference_s need one entry per trial")
+    if len(detected_s) != len(reference_s) or (spans_s is not None and len(spans_s) != len(reference_s)):
+        raise ValueError("detected_s, reference_s (and spans_s) need one entry per trial")
     tp = fp = fn = 0
     pairs = []
     us = 1e6
-    for det, ref in zip(detected_s, reference_s):
+    for i, (det, ref) in enumerate(zip(detected_s, reference_s)):
         det = np.asarray(det, float).ravel()
         ref = np.asarray(ref, float).ravel()
+        if spans_s is not None:
+            lo, hi = float(spans_s[i][0]), float(spans_s[i][1])
+            ref = ref[(ref >= lo) & (ref <= hi)]
         if not len(ref):
             continue
-        det = det[(det >= ref.min() - tolerance_s) & (det <= ref.max() + tolerance_s)]
+        if spans_s is None:
+            lo, hi = ref.min() - tolerance_s, ref.max() + tolerance_s
+        det = det[(det >= lo - tolerance_s) & (det <= hi + tolerance_s)]
         m = match_events(np.rint(det * us).astype(np.int64), np.rint(ref * us).astype(np.int64),
                          tolerance_samples=int(round(tolerance_s * us)))
-        tp, fp, fn = tp + m.tp, fp + len(m.fp), fn + len(m.fn)
+        n_fp = int(np.sum((m.fp / us >= lo) & (m.fp / us <= hi)))
+        tp, fp, fn = tp + m.tp, fp + n_fp, fn + len(m.fn)
         pairs.append(m.pairs / us)
     p = np.vstack(pairs) if pairs else np.zeros((0, 2))
     err_ms = (p[:, 0] - p[:, 1]) * 1000.0

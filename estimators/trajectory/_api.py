@@ -8,24 +8,47 @@ import numpy as np
 from numba import njit
 
 from estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
+from estimators.trajectory._saturation import repair_gyro_saturation
 
-__all__ = ["ZuptParams", "detect_zupt", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+__all__ = ["ZuptParams", "detect_zupt", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
 
 @dataclass(frozen=True)
 class ZuptParams:
-    """Zero-velocity (stance) detector, windowed like Duong & Suh eq. (21–22) (spec B6.3).
+    """Zero-velocity (stance) detector (spec B6.3 windowed tests, made adaptive for issue 15, Z1–Z4 below).
 
-    gyr_threshold_rad_s: a sample is still when every ``|ω|`` in the centred window is ≤ this (0.6 rad/s ≈ 34 °/s,
-        the foot-IMU literature default, e.g. gaitmap's norm ZUPT detector; spec B10 D3 range 0.3–0.6).
-    acc_tolerance_m_s2: and every ``| |f| − g |`` in the window is ≤ this (loose: rejects impacts, not tilt).
-    window_s: centred window length (0.05 s; N_g ≈ 5 samples at 100 Hz, spec D3 says 6–10).
-    min_stance_s: runs of still samples shorter than this are dropped (no single-sample ZUPTs).
+    Motion statistic per sample (gyro and specific-force deviation on one scale, rad/s), a window maximum:
+        m_k = max over the centred window of  max(|ω_j|, | |f_j| − g_s | / κ),  κ = acc_tolerance / θ_lo   (Z1)
+        g_s = the sensor's own gravity reading: median |f| over the samples still by (Z1) with g = 9.81 and
+        the fixed threshold (a miscalibrated accelerometer reads 10.3 m/s² at rest, Voisard left MTw)     (Z2)
+    Adaptive threshold: with n_k = min and M_k = max of m over ±``adapt_window_s`` around k (the quietest and
+    the fastest moment of the surrounding stride),
+        θ_k = clip(β · n_k, θ_lo, θ_hi)  if M_k ≥ ρ · n_k  else θ_lo,    stance_k = m_k ≤ θ_k             (Z3)
+    so walking (n ≈ 0.02–0.1 rad/s) keeps θ ≈ θ_lo while running and stairs, whose foot never gets as still
+    (n ≈ 0.3–1 rad/s), get a proportionally higher threshold; θ_hi keeps swing from ever being stance, and the
+    contrast test (ρ = 10: a gait cycle's swing peak is an order of magnitude above its stance minimum; a
+    priori) keeps motion without a gait cycle (random shaking) from raising it. θ_lo also adapts to the sensor
+    noise: θ_lo = clip(4 σ_w, θ, 2θ) with θ = gyr_threshold_rad_s and σ_w the gyro-norm std in the quietest
+    ``adapt_window_s`` of the recording (at most doubled: a recording that is never quiet is not "noise").  (Z4)
+    ``adaptive=False`` gives the fixed detector (θ_k = θ_lo = gyr_threshold_rad_s, g = 9.81 unless given).
+
+    gyr_threshold_rad_s: θ_lo (0.3 rad/s; before issue 15 0.6, the foot-IMU literature default).
+    acc_tolerance_m_s2: κ·θ_lo (1.25 m/s²: κ = 2.5/0.6, the ratio of the pre-issue-15 defaults).
+    θ_lo = 0.3, θ_hi = 3.0, β = 3: chosen by leave-one-trial-out on the 28 PyShoe Vicon trials
+        (``stridelab bench trajectory --pyshoe``; docs/gait.md "Parameters and how they were chosen").
+    window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped.
+    adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window.
+    adapt_contrast: ρ.
     """
-    gyr_threshold_rad_s: float = 0.6
-    acc_tolerance_m_s2: float = 2.5
+    gyr_threshold_rad_s: float = 0.3
+    acc_tolerance_m_s2: float = 1.25
     window_s: float = 0.05
     min_stance_s: float = 0.05
+    adaptive: bool = True
+    adapt_ratio: float = 3.0
+    adapt_max_rad_s: float = 3.0
+    adapt_window_s: float = 1.0
+    adapt_contrast: float = 10.0
 
 
 @njit(cache=True)
@@ -60,16 +83,78 @@ def _drop_short(mask, min_len):
             i += 1
 
 
-def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
-                params: ZuptParams = ZuptParams()) -> np.ndarray:
-    """(N,) bool: samples where the foot is at rest (stance), by windowed thresholds (spec B6.3, eq. 21–22)."""
+@njit(cache=True)
+def _window_min(x, half):
+    n = x.shape[0]
+    out = np.empty(n)
+    # van Herk / Gil-Werman would be O(N); blocks of 2·half+1 with prefix/suffix minima
+    w = 2 * half + 1
+    pre = np.empty(n)
+    suf = np.empty(n)
+    for i in range(n):
+        pre[i] = x[i] if i % w == 0 else min(pre[i - 1], x[i])
+    for i in range(n - 1, -1, -1):
+        suf[i] = x[i] if (i % w == w - 1 or i == n - 1) else min(suf[i + 1], x[i])
+    for i in range(n):
+        lo = max(0, i - half)
+        hi = min(n - 1, i + half)
+        out[i] = min(suf[lo], pre[hi])
+    return out
+
+
+def _motion_statistic(gyr, acc, g, params: ZuptParams, fs: float) -> np.ndarray:
+    """(Z1) m_k in rad/s (non-finite samples count as moving)."""
+    kappa = params.acc_tolerance_m_s2 / params.gyr_threshold_rad_s
     w = np.linalg.norm(gyr, axis=1)
-    a = np.abs(np.linalg.norm(acc, axis=1) - GRAVITY)
-    w = np.where(np.isfinite(w), w, np.inf)
-    a = np.where(np.isfinite(a), a, np.inf)
-    half = max(0, int(round(params.window_s * sampling_rate_hz / 2)))
-    mask = (_window_max(w, half) <= params.gyr_threshold_rad_s) & (_window_max(a, half) <= params.acc_tolerance_m_s2)
-    _drop_short(mask, max(1, int(round(params.min_stance_s * sampling_rate_hz))))
+    a = np.abs(np.linalg.norm(acc, axis=1) - g) / kappa
+    m = np.maximum(w, a)
+    m = np.where(np.isfinite(m), m, np.inf)
+    half = max(0, int(round(params.window_s * fs / 2)))
+    return _window_max(m, half)
+
+
+def sensor_gravity(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
+                   params: "ZuptParams | None" = None) -> float:
+    """(Z2) the accelerometer's own reading of gravity (m/s²): median |f| over the still samples by the fixed
+    detector; 9.81 when fewer than 0.2 s are still."""
+    p = params or ZuptParams()
+    still = _motion_statistic(gyr, acc, GRAVITY, p, sampling_rate_hz) <= p.gyr_threshold_rad_s
+    if still.sum() < 0.2 * sampling_rate_hz:
+        return GRAVITY
+    return float(np.median(np.linalg.norm(acc[still], axis=1)))
+
+
+def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
+                params: ZuptParams = ZuptParams(), gravity: float | None = None) -> np.ndarray:
+    """(N,) bool: samples where the foot is at rest (stance), (Z1)–(Z4) in :class:`ZuptParams`.
+
+    ``gravity``: the sensor's gravity reading (Z2); None = estimated here (adaptive) or 9.81 (fixed)."""
+    gyr = np.asarray(gyr, float)
+    acc = np.asarray(acc, float)
+    fs = float(sampling_rate_hz)
+    n = gyr.shape[0]
+    if n == 0:
+        return np.zeros(0, bool)
+    if not params.adaptive:
+        mask = _motion_statistic(gyr, acc, GRAVITY if gravity is None else gravity, params, fs) \
+            <= params.gyr_threshold_rad_s
+    else:
+        g = sensor_gravity(gyr, acc, sampling_rate_hz=fs, params=params) if gravity is None else gravity
+        m = _motion_statistic(gyr, acc, g, params, fs)
+        half = max(1, int(round(params.adapt_window_s * fs)))
+        nk = _window_min(m, half)
+        mk = _window_max(m, half)
+        w = np.linalg.norm(gyr, axis=1)
+        wq = _window_max(np.where(np.isfinite(w), w, np.inf), half // 2)
+        k = int(np.argmin(wq))                                # quietest window of the recording (Z4)
+        seg = w[max(0, k - half // 2):k + half // 2 + 1]
+        sd = float(np.std(seg[np.isfinite(seg)])) if np.isfinite(seg).sum() > 2 else 0.0
+        lo = params.gyr_threshold_rad_s * min(max(1.0, 4.0 * sd / params.gyr_threshold_rad_s), 2.0)
+        thr = np.where(mk >= params.adapt_contrast * nk,
+                       np.clip(params.adapt_ratio * nk, lo, max(lo, params.adapt_max_rad_s)), lo)
+        mask = m <= thr
+    mask = np.ascontiguousarray(mask, dtype=np.bool_)
+    _drop_short(mask, max(1, int(round(params.min_stance_s * fs))))
     return mask
 
 
@@ -95,6 +180,14 @@ class EskfParams:
     acc_bias_rw, gyr_bias_rw: bias random-walk densities (m/s²/√s, rad/s/√s) when ``estimate_biases``.
     init_att_std_rad, init_acc_bias_m_s2, init_gyr_bias_rad_s: initial standard deviations.
     smooth: run the RTS backward pass (False: forward filter only, the causal variant).
+    repair_saturation: rebuild clipped gyro peaks and raise σ_g there (``_saturation`` S1–S4).
+    normalise_gravity: scale the accelerometer by 9.81 / g_s (g_s = its own reading at rest, ZuptParams Z2)
+        against a scale-factor error. Off by default: leave-one-trial-out on PyShoe (g_s 9.79–9.83) cannot tell
+        the two apart and the simpler option is kept; on the gaitmap walk (g_s 9.85/9.81) it shortens strides.
+        The ZUPT detector always uses g_s (Z2).
+    initial_gyro_bias: subtract the mean gyro of the first stance run (≤ 1 s) as a constant bias. Off: on the
+        PyShoe trials it put a constant yaw drift of up to 0.6 °/s into slow trials (foot not perfectly still
+        in its first stance); chosen off by leave-one-trial-out (docs/gait.md).
     zupt: the stance detector parameters.
     """
     acc_noise_m_s2: float = 0.5
@@ -112,6 +205,9 @@ class EskfParams:
     init_acc_bias_m_s2: float = 0.1
     init_gyr_bias_rad_s: float = 0.01
     smooth: bool = True
+    repair_saturation: bool = True
+    normalise_gravity: bool = False
+    initial_gyro_bias: bool = False
     zupt: ZuptParams = ZuptParams()
 
 
@@ -133,6 +229,8 @@ class TrajectoryResult:
     start_idx: int
     status: str
     params: EskfParams
+    sensor_gravity_m_s2: float = GRAVITY
+    gyro_clipped_axes: tuple = ()
 
 
 def check_foot_imu(gyr, acc, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -175,9 +273,18 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     """
     gyr, acc = check_foot_imu(gyr, acc, sampling_rate_hz)
     n_s = gyr.shape[0]
+    extra_g = np.zeros(n_s)
+    clipped = ()
+    if params.repair_saturation and n_s:
+        gyr, extra_g, cl = repair_gyro_saturation(gyr)
+        clipped = tuple(int(j) for j in np.flatnonzero(cl))
+    g_s = GRAVITY
+    if params.normalise_gravity and n_s:
+        g_s = sensor_gravity(gyr, acc, sampling_rate_hz=sampling_rate_hz, params=params.zupt)
+        acc = acc * (GRAVITY / g_s)
     if zupt is None:
-        zupt = detect_zupt(gyr, acc, sampling_rate_hz=sampling_rate_hz, params=params.zupt) if n_s else \
-            np.zeros(0, bool)
+        zupt = detect_zupt(gyr, acc, sampling_rate_hz=sampling_rate_hz, params=params.zupt, gravity=GRAVITY) \
+            if n_s else np.zeros(0, bool)
     zupt = np.ascontiguousarray(zupt, dtype=np.bool_)
     if zupt.shape != (n_s,):
         raise ValueError(f"zupt must be (N,) bool with N = {n_s}; got {zupt.shape}")
@@ -186,14 +293,15 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         warnings.warn("eskf_trajectory: no stance (zero-velocity) sample detected; no trajectory computed",
                       stacklevel=2)
         return TrajectoryResult(nan3, nan3.copy(), np.full((n_s, 4), np.nan), np.full((n_s, 6), np.nan), zupt, -1,
-                                "no_stance", params)
+                                "no_stance", params, g_s, clipped)
     k0 = int(np.argmax(zupt))
     k1 = k0
     lim = min(n_s, k0 + int(round(1.0 * sampling_rate_hz)))
     while k1 < lim and zupt[k1]:
         k1 += 1
     f0 = acc[k0:k1].mean(axis=0)
-    bg0 = gyr[k0:k1].mean(axis=0) if (k1 - k0) >= max(3, int(0.1 * sampling_rate_hz)) else np.zeros(3)
+    bg0 = gyr[k0:k1].mean(axis=0) if params.initial_gyro_bias and (k1 - k0) >= max(3, int(0.1 * sampling_rate_hz)) \
+        else np.zeros(3)
     q0 = _level_quat(f0)
     T = 1.0 / sampling_rate_hz
     ns = 15 if params.estimate_biases else 9
@@ -218,7 +326,7 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     if half > 0:
         dev = _window_max(dev, half)                                                     # (E4c)
     sig_a = params.acc_noise_m_s2 + params.acc_noise_rel * dev
-    sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1)
+    sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1) + extra_g      # (S4)
     eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
                     pos, vel, quat, bias)
-    return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params)
+    return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params, g_s, clipped)

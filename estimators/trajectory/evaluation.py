@@ -1,9 +1,20 @@
-"""Trajectory accuracy against a reference (STYLE P11): per-axis RMS position error as in Duong & Suh Table 2."""
+"""Trajectory accuracy against a reference (STYLE P11).
+
+- ``rms_error_per_axis``: per-axis RMS position error as in Duong & Suh Table 2 (no alignment).
+- ``armse_2d_aligned``: PyShoe's 2-D alignment (Wagstaff et al. 2017 / PyShoe ``align_plots``) with the
+  Euclidean error (issue 15):
+      both trajectories minus their first sample;  k* = first sample where |p̂_xy(k) − p̂_xy(0)| ≥ 0.8 m (else 300)
+      ψ = atan2 of the reference xy at k* − atan2 of the estimate xy at k*;  p̂_xy ← R_z(ψ) p̂_xy            (M1)
+      ARMSE = mean_k |p̂_xy(k) − p_xy(k)|   over all samples                                                (M2)
+"""
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rms_error_per_axis"]
+__all__ = ["rms_error_per_axis", "armse_2d_aligned", "ALIGN_DISTANCE_M", "ALIGN_FALLBACK_SAMPLE"]
+
+ALIGN_DISTANCE_M = 0.8
+ALIGN_FALLBACK_SAMPLE = 300
 
 
 def rms_error_per_axis(estimate: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -16,3 +27,37 @@ def rms_error_per_axis(estimate: np.ndarray, reference: np.ndarray) -> np.ndarra
         if len(c):
             out[j] = float(np.sqrt(np.mean(c ** 2)))
     return out
+
+
+def armse_2d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_distance_m: float = ALIGN_DISTANCE_M,
+                     fallback_sample: int = ALIGN_FALLBACK_SAMPLE) -> tuple[float, np.ndarray]:
+    """(M1)–(M2): 2-D Euclidean ARMSE (m) and the aligned estimate (N, 2).
+
+    ``estimate``/``reference``: (N, ≥2) positions on the same samples, z up. Leading non-finite estimate rows (a
+    filter that starts at the first stance) take the first finite row (the foot has not moved before it); any other
+    non-finite row is an error. Rows where the reference is not finite are left out of the mean (M2).
+    """
+    p = np.asarray(estimate, float)[:, :2].copy()
+    r = np.asarray(reference, float)[:, :2]
+    if p.shape != r.shape or len(p) < 2:
+        raise ValueError(f"estimate and reference need the same (N >= 2, 2+) shape; got {p.shape} and {r.shape}")
+    ok = np.all(np.isfinite(p), axis=1)
+    if not ok.any():
+        return float("nan"), p
+    k0 = int(np.argmax(ok))
+    p[:k0] = p[k0]
+    if not np.all(np.isfinite(p)):
+        raise ValueError("estimate has non-finite rows after its first finite one")
+    rv = np.all(np.isfinite(r), axis=1)
+    r0 = r[int(np.argmax(rv))]
+    p = p - p[0]
+    rr = r - r0
+    d = np.hypot(p[:, 0], p[:, 1])
+    far = np.flatnonzero(d >= align_distance_m)
+    k = int(far[0]) if len(far) else min(fallback_sample, len(p) - 1)
+    if np.all(np.isfinite(rr[k])) and d[k] > 0 and np.hypot(*rr[k]) > 0:
+        psi = np.arctan2(rr[k, 1], rr[k, 0]) - np.arctan2(p[k, 1], p[k, 0])
+        c, s = np.cos(psi), np.sin(psi)
+        p = p @ np.array([[c, s], [-s, c]])
+    e = np.hypot(*(p[rv] - rr[rv]).T)
+    return float(e.mean()) if len(e) else float("nan"), p

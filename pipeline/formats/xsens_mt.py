@@ -3,7 +3,10 @@
 MT Manager export (as in ``../shared/data/voisard_gait``): line 1 ``Acquisition frequency: <f> Hz``; line 2 a
 tab-separated header containing ``PacketCounter Acc_X Acc_Y Acc_Z Gyr_X Gyr_Y Gyr_Z Mag_X Mag_Y Mag_Z``; then one
 row per packet (acc m/s², gyr rad/s, mag in normalised units). Other columns are ignored. Gaps in the packet
-counter (dropped packets) are reported in ``n_dropped`` and left as recorded.
+counter (dropped packets) are reported in ``n_dropped`` and left as recorded by ``load_xsens_mt_txt``;
+``on_packet_grid`` puts a recording on the gap-free packet grid (linear interpolation over dropped packets,
+``filled`` marks them). The Voisard annotations index that grid (sample = packet − first packet): on 8-6 the
+rows lag the reference heel strikes by exactly the packets dropped before them (12 at sample ~1096).
 
 Voisard ``N-M.json`` (subject N, trial M): ``Subject``, ``Trial``, ``Age``, ``Gender``, ``Height`` (cm),
 ``Weight`` (kg), ``TrialBoundaries`` [start, end] and ``UTurnBoundaries`` [start, end] in samples,
@@ -20,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["XsensRecording", "VoisardAnnotation", "VoisardTrial", "load_xsens_mt_txt", "load_voisard_json",
-           "load_voisard_trial", "load_voisard_dir", "XSENS_COLUMNS"]
+           "load_voisard_trial", "load_voisard_dir", "on_packet_grid", "XSENS_COLUMNS"]
 
 XSENS_COLUMNS = ("PacketCounter", "Acc_X", "Acc_Y", "Acc_Z", "Gyr_X", "Gyr_Y", "Gyr_Z", "Mag_X", "Mag_Y", "Mag_Z")
 _RATE = re.compile(r"frequency\s*:\s*([0-9.]+)\s*Hz", re.IGNORECASE)
@@ -35,6 +38,7 @@ class XsensRecording:
     packet: np.ndarray
     sampling_rate_hz: float
     n_dropped: int
+    filled: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,23 @@ def load_xsens_mt_txt(path: Path | str) -> XsensRecording:
                           sampling_rate_hz=fs, n_dropped=n_dropped)
 
 
+def on_packet_grid(rec: XsensRecording) -> XsensRecording:
+    """The recording on the gap-free packet grid (one row per packet from the first to the last; the 16-bit
+    counter is unwrapped). Dropped packets are linearly interpolated and marked in ``filled`` (N,) bool;
+    ``n_dropped`` is kept. A recording without gaps is returned with ``filled`` all False."""
+    step = np.diff(rec.packet) % 65536
+    if np.any(step == 0):
+        raise ValueError("packet counter repeats a value; cannot place the rows on the packet grid")
+    k = np.concatenate([[0], np.cumsum(step)]).astype(np.int64)          # unwrapped packet index from the first
+    grid = np.arange(k[-1] + 1)
+    filled = np.ones(len(grid), bool)
+    filled[k] = False
+    interp = lambda x: np.column_stack([np.interp(grid, k, x[:, i]) for i in range(x.shape[1])])  # noqa: E731
+    return XsensRecording(acc=interp(rec.acc), gyr=interp(rec.gyr), mag=interp(rec.mag),
+                          packet=(rec.packet[0] + grid) % 65536, sampling_rate_hz=rec.sampling_rate_hz,
+                          n_dropped=rec.n_dropped, filled=filled)
+
+
 def _events(v, path, key) -> np.ndarray:
     a = np.asarray(v, dtype=float).reshape(-1, 2) if len(v) else np.empty((0, 2))
     if a.size and (not np.all(np.isfinite(a)) or np.any(a[:, 1] < a[:, 0])):
@@ -136,16 +157,19 @@ def load_voisard_json(path: Path | str) -> VoisardAnnotation:
                              uturn_boundaries=ub, left_events=left, right_events=right)
 
 
-def load_voisard_trial(directory: Path | str, name: str) -> VoisardTrial:
-    """Trial ``name`` ("N-M") of a Voisard folder: ``N-M.json``, ``N-M_lf.txt``, ``N-M_rf.txt`` (``_lb`` optional)."""
+def load_voisard_trial(directory: Path | str, name: str, *, packet_grid: bool = True) -> VoisardTrial:
+    """Trial ``name`` ("N-M") of a Voisard folder: ``N-M.json``, ``N-M_lf.txt``, ``N-M_rf.txt`` (``_lb`` optional).
+    ``packet_grid``: recordings on the gap-free packet grid the annotations index (``on_packet_grid``)."""
     d = Path(directory)
     need = [d / f"{name}.json", d / f"{name}_lf.txt", d / f"{name}_rf.txt"]
     missing = [p.name for p in need if not p.is_file()]
     if missing:
         raise ValueError(f"{d}: trial {name} lacks {', '.join(missing)}")
     lb = d / f"{name}_lb.txt"
-    return VoisardTrial(name=name, annotation=load_voisard_json(need[0]), left=load_xsens_mt_txt(need[1]),
-                        right=load_xsens_mt_txt(need[2]), lower_back=load_xsens_mt_txt(lb) if lb.is_file() else None)
+    conv = on_packet_grid if packet_grid else (lambda r: r)
+    read = lambda p: conv(load_xsens_mt_txt(p))  # noqa: E731
+    return VoisardTrial(name=name, annotation=load_voisard_json(need[0]), left=read(need[1]), right=read(need[2]),
+                        lower_back=read(lb) if lb.is_file() else None)
 
 
 def _trial_key(p: Path):
@@ -153,10 +177,10 @@ def _trial_key(p: Path):
     return (int(s), int(t)) if s.isdigit() and t.isdigit() else (10 ** 9, 0)
 
 
-def load_voisard_dir(directory: Path | str) -> list[VoisardTrial]:
+def load_voisard_dir(directory: Path | str, *, packet_grid: bool = True) -> list[VoisardTrial]:
     """All trials of a folder (every ``N-M.json``) in subject, trial order; ``ValueError`` if there is none."""
     d = Path(directory)
     js = sorted((p for p in d.glob("*-*.json") if re.fullmatch(r"\d+-\d+", p.stem)), key=_trial_key)
     if not js:
         raise ValueError(f"{d}: no N-M.json files; expected the Voisard et al. gait data (see ../shared/data)")
-    return [load_voisard_trial(d, p.stem) for p in js]
+    return [load_voisard_trial(d, p.stem, packet_grid=packet_grid) for p in js]

@@ -65,6 +65,19 @@ def test_xsens_columns_by_name_rate_and_dropped_packets(tmp_path):
     np.testing.assert_allclose(r.mag[0], [0.5, 0.0, -0.8])
 
 
+def test_on_packet_grid_fills_dropped_packets_and_unwraps(tmp_path):
+    from pipeline.formats.xsens_mt import on_packet_grid
+    _write_xsens(tmp_path / "x.txt", drop=(10, 11, 30))
+    g = on_packet_grid(load_xsens_mt_txt(tmp_path / "x.txt"))
+    assert g.acc.shape == (50, 3) and g.filled.sum() == 3 and list(np.flatnonzero(g.filled)) == [10, 11, 30]
+    np.testing.assert_allclose(g.gyr[:, 0], 0.01 * np.arange(50))          # linear signal rebuilt exactly
+    np.testing.assert_array_equal(g.packet, np.arange(50))
+    r = load_xsens_mt_txt(tmp_path / "x.txt")
+    from dataclasses import replace
+    wrapped = replace(r, packet=(r.packet + 65530) % 65536)                 # the 16-bit counter wraps at 6
+    assert on_packet_grid(wrapped).acc.shape == (50, 3)
+
+
 def test_xsens_bad_files_name_the_file(tmp_path):
     p = tmp_path / "norate.txt"
     _write_xsens(p)
@@ -119,8 +132,11 @@ def test_public_pyshoe_trials():
 def test_public_voisard_trial():
     d = shared_data("voisard_gait")
     from pipeline.formats.xsens_mt import load_voisard_trial
+    raw = load_voisard_trial(d, "1-1", packet_grid=False)
+    assert raw.left.acc.shape[0] == raw.right.acc.shape[0] and raw.left.n_dropped > 0      # rows as exported
     tr = load_voisard_trial(d, "1-1")
-    assert tr.left.sampling_rate_hz == 100.0 and tr.left.acc.shape[0] == tr.right.acc.shape[0]
+    assert tr.left.sampling_rate_hz == 100.0
+    assert tr.left.acc.shape[0] == raw.left.acc.shape[0] + raw.left.n_dropped              # on the packet grid
     a = tr.annotation
     assert a.subject == 1 and a.left_events.shape[1] == 2
     assert 0 <= a.trial_boundaries[0] < a.trial_boundaries[1] <= tr.left.acc.shape[0]
