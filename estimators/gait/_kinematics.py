@@ -43,7 +43,9 @@ PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_tim
 class FootParams:
     """Everything that configures ``foot_kinematics``.
 
-    trajectory: ESKF/ZUPT/RTS parameters.  events: Algorithm 1 parameters.
+    trajectory: ESKF/ZUPT/RTS parameters.  events: Algorithm 1 parameters; threshold T = −0.1 (≈ 5.7° toes down)
+        instead of the thesis' −0.2, chosen by leave-one-group-out over the Voisard subjects and the gaitmap walk
+        (``stridelab bench gait --voisard``, docs/gait.md); the streaming ``GaitEventDetector`` keeps −0.2.
     min_stride_length_m: strides shorter than this are not used to find the anterior axis (K1).
     max_stride_time_s: strides longer than this are dropped (spec §3.8: 3 s).
     toe_off_refine: move each Algorithm-1 TC (pitch minimum, thesis) back to the toe-off (T1 in ``_events``:
@@ -51,7 +53,7 @@ class FootParams:
     toe_off_onset_fraction, toe_off_window_s: f and W of (T1) (0.2 of the peak deceleration; 0.15 s), a priori.
     """
     trajectory: EskfParams = EskfParams()
-    events: IcTcParams = IcTcParams()
+    events: IcTcParams = IcTcParams(threshold=-0.1)
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
     toe_off_refine: bool = True
