@@ -3,7 +3,8 @@
 ``STRIDELAB_HOME`` (default ``./stridelab-home``) holds ``inbox/``, ``warehouse/`` and ``reports/``.
 Per-study stage parameters come from ``[stages.<name>]`` of the study manifest
 (``studies/<study>/study.toml`` in the package, or ``$STRIDELAB_STUDIES/<study>/study.toml``) and
-override the stage defaults key by key.
+override the stage defaults key by key; ``[compute.<name>]`` (``<session kind> = true``) asks for a
+stage's opt-in outputs (``pipeline/stages/__init__.py``).
 """
 from __future__ import annotations
 
@@ -31,6 +32,9 @@ def default_reports() -> Path:
     return home() / "reports"
 
 
+SESSION_KINDS = ("lab", "free_living", "calibration")
+
+
 @lru_cache(maxsize=64)
 def study_manifest(study: str) -> dict:
     """The study's manifest as a dict ({} when the study has none)."""
@@ -53,3 +57,21 @@ def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
         raise ValueError(f"study {study}: unknown parameter(s) {sorted(unknown)} for stage {stage_name}; "
                          f"known: {sorted(defaults)}")
     return {**defaults, **over}
+
+
+def compute_requests(study: str) -> dict[str, dict[str, bool]]:
+    """The manifest's ``[compute.<stage>]`` tables: stage -> {session kind: computed or not}."""
+    req = study_manifest(study).get("compute", {})
+    if not isinstance(req, dict) or not all(isinstance(v, dict) for v in req.values()):
+        raise ValueError(f"study {study}: [compute] must hold [compute.<stage>] tables of <session kind> = true/false")
+    for stage_name, kinds in req.items():
+        bad = {k: v for k, v in kinds.items() if k not in SESSION_KINDS or not isinstance(v, bool)}
+        if bad:
+            raise ValueError(f"study {study}: [compute.{stage_name}] {bad} is not <session kind> = true/false "
+                             f"(kinds: {', '.join(SESSION_KINDS)})")
+    return req
+
+
+def requested(study: str, stage_name: str, kind: str) -> bool:
+    """Whether the study's manifest asks for ``stage_name`` on sessions of ``kind``."""
+    return bool(compute_requests(study).get(stage_name, {}).get(kind, False))

@@ -26,7 +26,7 @@ from typing import Callable, Iterable
 from pipeline import ingest as ingest_mod
 from pipeline.formats.rosbag2 import is_bag
 from pipeline.engines import make_engine
-from pipeline.config import stage_params
+from pipeline.config import requested, stage_params
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
 from warehouse.catalog import first, Warehouse
 from warehouse.lock import RunLock
@@ -202,6 +202,45 @@ def _input_hash(wh: Warehouse, session_id: str, stage: Stage) -> str:
     return hashlib.sha256(canonical_json({"recordings": hashes, "upstream": ups}).encode()).hexdigest()
 
 
+def why_wanted(stage: Stage, kind: str, study: str, stages: list[Stage]) -> str | None:
+    """Why ``stage`` runs on a ``kind`` session of ``study`` (None: nothing consumes its output there).
+
+    A stage runs where a later stage that runs there needs it, where the study's manifest asks for it,
+    and on its other session kinds because its output is read there (pages, reports); on an
+    ``opt_in_kinds`` kind only the first two count."""
+    if kind not in stage.session_kinds:
+        return None
+    users = [s.name for s in stages if stage.name in s.needs and why_wanted(s, kind, study, stages) is not None]
+    if users:
+        return f"needed by {', '.join(users)}"
+    if requested(study, stage.name, kind):
+        return f"requested by study {study} ([compute.{stage.name}] {kind} = true)"
+    if kind in stage.opt_in_kinds:
+        return None
+    return f"output of {kind} sessions"
+
+
+def _why_stale(wh: Warehouse, session_id: str, stage: Stage, params: dict, input_hash: str, has_state: bool) -> str:
+    """What changed since the stage last ran on the session (the ledger's previous entry)."""
+    last = first(wh.con.execute(
+        "SELECT status, stage_version, params_hash, input_hash FROM stage_runs WHERE session_id = ? AND stage = ? "
+        "ORDER BY started_at DESC LIMIT 1", [session_id, stage.name]))
+    if last is None:
+        return "first run"
+    status, version, ph, ih = last
+    if status != "ok":
+        return "retry after a failure"
+    if not has_state:
+        return "outputs missing"
+    if version != stage.version:
+        return f"stage version {version} -> {stage.version}"
+    if ph != params_hash(params):
+        return "parameters changed"
+    if ih is not None and ih != input_hash:
+        return "inputs changed"
+    return "stamp changed"
+
+
 def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None,
                on_phase: Callable[[str, int], None] = _no_phase) -> None:
@@ -209,23 +248,27 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
     if only_sessions is not None:
         sessions = [s for s in sessions if s[0] in only_sessions]
     failed_sessions: dict[str, str] = {}
-    for stage in registry():
-        items = []
+    stages = registry()
+    for stage in stages:
+        items, why = [], {}
         for session_id, study, kind in sessions:
-            if kind not in stage.session_kinds:
+            wanted = why_wanted(stage, kind, study, stages)
+            if wanted is None:
                 continue
             if session_id in failed_sessions and stage.needs:
                 continue
             params = stage_params(study, stage.name, stage.default_params())
-            st = stamp(stage, params, _input_hash(wh, session_id, stage))
+            ih = _input_hash(wh, session_id, stage)
+            st = stamp(stage, params, ih)
             cur = first(wh.con.execute("SELECT stamp FROM stage_state WHERE session_id = ? AND stage = ?",
                                  [session_id, stage.name]))
             if cur is not None and cur[0] == st:
                 summary.skipped_fresh += 1
                 continue
+            why[session_id] = (ih, f"{wanted}; {_why_stale(wh, session_id, stage, params, ih, cur is not None)}")
             items.append((stage.name, _session_inputs(wh, session_id, stage), params, st))
 
-        def done(item, res, stage=stage):
+        def done(item, res, stage=stage, why=why):
             _, inp, params, st = item
             sid = inp.session["session_id"]
             started = _now()
@@ -238,6 +281,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                 with wh.transaction():
                     wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
                                               "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                              "input_hash": why[sid][0], "reason": why[sid][1],
                                               "status": "failed", "started_at": started, "duration_s": None,
                                               "error": str(res)}])
                 on_progress(f"{stage.name} {sid}: FAILED: {res}")
@@ -256,6 +300,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                     con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
                     wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
                                               "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                              "input_hash": why[sid][0], "reason": why[sid][1],
                                               "status": "ok", "started_at": started, "duration_s": secs,
                                               "note": out.note or None}])
                 summary.stage_runs += 1

@@ -2,7 +2,8 @@
 
 The manifest holds everything the simulator needs (participants, lab protocol, free-living length,
 sensor model) and, under ``[stages.<name>]``, optional per-study stage parameters that the pipeline
-reads itself (``pipeline/config.py``). ``load_manifest`` validates every field and raises a
+reads itself (``pipeline/config.py``), and under ``[compute.<name>]`` (``<session kind> = true``) the
+opt-in outputs the study asks for (e.g. ``[compute.orientation] free_living = true``). ``load_manifest`` validates every field and raises a
 ``ValueError`` naming the file and the field.
 """
 from __future__ import annotations
@@ -137,7 +138,8 @@ class StudyManifest:
 
 # ---- loading and validation ----------------------------------------------------------------
 
-_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages", "topics"}
+_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages", "topics", "compute"}
+_SESSION_KINDS = ("lab", "free_living", "calibration")
 
 
 class _Ctx:
@@ -319,6 +321,14 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
     for k, v in topics.items():
         if not k.startswith("/") or not isinstance(v, str) or not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", v):
             raise ctx.err(f"topics.{k}", "expected \"/topic\" = \"placement\" (letters, digits, '_', '-')")
+    compute = raw.get("compute", {})
+    if not isinstance(compute, dict) or not all(isinstance(v, dict) for v in compute.values()):
+        raise ctx.err("compute", "expected [compute.<stage>] tables of <session kind> = true/false")
+    for stage_name, kinds in compute.items():
+        for k, v in kinds.items():
+            if k not in _SESSION_KINDS or not isinstance(v, bool):
+                raise ctx.err(f"compute.{stage_name}.{k}", f"expected <session kind> = true/false with a kind in "
+                                                           f"{list(_SESSION_KINDS)}, got {k} = {v!r}")
     return StudyManifest(name=study["name"], seed=int(study["seed"]), timezone=tmp.timezone,
                          sampling_rate_hz=tmp.sampling_rate_hz, first_lab_date=tmp.first_lab_date,
                          lab_start_local=tmp.lab_start_local, participants=tuple(parts), lab=lab,

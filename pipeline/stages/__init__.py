@@ -5,6 +5,11 @@ A stage declares what it needs, which catalog tables it owns (rows keyed by ``se
 estimators, writes immutable Parquet files and returns catalog rows. The runner commits those rows
 in one transaction with the stage stamp (stage name + version + parameters + input hashes) and
 reruns a stage only when the stamp changes (STYLE.md §4).
+
+A stage runs on a session only when something consumes its output there: ``session_kinds`` are the
+kinds it can run on; on the kinds in ``opt_in_kinds`` (outputs no stage, page or report reads by
+default, e.g. the chest orientation of a free-living day) it runs only when a stage that runs there
+needs it or the study asks for it in its manifest (``[compute.<stage>] <kind> = true``).
 """
 from __future__ import annotations
 
@@ -45,6 +50,7 @@ class Stage:
     session_kinds: tuple[str, ...]
     compute: Callable[[SessionInput, dict], StageOutput]
     default_params: Callable[[], dict]
+    opt_in_kinds: tuple[str, ...] = ()
 
 
 def canonical_json(obj) -> str:

@@ -79,4 +79,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
 
 
 STAGE = Stage(name="orientation", version="2", needs=(), tables=("orientation", "accuracy_metrics"),
-              session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params)
+              session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params,
+              # a free-living chest day's orientation is read by no stage, page or report (half of a night's
+              # compute went to it): computed only for studies that ask ([compute.orientation] free_living = true)
+              opt_in_kinds=("free_living",))
