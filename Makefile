@@ -1,5 +1,6 @@
 # StrideLab: two commands for a newcomer (README "Quick start").
-#   make demo   create .venv, install the pinned dependencies, run `stridelab demo`
+#   make demo   create .venv, install the pinned dependencies, compile the numba kernels once
+#               (`stridelab warm-kernels`, into .venv/var/cache/stridelab-numba), run `stridelab demo`
 #   make test   create .venv if missing, run the test suite
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'".
 
@@ -25,6 +26,8 @@ $(STAMP): pyproject.toml requirements.lock
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
 	$(VENV)/bin/python -m pip install --quiet -r requirements.lock
 	$(VENV)/bin/python -m pip install --quiet --no-deps -e .
+	@echo "compiling the numba kernels once into the venv's shared cache (stridelab warm-kernels) …" >&2
+	$(VENV)/bin/stridelab warm-kernels
 	@touch $@
 
 install: $(STAMP)

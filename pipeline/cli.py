@@ -397,6 +397,26 @@ def dashboard(warehouse_dir, port, address) -> None:
     _serve(_wh(warehouse_dir), port, address)
 
 
+@main.command("warm-kernels")
+@click.option("--json", "as_json", is_flag=True)
+def warm_kernels(as_json) -> None:
+    """Compile the pipeline's numba kernels into the installation's shared cache (``make install`` runs it).
+
+    \b
+    Examples:
+      stridelab warm-kernels          # once after installing; later runs load the kernels
+    """
+    from pipeline.console import emit_json, err_console
+    from pipeline.warm import warm
+    out = warm()
+    if as_json:
+        emit_json(out)
+    else:
+        err_console.print(f"{out['signatures_compiled']} kernel signatures compiled and "
+                          f"{out['signatures_from_cache']} loaded from the cache in {out['cache_dir']} "
+                          f"({out['kernels']} kernels loaded; the bench-only ones compile on first use)", markup=False)
+
+
 @main.command("pseudonym-key")
 @click.option("--path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where to create the key [default: $STRIDELAB_PSEUDONYM_KEY or ~/.config/stridelab/pseudonym.key].")
