@@ -76,6 +76,41 @@ def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dic
     return out
 
 
+def series_rows(root, relpath: str) -> int:
+    import pyarrow.parquet as pq
+    return pq.ParquetFile(Path(root) / relpath).metadata.num_rows
+
+
+def read_column_range(root, relpath: str, columns: tuple[str, ...], start: int = 0, stop: int | None = None,
+                      dtype=np.float64) -> np.ndarray:
+    """Rows [start, stop) of ``columns`` of a series file as ``dtype`` ((n,) for one column, else (n, k)),
+    reading only the row groups that overlap, so a slice of a week-long series costs the slice, not the week."""
+    import pyarrow.parquet as pq
+    f = pq.ParquetFile(Path(root) / relpath)
+    n = f.metadata.num_rows
+    stop = n if stop is None else min(int(stop), n)
+    start = max(0, int(start))
+    m = max(0, stop - start)
+    out = np.empty(m, dtype=dtype) if len(columns) == 1 else np.empty((m, len(columns)), dtype=dtype)
+    i0 = 0
+    for rg in range(f.num_row_groups):
+        k = f.metadata.row_group(rg).num_rows
+        a, b = max(start, i0), min(stop, i0 + k)
+        if a < b:
+            t = f.read_row_group(rg, columns=list(columns), use_threads=False)
+            for j, c in enumerate(columns):
+                v = t.column(c).to_numpy()[a - i0:b - i0]
+                if out.ndim == 1:
+                    out[a - start:b - start] = v
+                else:
+                    out[a - start:b - start, j] = v
+            del t
+        i0 += k
+        if i0 >= stop:
+            break
+    return out
+
+
 def read_imu_files(root: str | Path, imu_path: str, mag_path: str | None, sampling_rate_hz: float) -> ImuSeries:
     """Load an IMU series (and its magnetometer, resampled onto the IMU stamps if they differ)."""
     d = _read_columns(root, imu_path, {"t_ns": ("t_ns",), "acc": ("acc_x", "acc_y", "acc_z"),

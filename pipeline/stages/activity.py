@@ -1,4 +1,11 @@
-"""Daily activity for every free-living chest recording: warehouse -> estimators.activity -> warehouse."""
+"""Daily activity for every free-living chest recording: warehouse -> estimators.activity -> warehouse.
+
+Only the accelerometer is read (the method ignores the gyroscope). A recording longer than
+``DAY_PIECES_ABOVE_S`` (a week-long free-living recording: 60 M samples) is classified one local calendar
+day at a time (midnight to midnight, the days the daily summaries report), so a worker holds one day of
+samples, never the week; the per-second classes of the days are joined before the bouts are cut, so a bout
+crossing midnight stays one bout. Recordings up to that length are classified in one piece, as before.
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -6,8 +13,12 @@ from dataclasses import replace
 import numpy as np
 
 from estimators.activity import CLASSES, PRESETS, TRANSITIONS, classify_day, daily_summaries
+from estimators.activity._daily import local_midnights_ns
 from pipeline.stages import SessionInput, Stage, StageOutput
-from warehouse.read import read_imu_files
+from warehouse.read import read_column_range, series_rows
+
+#: longer recordings are classified per local day (bounded memory); a 24-25 h day stays one piece
+DAY_PIECES_ABOVE_S = 26 * 3600.0
 
 
 def default_params() -> dict:
@@ -23,6 +34,17 @@ def _runs(classes: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
 
 
+def _pieces(root: str, path: str, n: int, fs: float, tz: str) -> list[tuple[int, int]]:
+    """[start, stop) sample ranges: the whole recording, or its local calendar days when it is long."""
+    if n / fs <= DAY_PIECES_ABOVE_S:
+        return [(0, n)]
+    t = read_column_range(root, path, ("t_ns",), dtype=np.int64)
+    cuts = [int(np.searchsorted(t, b)) for _, _, b in local_midnights_ns(int(t[0]), int(t[-1]), tz)[:-1]]
+    del t
+    edges = [0] + [c for c in cuts if 0 < c < n] + [n]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
 def compute(inp: SessionInput, params: dict) -> StageOutput:
     if params["preset"] not in PRESETS:
         raise ValueError(f"unknown activity preset '{params['preset']}'; choose one of {', '.join(PRESETS)}")
@@ -34,31 +56,39 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
         if imu is None:
             notes.append(f"{rec.get('trial')}: no {params['placement']} IMU")
             continue
-        data = read_imu_files(inp.root, imu["series_path"], None, imu["sampling_rate_hz"])
         p = PRESETS[params["preset"]]
         thigh = rec.get("metadata", {}).get("thigh_length_m")
         if thigh:
             p = replace(p, thigh_length_m=float(thigh))
-        res = classify_day(data.acc, sampling_rate_hz=data.sampling_rate_hz, t0_ns=int(data.t_ns[0]), timezone=tz,
-                           params=p)
-        sec = res.second_class
-        step_sec = np.floor(res.step_times_s).astype(np.int64)
-        steps_per_sec = np.bincount(step_sec[(step_sec >= 0) & (step_sec < sec.size)], minlength=sec.size)
+        path, fs = imu["series_path"], float(imu["sampling_rate_hz"])
+        secs, sec_t, sec_steps = [], [], []
+        for a, b in _pieces(inp.root, path, series_rows(inp.root, path), fs, tz):
+            t0_ns = int(read_column_range(inp.root, path, ("t_ns",), a, a + 1, dtype=np.int64)[0])
+            acc = read_column_range(inp.root, path, ("acc_x", "acc_y", "acc_z"), a, b)
+            res = classify_day(acc, sampling_rate_hz=fs, t0_ns=t0_ns, timezone=tz, params=p)
+            del acc
+            sec = res.second_class
+            step_sec = np.floor(res.step_times_s).astype(np.int64)
+            secs.append(sec)
+            sec_t.append(res.second_t_ns)
+            sec_steps.append(np.bincount(step_sec[(step_sec >= 0) & (step_sec < sec.size)], minlength=sec.size))
+            for t, k, dy in zip(res.transitions.t_s, res.transitions.kind, res.transitions.dy_m):
+                transitions.append({"session_id": s["session_id"], "t_ns": int(res.t0_ns + round(t * 1e9)),
+                                    "kind": TRANSITIONS[int(k)], "dy_m": None if np.isnan(dy) else float(dy)})
+            for d in daily_summaries(res, tz):
+                for cls in CLASSES:
+                    daily.append({"session_id": s["session_id"], "date": d.date, "day_length_s": d.day_length_s,
+                                  "recorded_s": d.recorded_s, "wear_s": d.wear_s, "class": cls,
+                                  "seconds": int(d.seconds.get(cls, 0)), "steps": int(d.steps.get(cls, 0)),
+                                  "n_transitions": int(sum(d.transitions.values())), "n_bouts": d.n_bouts,
+                                  "bout_s_median": float(d.bout_s_median), "bout_s_max": float(d.bout_s_max)})
+            notes += list(res.warnings)
+            del res
+        sec, sec_t, steps_per_sec = np.concatenate(secs), np.concatenate(sec_t), np.concatenate(sec_steps)
         for a, b in _runs(sec):
             bouts.append({"session_id": s["session_id"], "content_hash": rec["content_hash"],
-                          "start_ns": int(res.second_t_ns[a]), "end_ns": int(res.second_t_ns[b - 1]) + 1_000_000_000,
+                          "start_ns": int(sec_t[a]), "end_ns": int(sec_t[b - 1]) + 1_000_000_000,
                           "class": CLASSES[int(sec[a])], "steps": int(steps_per_sec[a:b].sum())})
-        for t, k, dy in zip(res.transitions.t_s, res.transitions.kind, res.transitions.dy_m):
-            transitions.append({"session_id": s["session_id"], "t_ns": int(res.t0_ns + round(t * 1e9)),
-                                "kind": TRANSITIONS[int(k)], "dy_m": None if np.isnan(dy) else float(dy)})
-        for d in daily_summaries(res, tz):
-            for cls in CLASSES:
-                daily.append({"session_id": s["session_id"], "date": d.date, "day_length_s": d.day_length_s,
-                              "recorded_s": d.recorded_s, "wear_s": d.wear_s, "class": cls,
-                              "seconds": int(d.seconds.get(cls, 0)), "steps": int(d.steps.get(cls, 0)),
-                              "n_transitions": int(sum(d.transitions.values())), "n_bouts": d.n_bouts,
-                              "bout_s_median": float(d.bout_s_median), "bout_s_max": float(d.bout_s_max)})
-        notes += list(res.warnings)
     return StageOutput(rows={"activity_bouts": bouts, "activity_transitions": transitions, "activity_daily": daily},
                        note="; ".join(notes)[:500])
 

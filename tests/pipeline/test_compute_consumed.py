@@ -68,3 +68,38 @@ def test_a_bad_compute_table_is_refused_with_the_study_named(studies_dir):
     with pytest.raises(ValueError, match=r"study optin: \[compute.orientation\].*free_livng"):
         config.requested("optin", "orientation", "free_living")
 
+
+def test_a_long_recording_is_classified_day_by_day(tmp_path, monkeypatch):
+    """Above ``DAY_PIECES_ABOVE_S`` the activity stage holds one local day of samples at a time; the
+    per-second timeline still covers every second once and a bout crossing midnight stays one bout."""
+    from pipeline.stages import activity
+    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from studies.simulator import simulate_chest_day, study_participants
+    m = load_manifest(DEFAULT_MANIFEST)
+    m = replace(m, free_living=replace(m.free_living, hours=0.4, start_local="23:48"))
+    rec, _ = simulate_chest_day(m, study_participants(m, 1)[0], 0)
+    f = write_recording(rec, tmp_path / f"{rec.name}.mcap")
+    monkeypatch.setattr(activity, "DAY_PIECES_ABOVE_S", 600.0)
+    root = tmp_path / "wh"
+    assert not runner.run(root, None, files=[f]).failed
+    daily = df(root, "SELECT date, max(recorded_s) AS rec, sum(seconds) AS sec FROM activity_daily GROUP BY 1 ORDER BY 1")
+    assert len(daily) == 2 and list(daily.rec) == list(daily.sec) and daily.rec.sum() == 0.4 * 3600
+    assert daily.rec[0] == 12 * 60                                          # 23:48 to local midnight
+    b = df(root, "SELECT start_ns, end_ns, class FROM activity_bouts ORDER BY start_ns")
+    assert (b.end_ns.iloc[:-1].values == b.start_ns.iloc[1:].values).all()  # contiguous, no overlap
+    assert (b["class"].iloc[:-1].values != b["class"].iloc[1:].values).all()  # runs merged across midnight
+    assert (b.end_ns - b.start_ns).sum() == 0.4 * 3600 * 1e9
+
+
+def test_read_column_range_is_a_slice_of_the_whole_column(tmp_path):
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from warehouse.read import read_column_range
+    x = np.random.default_rng(0).normal(size=(2500, 2))
+    pq.write_table(pa.table({"t_ns": np.arange(2500), "a": x[:, 0], "b": x[:, 1]}), tmp_path / "s.parquet",
+                   row_group_size=700)
+    for a, b in ((0, 2500), (650, 1410), (700, 1400), (2499, 2500), (10, 10)):
+        np.testing.assert_array_equal(read_column_range(tmp_path, "s.parquet", ("a", "b"), a, b), x[a:b])
+        np.testing.assert_array_equal(read_column_range(tmp_path, "s.parquet", ("t_ns",), a, b, dtype=np.int64),
+                                      np.arange(a, b))
