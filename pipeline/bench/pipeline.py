@@ -1,9 +1,12 @@
-"""``stridelab bench pipeline``: a simulated study end to end — wall time, throughput, memory, scaling.
+"""``stridelab bench pipeline``: a simulated study end to end — wall time, CPU, throughput, memory, scaling.
 
-The study (N participants, each a lab session and one free-living day) is simulated once into a
-temporary inbox; then ``stridelab run`` processes it into fresh warehouses in child processes, with
-1 and 2 workers on a subset for the scaling figure and with ``--jobs`` workers on the whole study.
-Peak memory is the largest resident set of any process of the run (coordinator or worker).
+The study (N participants, each a lab session and one free-living recording of ``--hours`` or ``--days``)
+is simulated once into a temporary inbox; then ``stridelab run`` processes it into fresh warehouses in child
+processes, with 1 and 2 workers on a subset for the scaling figure and with ``--jobs`` workers on the whole
+study. Peak memory is the largest resident set of any process of the run (coordinator or worker); CPU is
+user + system time of the whole process tree of the run; a participant-day is one participant's lab session
+and 24 h of free-living recording. A multi-day recording (``--days`` > 2) is made of consecutive simulated
+days (day k: the participant's day simulated as session k, shifted by k days) written as one MCAP file.
 """
 from __future__ import annotations
 
@@ -20,9 +23,15 @@ import click
 from pipeline.console import emit_json, err_console
 
 
+def _cpu_children() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
-    """Run the pipeline in a child process; wall time and the peak RSS of its process tree."""
+    """Run the pipeline in a child process; wall time, CPU time and the peak RSS of its process tree."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    cpu0 = _cpu_children()
     t0 = time.perf_counter()
     code = ("import json, resource, sys; from pathlib import Path; from pipeline import runner; "
             "s = runner.run(Path(sys.argv[1]), Path(sys.argv[2]), jobs=int(sys.argv[3]), engine=sys.argv[4]); "
@@ -30,47 +39,98 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
     r = subprocess.run([sys.executable, "-c", code, str(wh), str(inbox), str(jobs), engine],
                        capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    cpu = _cpu_children() - cpu0
     if r.returncode != 0:
         raise click.ClickException(f"pipeline run failed: {r.stderr.strip().splitlines()[-1] if r.stderr else r.returncode}")
     out = json.loads(r.stdout.strip().splitlines()[-1])
     own = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     out["wall_s"] = wall
+    out["cpu_s"] = cpu
     out["peak_rss_mb"] = max(out.pop("peak_child_kb"), own if own > before else 0) / 1024
     return out
 
 
-def _samples(wh: Path) -> int:
+def _ledger(wh: Path) -> tuple[int, dict]:
+    """IMU samples in the warehouse, and per stage: runs, worker seconds, why they ran (the ledger)."""
     from warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
-        return int(con.execute("SELECT coalesce(sum(n_samples), 0) FROM sensors WHERE kind = 'imu'").fetchall()[0][0])
+        n = int(con.execute("SELECT coalesce(sum(n_samples), 0) FROM sensors WHERE kind = 'imu'").fetchall()[0][0])
+        stages = {st: {"runs": int(k), "worker_s": float(sec or 0.0)} for st, k, sec in con.execute(
+            "SELECT stage, count(*), sum(duration_s) FROM stage_runs WHERE status = 'ok' GROUP BY 1 ORDER BY 1").fetchall()}
+        return n, stages
     finally:
         con.close()
+
+
+def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list[Path]:
+    """Each participant's lab session and one ``days``-day free-living recording (consecutive simulated days)."""
+    from dataclasses import replace
+    import numpy as np
+    from estimators.recording import ImuData, Recording
+    from pipeline.formats.mcap_write import write_recording
+    from pipeline.simulate import simulate_to_dir
+    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from studies.simulator import simulate_chest_day, study_participants
+    files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs)
+             if "_free" not in f.name]
+    for f in directory.glob("*_free*.mcap"):
+        f.unlink()
+    m = load_manifest(DEFAULT_MANIFEST).with_free_living_hours(24.0)
+    for i, p in enumerate(study_participants(m, participants)):
+        t, acc, gyr, events = [], [], [], []
+        for k in range(days):
+            rec, _ = simulate_chest_day(m, p, i, session=k + 1)
+            shift = k * 86_400_000_000_000
+            imu = rec.imu["chest"]
+            t.append(imu.t_ns + shift)
+            acc.append(imu.acc)
+            gyr.append(imu.gyr)
+            events += [{**e, "t_ns": e["t_ns"] + shift, **({"end_ns": e["end_ns"] + shift} if "end_ns" in e else {})}
+                       for e in rec.events]
+            md = rec.metadata
+            del rec, imu
+        md = {**md, "session": f"{p.id}-free-living-1", "trial": f"days-1-{days}"}
+        rec = Recording(metadata=md, imu={"chest": ImuData(np.concatenate(t), np.concatenate(acc), np.concatenate(gyr))},
+                        events=events, name=f"{p.id}_free1_days-{days}")
+        del t, acc, gyr
+        files.append(write_recording(rec, directory / f"{rec.name}.mcap"))
+        del rec
+    return files
 
 
 @click.command("pipeline")
 @click.option("--participants", "-n", type=click.IntRange(1, 1000), default=20, show_default=True)
 @click.option("--hours", type=click.FloatRange(0.01, 48), default=24.0, show_default=True,
               help="Length of each free-living recording.")
+@click.option("--days", type=click.IntRange(1, 14), default=None,
+              help="Free-living recordings of this many days (overrides --hours; > 2: consecutive simulated days).")
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=2, show_default=True)
-@click.option("--scaling-participants", type=click.IntRange(1, 1000), default=4, show_default=True,
-              help="Study size for the 1-vs-2-worker speed-up.")
+@click.option("--scaling-participants", type=click.IntRange(0, 1000), default=4, show_default=True,
+              help="Study size for the 1-vs-2-worker speed-up (0: skip it).")
 @click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True)
 @click.option("--workdir", type=click.Path(file_okay=False, path_type=Path), default=None)
 @click.option("--json", "as_json", is_flag=True)
-def command(participants, hours, jobs, scaling_participants, engine, workdir, as_json) -> None:
-    """End-to-end pipeline on a simulated study: wall time, samples/s, peak memory, 1→2 worker speed-up.
+def command(participants, hours, days, jobs, scaling_participants, engine, workdir, as_json) -> None:
+    """End-to-end pipeline on a simulated study: wall time, CPU per participant-day, samples/s, peak memory,
+    1→2 worker speed-up.
 
     \b
     Examples:
       stridelab bench pipeline --participants 20 --json
+      stridelab bench pipeline --days 7 --participants 1 --jobs 1 --json
       stridelab bench pipeline -n 4 --hours 2 --engine dask
     """
     from pipeline.simulate import simulate_to_dir
+    if days is not None:
+        hours = 24.0 * days
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
-        files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs)
+        if hours <= 48.0:
+            files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs)
+        else:
+            files = _multi_day(tmp / "inbox", participants, int(days), jobs)
         sim_s = time.perf_counter() - t0
         err_console.print(f"simulated {len(files)} recordings of {participants} participants in {sim_s:.0f} s")
         k = min(scaling_participants, participants)
@@ -81,23 +141,27 @@ def command(participants, hours, jobs, scaling_participants, engine, workdir, as
             if f.name.split("_")[0] in pids:
                 (sub / f.name).symlink_to(f)
         scaling = {}
-        for j in (1, 2):
+        for j in ((1, 2) if k else ()):
             err_console.print(f"scaling run: {k} participants, {j} worker(s) …")
             scaling[j] = _run(sub, tmp / f"wh_sub{j}", j, engine)
         err_console.print(f"full run: {participants} participants, {jobs} workers …")
         full = _run(tmp / "inbox", tmp / "wh", jobs, engine)
-        n = _samples(tmp / "wh")
+        n, stages = _ledger(tmp / "wh")
+        pdays = participants * hours / 24.0
         out = {
-            "participants": participants, "recordings": len(files), "imu_samples": n,
-            "simulate_s": sim_s, "wall_s": full["wall_s"], "jobs": jobs, "engine": engine,
+            "participants": participants, "recorded_days_per_participant": hours / 24.0, "recordings": len(files),
+            "imu_samples": n, "simulate_s": sim_s, "run_wall_s": full["wall_s"], "jobs": jobs, "engine": engine,
+            "cpu_s": full["cpu_s"], "cpu_s_per_participant_day": full["cpu_s"] / pdays,
+            "wall_s_per_recorded_day": full["wall_s"] / pdays,
             "samples_per_s": n / full["wall_s"], "peak_rss_mb": full["peak_rss_mb"],
-            "failed": full["failed"],
-            "scaling": {"participants": k, "wall_s_1_worker": scaling[1]["wall_s"],
-                        "wall_s_2_workers": scaling[2]["wall_s"],
-                        "speedup_1_to_2": scaling[1]["wall_s"] / scaling[2]["wall_s"],
-                        "peak_rss_mb_1_worker": scaling[1]["peak_rss_mb"],
-                        "peak_rss_mb_2_workers": scaling[2]["peak_rss_mb"]},
+            "stages": stages, "failed": full["failed"],
         }
+        if k:
+            out["scaling"] = {"participants": k, "wall_s_1_worker": scaling[1]["wall_s"],
+                              "wall_s_2_workers": scaling[2]["wall_s"],
+                              "speedup_1_to_2": scaling[1]["wall_s"] / scaling[2]["wall_s"],
+                              "peak_rss_mb_1_worker": scaling[1]["peak_rss_mb"],
+                              "peak_rss_mb_2_workers": scaling[2]["peak_rss_mb"]}
     if as_json:
         emit_json(out)
     else:
