@@ -27,6 +27,9 @@ __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows",
 G = 9.80665
 #: cadence band (steps/s) of gait-like windows used to find the participant's own walking posture
 GAIT_BAND_HZ = (1.4, 2.4)
+#: lean from the walking posture beyond which a window is lying and left out of the still-posture references
+#: (thesis lying threshold, spec §4.3)
+LYING_DEG = 70.0
 _EPS = 1e-6
 
 #: columns of ``WindowFeatures.x`` (before ``add_context``)
@@ -230,12 +233,15 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
 
     gait = gait_windows(step_frac, log_step, cadence)
     walk_ref = walking_reference(u, gait, dyn_rms)
-    still = (log_dyn <= np.percentile(log_dyn, 40)) & ~gait     # for the standing reference
-    stand_ref = standing_reference(u, gait, still, walk_ref)
     lean_w = lean_deg(u, walk_ref)
+    # lying (trunk beyond the thesis' 70°, Eq. 54) is neither of the upright still postures: a 24 h day with a
+    # night in bed would otherwise make "lying" the second still-posture cluster
+    upright = lean_w <= LYING_DEG
+    still = (log_dyn <= np.percentile(log_dyn, 40)) & ~gait & upright    # for the standing reference
+    stand_ref = standing_reference(u, gait, still, walk_ref)
     lean_s = lean_deg(u, stand_ref)
     floor = np.percentile(log_dyn, 5)
-    c_up, c_other = posture_clusters(u, ~gait & (log_dyn - floor < 0.8), walk_ref)
+    c_up, c_other = posture_clusters(u, ~gait & (log_dyn - floor < 0.8) & upright, walk_ref)
     lean_up = lean_deg(u, c_up)
     lean_other = lean_deg(u, c_other)
     sep = float(lean_deg(c_other[None, :], c_up)[0])

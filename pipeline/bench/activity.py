@@ -49,7 +49,9 @@ DEFAULT_UCI = PROJECT_ROOT.parent / "shared" / "data" / "uci_chest"
 from estimators.activity.evaluation import CLASS_MAP, SCORED_CLASSES as BENCH_CLASSES, WINDOW_S, scores  # noqa: E402,F401
 from estimators.activity.evaluation import window_confusion as _window_confusion  # noqa: E402
 from pipeline.formats.uci_chest import LABEL_TO_CLASS  # noqa: E402
-DEVELOPMENT = ("1", "2", "3", "4")
+#: participants used for any tuning: 1-4 were inspected while the rules were developed, 5-8 in a later session,
+#: and 1-8 train (and choose the design of) the default's window model; any other participant file is held out
+DEVELOPMENT = ("1", "2", "3", "4", "5", "6", "7", "8")
 
 
 def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, window_s: float = WINDOW_S) -> np.ndarray:
@@ -124,6 +126,206 @@ def learned_loso(parts, progress_cb=None, features: dict | None = None) -> dict:
             "protocol": ("leave-one-subject-out: each participant scored by a model trained only on the others; "
                          "per-participant normalisation from its own unlabelled signal; fixed hyper-parameters"),
             "hyper_parameters": dict(LEARNED)}
+
+
+#: designs of the tuned random-forest baseline: same feature sets and contexts as ``DESIGNS`` of the default's
+#: window model, ``min_samples_leaf`` in place of C (same number of designs, same nested protocol)
+RF_DESIGNS = tuple({"feature_set": f, "context": c, "min_samples_leaf": leaf}
+                   for f in ("all", "no_clusters") for c in ((1,), (6,), (1, 6)) for leaf in (2, 8))
+
+
+def nested_lopo(ids: list, designs: tuple, predict, progress_cb=None) -> dict:
+    """Leave-one-participant-out with the design chosen inside each outer fold by an inner
+    leave-one-participant-out over the remaining participants.
+
+    ``predict(train_ids, test_ids, design) -> {test_id: (4, 4) confusion}``. Every model is fitted on all
+    participants but one (outer) or two (inner: trained without the outer and the inner test participant; the
+    same fit serves both orders of a pair). Returns the outer-fold confusion per participant (``outer``), the
+    design each outer fold chose (``chosen``), the flat LOPO score of every design (``designs``; choosing by it
+    is what picks the final model, so its maximum is optimistic and is not a headline) and the design index
+    the flat LOPO prefers (``final``)."""
+    ids = list(ids)
+    pair = {}
+    outer = {}
+    for k, d in enumerate(designs):
+        if progress_cb:
+            progress_cb(f"nested LOPO design {k + 1}/{len(designs)}")
+        for i, a in enumerate(ids):
+            outer[(a, k)] = predict([q for q in ids if q != a], [a], d)[a]
+            for b in ids[i + 1:]:
+                r = predict([q for q in ids if q not in (a, b)], [a, b], d)
+                pair[(a, b, k)], pair[(b, a, k)] = r[b], r[a]     # (outer, inner): inner's confusion
+    chosen, res = {}, {}
+    for o in ids:
+        inner = [_ba(sum(pair[(o, i, k)] for i in ids if i != o)) for k in range(len(designs))]
+        chosen[o] = int(np.argmax(inner))
+        res[o] = outer[(o, chosen[o])]
+    flat = [_ba(sum(outer[(o, k)] for o in ids)) for k in range(len(designs))]
+    return {"outer": res, "chosen": chosen, "designs": [{**designs[k], "lopo_balanced_accuracy": flat[k]}
+                                                         for k in range(len(designs))],
+            "final": int(np.argmax(flat))}
+
+
+def _ba(C) -> float:
+    C = np.asarray(C)
+    present = C.sum(axis=1) > 0
+    return float((np.diag(C)[present] / C.sum(axis=1)[present]).mean()) if present.any() else 0.0
+
+
+def _design_json(d: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()}
+
+
+class UciWindows:
+    """Per-participant data the window methods share, computed once: 26-Hz window features, window labels,
+    the rules' per-second classes (``rules``) and the design matrices per design."""
+
+    def __init__(self, parts, rule_seconds: dict):
+        from pipeline.activity_model import raw_features
+        self.parts = {u.participant: u for u in parts}
+        self.wf = {q: raw_features(u.acc, u.sampling_rate_hz) for q, u in self.parts.items()}
+        self.y = {}
+        for q, u in self.parts.items():
+            n = min(self.wf[q].x.shape[0], u.labels.size // int(round(WINDOW_S * u.sampling_rate_hz)))
+            self.y[q] = window_labels(u.labels, int(round(WINDOW_S * u.sampling_rate_hz)), n)
+        self.rule = rule_seconds
+        self._x = {}
+        self._nested = {}
+
+    def nested(self, name: str, ids: list, designs: tuple, predict, progress_cb=None) -> dict:
+        """``nested_lopo`` once per (method, participants)."""
+        key = (name, tuple(ids))
+        if key not in self._nested:
+            self._nested[key] = nested_lopo(ids, designs, predict, progress_cb)
+        return self._nested[key]
+
+    def x(self, q: str, d: dict) -> np.ndarray:
+        from pipeline.activity_model import design_x
+        key = (q, d["feature_set"], tuple(d["context"]))
+        if key not in self._x:
+            self._x[key] = design_x(self.wf[q], d)
+        return self._x[key]
+
+    def train(self, ids, d):
+        return [self.x(q, d)[: self.y[q].size] for q in ids], [self.y[q] for q in ids]
+
+    def default_confusion(self, model, q: str, stairs_lean_deg: float) -> np.ndarray:
+        from pipeline.activity_model import merged_window_classes
+        u = self.parts[q]
+        sec = merged_window_classes(model, self.x(q, {"feature_set": model.feature_set, "context": model.context}),
+                                    self.wf[q], self.rule[q], stairs_lean_deg)
+        return window_confusion(sec, u.labels, u.sampling_rate_hz)
+
+    def predict_default(self, stairs_lean_deg: float):
+        from pipeline.activity_model import fit_model
+
+        def predict(train, tests, d):
+            m = fit_model(*self.train(train, d), {**d, "C": d["C"]})
+            return {q: self.default_confusion(m, q, stairs_lean_deg) for q in tests}
+        return predict
+
+    def predict_rf(self):
+        def predict(train, tests, d):
+            from sklearn.ensemble import RandomForestClassifier
+            xs, ys = self.train(train, d)
+            X = np.vstack([x[y >= 0] for x, y in zip(xs, ys)])
+            Y = np.concatenate([y[y >= 0] for y in ys])
+            clf = RandomForestClassifier(n_estimators=RF_TREES, min_samples_leaf=d["min_samples_leaf"],
+                                         max_features="sqrt", class_weight="balanced", random_state=0,
+                                         n_jobs=2).fit(X, Y)
+            out = {}
+            for q in tests:
+                y = self.y[q]
+                pred = clf.predict(self.x(q, d)[: y.size])
+                C = np.zeros((4, 4), np.int64)
+                np.add.at(C, (y[y >= 0], pred[y >= 0]), 1)
+                out[q] = C
+            return out
+        return predict
+
+
+#: trees of the tuned random-forest baseline (fixed, like ``LEARNED``'s 300 but smaller: it is fitted 36 × 12 times)
+RF_TREES = 100
+
+
+def _grouped(per_conf: dict, development: tuple, extra: dict | None = None) -> dict:
+    """Method entry from per-participant confusions: overall, development (tuning) and held-out groups."""
+    per, groups = {}, {k: np.zeros((4, 4), np.int64) for k in ("all", "development", "held_out")}
+    for q, C in per_conf.items():
+        per[q] = {**scores(C), **((extra or {}).get(q, {}))}
+        groups["all"] += C
+        groups["development" if q in development else "held_out"] += C
+    out = {**scores(groups["all"])}
+    for g in ("development", "held_out"):
+        if groups[g].sum():
+            out[g] = scores(groups[g])
+    out["per_participant"] = per
+    return out
+
+
+def tuned_window_methods(data: "UciWindows", stairs_lean_deg: float, *, rf: bool = True,
+                         progress_cb=None) -> dict:
+    """``default`` (rules + shipped window model) and ``rf_tuned`` (random forest, same designs budget and
+    protocol). Participants the shipped model was trained on are scored by nested LOPO among them (outer
+    folds); any other participant by the shipped model (``default``) or by a forest fitted on all training
+    participants with the design the flat LOPO picked (``rf_tuned``)."""
+    from pipeline.activity_model import DESIGNS, MODEL_PATH, load_model
+    model = load_model()
+    train_ids = [q for q in data.parts if q in model.trained_on]
+    new_ids = [q for q in data.parts if q not in model.trained_on]
+    out = {}
+    specs = [("default", DESIGNS, data.predict_default(stairs_lean_deg))]
+    if rf and train_ids:             # the forest is fitted on the training participants only
+        specs.append(("rf_tuned", RF_DESIGNS, data.predict_rf()))
+    for name, designs, predict in specs:
+        conf, extra, nested = {}, {}, None
+        if len(train_ids) >= 3:
+            nested = data.nested(name, train_ids, designs, predict, progress_cb)
+            for q in train_ids:
+                conf[q] = nested["outer"][q]
+                extra[q] = {"scored_by": "nested LOPO outer fold", "design": _design_json(designs[nested["chosen"][q]])}
+        for q in new_ids:
+            if name == "default":
+                conf[q] = data.default_confusion(model, q, stairs_lean_deg)
+                extra[q] = {"scored_by": f"shipped model {MODEL_PATH.name} (trained on {', '.join(model.trained_on)})"}
+            elif len(train_ids) >= 1:
+                d = designs[nested["final"]] if nested else designs[0]
+                conf[q] = predict(train_ids, [q], d)[q]
+                extra[q] = {"scored_by": "forest fitted on the training participants", "design": _design_json(d)}
+        entry = _grouped(conf, tuple(train_ids), extra)
+        entry["protocol"] = (f"participants {', '.join(train_ids) or '-'}: nested leave-one-participant-out (outer "
+                             f"folds; design chosen by an inner LOPO among the other {max(len(train_ids) - 1, 0)}); "
+                             "others: the model fitted on all of them")
+        if nested:
+            entry["designs"] = [_design_json(d) for d in nested["designs"]]
+            entry["final_design"] = _design_json(designs[nested["final"]])
+        if name == "default":
+            entry["shipped_model"] = {"path": str(MODEL_PATH.relative_to(PROJECT_ROOT)), "trained_on": list(model.trained_on),
+                                      "feature_set": model.feature_set, "context": list(model.context),
+                                      "provenance": model.provenance}
+        out[name] = entry
+    return out
+
+
+def fit_shipped_model(data: "UciWindows", stairs_lean_deg: float, path: Path, progress_cb=None) -> dict:
+    """Choose the design by flat LOPO over ``parts`` (``nested_lopo``'s ``final``), fit it on all of them and
+    write the model file. Returns the choice and the nested score (what the design choice is worth on a
+    participant not used for it)."""
+    from pipeline.activity_model import DESIGNS, fit_model, save_model
+    ids = list(data.parts)
+    nested = data.nested("default", ids, DESIGNS, data.predict_default(stairs_lean_deg), progress_cb)
+    d = DESIGNS[nested["final"]]
+    nested_ba = _ba(sum(nested["outer"].values()))
+    prov = (f"UCI chest participants {', '.join(ids)} (CC BY 4.0), 10-s windows at 26 Hz; design chosen by "
+            f"leave-one-participant-out over {len(DESIGNS)} designs (LOPO balanced accuracy "
+            f"{nested['designs'][nested['final']]['lopo_balanced_accuracy']:.3f}; nested outer-fold {nested_ba:.3f}); "
+            "command: stridelab bench activity --fit-model PATH")
+    m = fit_model(*data.train(ids, d), d, provenance=prov)
+    from dataclasses import replace
+    m = replace(m, trained_on=tuple(ids))
+    save_model(m, path)
+    return {"path": str(path), "design": _design_json(d), "nested_balanced_accuracy": nested_ba,
+            "designs": nested["designs"], "provenance": prov}
 
 
 #: a priori rule for windows whose UCI label the chest signal contradicts (``label_consistency``); 0.2 is the most
@@ -206,13 +408,17 @@ def synthetic_day(hours: float = 24.0, fs: float = 100.0, seed: int = 0) -> np.n
     return acc
 
 
-def speed_24h(fs: float = 100.0) -> float:
-    """Seconds for classify_day + daily_summaries on a synthetic 24 h day at ``fs`` (after a JIT warm-up)."""
-    from estimators.activity import classify_day, daily_summaries
+def speed_24h(fs: float = 100.0, window_model: str | None = "default") -> float:
+    """Seconds for the pipeline's classifier (``classify_recording``; ``window_model=None``: rules only) +
+    daily_summaries on a synthetic 24 h day at ``fs`` (after a warm-up call: numba JIT, model file)."""
+    from estimators.activity import daily_summaries
+    from pipeline.activity_model import classify_recording
     acc = synthetic_day(24.0, fs)
-    classify_day(acc[: int(600 * fs)], sampling_rate_hz=fs, t0_ns=0, timezone="Europe/Zurich")
+    classify_recording(acc[: int(600 * fs)], sampling_rate_hz=fs, t0_ns=0, timezone="Europe/Zurich",
+                       window_model=window_model)
     t0 = time.perf_counter()
-    r = classify_day(acc, sampling_rate_hz=fs, t0_ns=1_700_000_000_000_000_000, timezone="Europe/Zurich")
+    r = classify_recording(acc, sampling_rate_hz=fs, t0_ns=1_700_000_000_000_000_000, timezone="Europe/Zurich",
+                           window_model=window_model)
     daily_summaries(r)
     return time.perf_counter() - t0
 
@@ -232,11 +438,13 @@ def reference_seconds(events, t0_ns: int, n_sec: int) -> tuple[np.ndarray, int]:
     return ref, steps
 
 
-def simulated_days(n: int, *, preset: str = "default", progress_cb=None) -> dict:
-    """Per-second agreement and step error of ``preset`` on N simulated 24 h days of the demo study."""
+def simulated_days(n: int, *, preset: str = "default", window_model: str | None = "default", progress_cb=None) -> dict:
+    """Per-second agreement and step error of the pipeline's classifier (``preset`` rules + ``window_model``;
+    None = rules only) on N simulated 24 h days of the demo study."""
     import dataclasses
 
-    from estimators.activity import CLASSES, PRESETS, classify_day, daily_summaries
+    from estimators.activity import CLASSES, PRESETS, daily_summaries
+    from pipeline.activity_model import classify_recording
     from studies.manifest import load_manifest
     from studies.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
@@ -250,7 +458,8 @@ def simulated_days(n: int, *, preset: str = "default", progress_cb=None) -> dict
         t0 = int(imu.t_ns[0])
         params = dataclasses.replace(PRESETS[preset], thigh_length_m=float(rec.metadata["thigh_length_m"]))
         tic = time.perf_counter()
-        r = classify_day(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone, params=params)
+        r = classify_recording(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone,
+                               params=params, window_model=window_model)
         daily_summaries(r)
         el = time.perf_counter() - tic
         ref, steps_ref = reference_seconds(rec.events, t0, r.second_class.size)
@@ -265,7 +474,7 @@ def simulated_days(n: int, *, preset: str = "default", progress_cb=None) -> dict
         if progress_cb:
             progress_cb(None)
     ag = [v["agreement"] for v in per.values() if v["agreement"] is not None]
-    return {"preset": preset, "hours": 24.0, "classes": list(CLASSES), "per_participant": per,
+    return {"preset": preset, "window_model": window_model, "hours": 24.0, "classes": list(CLASSES), "per_participant": per,
             "min_agreement": min(ag) if ag else None,
             "max_abs_steps_error_pct": max((abs(v["steps_error_pct"]) for v in per.values()
                                             if v["steps_error_pct"] is not None), default=None),
@@ -273,8 +482,10 @@ def simulated_days(n: int, *, preset: str = "default", progress_cb=None) -> dict
 
 
 def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: bool = True,
-                  simulated: int = 0) -> dict:
-    """Run the benchmark; returns the JSON-able result (see module docstring). ``directory`` None skips UCI."""
+                  simulated: int = 0, tuned_rf: bool = True, fit_model_path: Path | None = None) -> dict:
+    """Run the benchmark; returns the JSON-able result (see module docstring). ``directory`` None skips UCI.
+    ``fit_model_path``: refit the default's window model on every participant in ``directory`` and write it
+    there (``fit_model`` key) before scoring."""
     from estimators.activity import PRESETS, classify_day
     from pipeline.formats.uci_chest import load_uci_chest
     parts = []
@@ -283,56 +494,57 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
             parts = load_uci_chest(directory)
         except ValueError as e:
             raise UserError(str(e)) from e
-    methods = {}
+    methods, out_extra = {}, {}
+    stairs_lean = PRESETS["default"].stairs_lean_deg
     with progress(show_progress) as p:
-        task = p.add_task("activity", total=len(parts) * (3 if len(parts) >= 2 else 2) + (1 if speed else 0) + simulated)
-        for name in (("thesis", "default") if parts else ()):
-            params = PRESETS[name]
-            per, groups = {}, {"all": np.zeros((4, 4), np.int64), "development": np.zeros((4, 4), np.int64),
-                               "held_out": np.zeros((4, 4), np.int64)}
-            for u in parts:
-                p.update(task, description=f"{name}: participant {u.participant}")
-                r = classify_day(u.acc, sampling_rate_hz=u.sampling_rate_hz, params=params)
-                C = window_confusion(r.second_class, u.labels, u.sampling_rate_hz)
-                per[u.participant] = {**scores(C), "calibration": r.calibration.status, "bouts": len(r.bouts),
-                                      "transitions": len(r.transitions)}
-                groups["all"] += C
-                groups["development" if u.participant in DEVELOPMENT else "held_out"] += C
-                p.advance(task)
-            overall = scores(groups["all"])
-            methods[name] = {**overall, "development": scores(groups["development"]),
-                             "held_out": scores(groups["held_out"]), "per_participant": per}
-
-        features = participant_features(parts) if parts else {}
+        task = p.add_task("activity", total=None)
 
         def cb(desc):
             if desc:
                 p.update(task, description=desc)
-            else:
-                p.advance(task)
+        rule_seconds = {}
+        for name, preset in (("thesis", "thesis"), ("rules", "default")) if parts else ():
+            params = PRESETS[preset]
+            conf, extra = {}, {}
+            for u in parts:
+                cb(f"{name}: participant {u.participant}")
+                r = classify_day(u.acc, sampling_rate_hz=u.sampling_rate_hz, params=params)
+                if name == "rules":
+                    rule_seconds[u.participant] = r.second_class
+                conf[u.participant] = window_confusion(r.second_class, u.labels, u.sampling_rate_hz)
+                extra[u.participant] = {"calibration": r.calibration.status, "bouts": len(r.bouts),
+                                        "transitions": len(r.transitions)}
+            methods[name] = {**_grouped(conf, DEVELOPMENT, extra),
+                             "protocol": "rules only; nothing fitted to UCI labels"}
+        data = UciWindows(parts, rule_seconds) if parts else None
+        if fit_model_path is not None and len(parts) >= 3:
+            out_extra["fit_model"] = fit_shipped_model(data, stairs_lean, fit_model_path, cb)
+        if data is not None:
+            methods.update(tuned_window_methods(data, stairs_lean, rf=tuned_rf, progress_cb=cb))
+        features = participant_features(parts) if parts else {}
         if len(parts) >= 2:
             methods["learned_loso"] = learned_loso(parts, progress_cb=cb, features=features)
         if parts:
-            p.update(task, description="label consistency")
+            cb("label consistency")
             consistency = label_consistency(parts, features)
         scored = {k: v["balanced_accuracy"] for k, v in methods.items() if v.get("balanced_accuracy") is not None}
         out = {"dataset": str(directory) if directory is not None else None, "classes": list(BENCH_CLASSES),
                "window_s": WINDOW_S,
-               "protocol": ("thesis/default: no parameter learned from UCI labels; thesis values + defaults set on "
-                            "synthetic data; participants 1-4 inspected during development, the others held out. "
-                            "learned_loso: leave-one-subject-out (see its own 'protocol')"),
+               "protocol": ("thesis / rules: nothing learned from UCI labels. default (rules + window model, the "
+                            "pipeline's activity stage) and rf_tuned: participants the shipped model was trained on "
+                            "are scored by nested leave-one-participant-out (see each method's 'protocol'), others "
+                            "by the fitted model. learned_loso: fixed forest, leave-one-subject-out"),
                "development_participants": list(DEVELOPMENT), "methods": methods,
-               # the pipeline's activity stage runs the rule-based preset "default" (a model trained on UCI's
-               # uncalibrated 52 Hz counts does not transfer to calibrated 100 Hz recordings)
+               # what pipeline.stages.activity runs: pipeline.activity_model.classify_recording
                "default": "default",
                "best_balanced_accuracy": max(scored, key=scored.get) if scored else None,
-               "reference_random_forest_loso_balanced_accuracy": 0.59}
+               "reference_random_forest_loso_balanced_accuracy": 0.59, **out_extra}
         if parts:
             out["label_consistency"] = consistency
         if speed:
-            p.update(task, description="speed: 24 h at 100 Hz")
+            cb("speed: 24 h at 100 Hz")
             out["seconds_24h_100hz"] = speed_24h()
-            p.advance(task)
+            out["seconds_24h_100hz_rules_only"] = speed_24h(window_model=None)
         if simulated > 0:
             out["simulated"] = simulated_days(simulated, progress_cb=cb)
     return out
@@ -345,8 +557,13 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
 @click.option("--no-uci", is_flag=True, help="skip the UCI chest part (e.g. only the simulated days)")
 @click.option("--simulated", type=click.IntRange(min=0), default=4, show_default=True,
               help="simulated 24 h free-living days of the demo study to score (0 = skip)")
+@click.option("--no-tuned-rf", is_flag=True, help="skip the nested-LOPO random-forest baseline (rf_tuned, the slow part)")
+@click.option("--fit-model", "fit_model", type=click.Path(path_type=Path), default=None,
+              help="refit the default's window model on the UCI participants given and write it to this file "
+                   "(the shipped one: pipeline/models/activity_window_lr.json)")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
-def command(uci: Path, no_speed: bool, no_uci: bool, simulated: int, as_json: bool) -> None:
+def command(uci: Path, no_speed: bool, no_uci: bool, simulated: int, no_tuned_rf: bool, fit_model: Path | None,
+            as_json: bool) -> None:
     """Daily-activity classes (sitting/standing/walking/stairs) on the UCI chest set, thesis vs default vs a
     learned classifier evaluated leave-one-subject-out (learned_loso), and
     per-second agreement / step error on simulated 24 h days with reference labels.
@@ -360,14 +577,18 @@ def command(uci: Path, no_speed: bool, no_uci: bool, simulated: int, as_json: bo
     if not no_uci and not uci.is_dir():
         raise UserError(f"UCI chest data not found at {uci}; pass --uci-chest DIR (see DESIGN.md 'Real data') "
                         "or --no-uci")
+    if fit_model is not None and no_uci:
+        raise UserError("--fit-model needs the UCI participants (drop --no-uci)")
     result = run_benchmark(None if no_uci else uci, show_progress=not as_json or err_console.is_terminal,
-                           speed=not no_speed, simulated=simulated)
+                           speed=not no_speed, simulated=simulated, tuned_rf=not no_tuned_rf,
+                           fit_model_path=fit_model)
     if as_json:
         emit_json(result)
         return
     for name, m in result["methods"].items():
-        err_console.print(f"{name}: accuracy {m['accuracy']:.3f}, balanced accuracy {m['balanced_accuracy']:.3f} "
-                          f"(held out {m['held_out']['balanced_accuracy']:.3f})")
+        ho = m.get("held_out", {}).get("balanced_accuracy")
+        err_console.print(f"{name}: accuracy {m['accuracy']:.3f}, balanced accuracy {m['balanced_accuracy']:.3f}"
+                          + (f" (held out {ho:.3f})" if ho is not None else ""))
         for row, c in zip(BENCH_CLASSES, m["confusion"]):
             err_console.print(f"  {row:9s} {c}")
     if "label_consistency" in result:

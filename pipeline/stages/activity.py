@@ -12,8 +12,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from estimators.activity import CLASSES, PRESETS, TRANSITIONS, classify_day, daily_summaries
+from estimators.activity import CLASSES, PRESETS, TRANSITIONS, daily_summaries
 from estimators.activity._daily import local_midnights_ns
+from pipeline.activity_model import classify_recording
 from pipeline.stages import SessionInput, Stage, StageOutput
 from warehouse.read import read_column_range, series_rows
 
@@ -22,7 +23,9 @@ DAY_PIECES_ABOVE_S = 26 * 3600.0
 
 
 def default_params() -> dict:
-    return {"preset": "default", "placement": "chest"}
+    # window_model: "default" = the shipped UCI-fitted window model refines the rule timeline
+    # (pipeline.activity_model; docs/activity.md); None = rules only
+    return {"preset": "default", "placement": "chest", "window_model": "default"}
 
 
 def _runs(classes: np.ndarray) -> list[tuple[int, int]]:
@@ -65,7 +68,8 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
         for a, b in _pieces(inp.root, path, series_rows(inp.root, path), fs, tz):
             t0_ns = int(read_column_range(inp.root, path, ("t_ns",), a, a + 1, dtype=np.int64)[0])
             acc = read_column_range(inp.root, path, ("acc_x", "acc_y", "acc_z"), a, b)
-            res = classify_day(acc, sampling_rate_hz=fs, t0_ns=t0_ns, timezone=tz, params=p)
+            res = classify_recording(acc, sampling_rate_hz=fs, t0_ns=t0_ns, timezone=tz, params=p,
+                                     window_model=params.get("window_model", "default"))
             del acc
             sec = res.second_class
             step_sec = np.floor(res.step_times_s).astype(np.int64)
@@ -93,5 +97,5 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                        note="; ".join(notes)[:500])
 
 
-STAGE = Stage(name="activity", version="3", needs=(), tables=("activity_bouts", "activity_transitions", "activity_daily"),
+STAGE = Stage(name="activity", version="4", needs=(), tables=("activity_bouts", "activity_transitions", "activity_daily"),
               session_kinds=("free_living",), compute=compute, default_params=default_params)

@@ -88,7 +88,10 @@ def test_bench_activity_runs_on_any_participant_files(tmp_path):
     res = CliRunner().invoke(command, ["--uci-chest", str(tmp_path), "--no-speed", "--simulated", "0", "--json"])
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout)
-    assert set(out["methods"]) == {"thesis", "default", "learned_loso"} and out["default"] == "default"
+    # no participant of the shipped model's training set here: the default runs the shipped model on both and
+    # the tuned forest (fitted on training participants only) is left out
+    assert set(out["methods"]) == {"thesis", "rules", "default", "learned_loso"} and out["default"] == "default"
+    assert all(v["scored_by"].startswith("shipped model") for v in out["methods"]["default"]["per_participant"].values())
     for m in out["methods"].values():
         assert set(m["per_participant"]) == {"21", "22"} and np.array(m["confusion"]).shape == (4, 4)
     assert out["methods"]["default"]["windows"] == 2 * (12 + 6 + 12 + 6 + 6)

@@ -248,11 +248,17 @@ def test_autocalibration_recovers_gain_and_offset():
 
 
 @pytest.mark.realdata
-def test_uci_bench_runs_on_real_data():
+def test_uci_bench_runs_on_real_data(tmp_path):
+    """Three real participants (links, not copies) of the default's training set: the default is scored by
+    nested LOPO outer folds among them (never by the shipped model, which has seen them)."""
     from pipeline.bench.activity import run_benchmark
     d = shared_data("uci_chest")
-    out = run_benchmark(d, show_progress=False, speed=False)
-    assert set(out["methods"]) == {"thesis", "default", "learned_loso"}
+    for q in ("1", "2", "3"):
+        (tmp_path / f"{q}.csv").symlink_to(d / f"{q}.csv")
+    out = run_benchmark(tmp_path, show_progress=False, speed=False, tuned_rf=False)
+    assert set(out["methods"]) == {"thesis", "rules", "default", "learned_loso"}
+    per = out["methods"]["default"]["per_participant"]
+    assert set(per) == {"1", "2", "3"} and all(v["scored_by"] == "nested LOPO outer fold" for v in per.values())
     assert out["default"] == "default" and out["best_balanced_accuracy"] in out["methods"]
     lc = out["label_consistency"]
     assert sum(lc["windows"]) == out["methods"]["default"]["windows"]
