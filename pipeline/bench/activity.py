@@ -8,31 +8,30 @@ continuous recording by ``estimators.activity.classify_day``; the per-second cla
 and scored on non-overlapping 10-s windows lying wholly inside one reference label (majority of the window's
 seconds). Reference: label 1 sitting, 3 and 7 standing, 4 and 6 walking, 5 stairs; 2 and 0 excluded.
 
-Protocol (``thesis`` and ``default``): no component is learned from UCI labels. Parameters are the thesis values and defaults set on
-synthetic data; participants 1-4 were looked at while developing (``development``), 5 and above were not
-(``held_out``). Both groups are reported separately, plus all participants together.
-
-Method ``learned_loso`` (project extension, UCI benchmark only): a random forest on per-window features
-(``estimators.activity.windows``: per-participant auto-calibration, lean to the participant's own walking
-posture and to its two still-posture clusters, motion / sway / gait features, ±1-window context), evaluated
-leave-one-subject-out: each participant's windows are classified by a model trained only on the other
-participants' labelled windows; the participant's own normalisation uses only its unlabelled signal.
-Hyper-parameters are fixed (``LEARNED``), chosen before the run over all participants; the feature design was
-explored with LOSO inside participants 1-4 only. ``default`` names the pipeline's own method (the rule-based
-preset); ``best_balanced_accuracy`` the method that scored best.
+Methods: ``thesis`` (``PRESETS["thesis"]``) and ``rules`` (``PRESETS["default"]``, rules only): nothing learned
+from UCI labels. ``default``: what the pipeline's activity stage runs (``pipeline.activity_model.classify_recording``:
+the rules refined by the shipped window model fitted on UCI participants 1-8). Participants in the model's
+``trained_on`` are scored by nested leave-one-participant-out (``nested_lopo``: outer fold = the participant, the
+design chosen among ``pipeline.activity_model.DESIGNS`` by an inner LOPO over the other training participants);
+any other participant file by the shipped model. ``rf_tuned``: a random forest alone on the same features with
+the same budget (12 designs, ``RF_DESIGNS``) and the same nested protocol. ``learned_loso``: the fixed forest of
+issue #6 (``LEARNED``, features ``estimators.activity.windows`` at 52 Hz, ±1-window context),
+leave-one-subject-out. ``development`` groups the participants used for any tuning (``DEVELOPMENT`` = 1-8),
+``held_out`` every other file. ``--fit-model PATH`` refits the default's model on the given participants
+(design by flat LOPO) and writes it.
 
 Label consistency (key ``label_consistency``, ``label_consistency``): windows whose UCI label the chest signal
 contradicts (labelled walking/stairs but still for most seconds, labelled sitting/standing but walking
 throughout) and the balanced accuracy this leaves at most to any classifier that answers what the chest did.
-Speed: ``classify_day`` + ``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a
-warm-up call (numba JIT).
+Speed: ``classify_recording`` (key ``seconds_24h_100hz``; rules only: ``seconds_24h_100hz_rules_only``) +
+``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a warm-up call (numba JIT).
 
 Simulated free-living days (``--simulated N``, key ``simulated``): the demo study's first N participants, one
 24 h day each from ``studies.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
-classified with the project default and the participant's thigh length. ``agreement`` = per-second agreement
+classified with the pipeline's default (``classify_recording``) and the participant's thigh length. ``agreement`` = per-second agreement
 over the seconds whose reference is a class (``transition`` seconds are not scored; a labelled interval covers
 its whole seconds, same definition as docs/activity.md); ``steps_error_pct`` = 100 (detected − scripted) /
-scripted; ``seconds`` = classify_day + daily_summaries on that day.
+scripted; ``seconds`` = classify_recording + daily_summaries on that day.
 """
 from __future__ import annotations
 
