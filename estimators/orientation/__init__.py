@@ -7,7 +7,8 @@ default parameters; the pipeline's orientation stage picks one by name (study ma
 """
 from __future__ import annotations
 
-from estimators.orientation._dcf import DCFFilter, DCFOfflineParams, DCFParams, dcf, dcf_offline
+from estimators.orientation._dcf import (DCFFilter, DCFOfflineParams, DCFParams, dcf, dcf_offline,
+                                        dcf_offline_from_online)
 from estimators.orientation._fqa import fqa
 from estimators.orientation._frames import Q_ENU_NED, enu_to_ned, ned_to_enu
 from estimators.orientation._fullstate import (FullStateLKFFilter, FullStateLKFParams, FullStateResult,
@@ -49,7 +50,7 @@ DEFAULT_ONLINE = "dcf"
 DEFAULT_OFFLINE = "dcf_offline"
 
 __all__ = ["ESTIMATORS", "REPLICATION", "DEFAULT_ONLINE", "DEFAULT_OFFLINE", "OrientationResult",
-           "DCFParams", "DCFOfflineParams", "DCFFilter", "dcf", "dcf_offline",
+           "DCFParams", "DCFOfflineParams", "DCFFilter", "dcf", "dcf_offline", "dcf_offline_from_online",
            "MadgwickParams", "MahonyParams", "MadgwickFilter", "MahonyFilter", "madgwick", "mahony",
            "madgwick_tuned", "mahony_tuned", "MADGWICK_BROAD_VST2", "MAHONY_BROAD_VST2",
            "RobustEKFParams", "RobustEKFFilter", "robust_ekf", "FullStateLKFParams", "FullStateLKFFilter",

@@ -8,14 +8,20 @@ thesis_orientation.md §7 C7-C9, C14):
 2. inclination: the accelerometer is rotated into I and low-passed there (time constant
    ``tau_acc_s``; linear accelerations average out because velocity stays bounded); the 6D attitude is
    levelled so that the low-passed vector points up (ENU z). Attitude never sees the magnetometer (C7);
-3. heading: one angle ``delta`` about ENU z, pulled towards the magnetometer's horizontal direction
-   with a first-order gain (``tau_mag_s``); samples whose field norm or dip angle deviate from the learnt
-   reference are rejected (C8, norm + dip); a deviation lasting ``mag_reject_max_s`` becomes the new
-   reference (moving to a new place). Without a magnetometer (6D) the heading follows the gyro;
+3. heading: one angle ``delta`` about ENU z, pulled towards the magnetometer's horizontal direction; the gain
+   is that of a scalar Kalman filter (default ``mag_gain="kalman"``): the heading variance grows with the
+   rotation the gyro integrates and each magnetometer sample's variance grows with the rotation rate (the
+   magnetometer lags the gyro), so right after a rest the gyro is trusted and after long fast movement the
+   magnetometer; ``mag_gain="fixed"`` is VQF's first-order gain 1/``tau_mag_s``. Samples whose field norm
+   or dip angle deviate from the learnt reference are rejected (C8, norm + dip); a deviation lasting
+   ``mag_reject_max_s`` becomes the new reference (moving to a new place). Without a magnetometer (6D)
+   the heading follows the gyro;
 4. gyro bias: at rest (deviations of gyro and acc from their 0.5-s low-pass below
-   ``rest_gyr_rad_s`` / ``rest_acc_m_s2`` for ``rest_min_s``) the bias is the low-passed gyro (static
-   bias removal, thesis finding 2a); in motion the inclination correction, seen in the sensor frame,
-   feeds the bias slowly (``k_bias_motion``, a PI-CF integral term, spec §2.4).
+   ``rest_gyr_rad_s`` / ``rest_acc_m_s2`` for ``rest_min_s``) a random-walk Kalman update pulls the bias
+   towards the low-passed gyro (static bias removal, thesis finding 2a; VQF's rest-bias estimation), so
+   the onset of a movement, still counted as rest by the causal detector, barely moves it
+   (``rest_bias="lowpass"``: bias := low-passed gyro, the earlier scheme); in motion the inclination
+   correction, seen in the sensor frame, can feed the bias (``bias_tau_motion_s``, off by default).
 
 Gap handling: a NaN gyro sample holds the attitude; a NaN acc / mag sample skips its correction; the
 filter continues after the gap. A saturated gyro (clipped rate) makes the strap-down fall behind; the
@@ -42,9 +48,8 @@ class DCFParams:
     """Parameters of the decoupled complementary filter (rate independent, SI units).
 
     tau_acc_s: time constant of the accelerometer low-pass in the quasi-inertial frame, s (VQF: 3 s).
-    tau_mag_s: time constant of the heading correction, s (VQF: 9 s; 25 s chosen by leave-trials-out
-        cross-validation on BROAD, see tuned_gains.json: indoor fields are inhomogeneous, a slower heading
-        correction averages the local field errors while the bias-corrected gyro stays accurate).
+    tau_mag_s: time constant of the heading correction with ``mag_gain="fixed"``, s (VQF: 9 s; in that mode 25 s
+        is the leave-one-group-out choice on BROAD; unused by the default ``mag_gain="kalman"``).
     rest_gyr_rad_s: rest when the gyro deviates from its 0.5-s low-pass by less than this, rad/s (2°/s).
     rest_acc_m_s2: ... and the accelerometer from its low-pass by less than this, m/s².
     rest_min_s: duration the rest condition must hold before the bias is taken from the gyro, s.
@@ -55,6 +60,25 @@ class DCFParams:
     mag_reject_max_s: a rejection lasting longer than this adopts the current field as reference, s.
     mag_ref_tau_s: time constant with which accepted samples update the norm/dip reference, s.
     mag_init_s: the heading converges by running mean during the first ``mag_init_s`` of valid samples.
+    rest_bias: how rest updates the bias: ``"lowpass"`` (bias := the 0.5-s low-passed gyro at every rest sample)
+        or ``"kalman"`` (random-walk bias, Kalman update towards the low-passed gyro, as VQF's rest-bias
+        estimation, Laidig & Seel 2023 §3.4: the first rest converges within seconds, later rests average over
+        ~``bias_forgetting_s`` · (σ_rest/σ_drift)², so the onset of a movement that the causal rest detector still
+        counts as rest barely moves the bias).
+    bias_sigma_init_rad_s: initial std of the bias estimate (Kalman mode), rad/s (VQF: 0.5°/s).
+    bias_sigma_drift_rad_s, bias_forgetting_s: the bias variance grows by σ_drift² in bias_forgetting_s (VQF:
+        0.1°/s in 100 s).
+    bias_sigma_rest_rad_s: steady-state std of the bias while at rest (VQF: 0.03°/s).
+    mag_settle_s: after a rejected magnetometer sample, accepted samples are used (and update the reference) only
+        once the field has stayed within the thresholds this long, s (the edges of a disturbance are disturbed
+        too; VQF: magMinUndisturbedTime 0.5 s; 0 = off).
+    mag_gain: ``"fixed"`` (first-order gain 1/``tau_mag_s``) or ``"kalman"``: a scalar Kalman filter of the heading
+        offset whose variance grows with the rotation the gyro integrates (scale-factor / misalignment error
+        ``heading_kappa`` per rad, plus ``heading_q0_rad2_s``) and whose magnetometer samples have the noise
+        density ``mag_noise_rad2_s`` growing with the rate (``mag_rate_ref_rad_s``; the magnetometer lags the gyro
+        by 15-27 ms on BROAD, so its heading error grows with |ω|). Right after a rest the heading trusts the gyro;
+        after long fast movement it leans on the magnetometer. In steady motion at rate ω the time constant is
+        ≈ √(r / (κ²ω²)) (r = 0.0054 rad²·s, κ = 0.005: 15 s at 1 rad/s). ``tau_mag_s`` is then unused.
     """
     tau_acc_s: float = 3.0
     tau_mag_s: float = 25.0
@@ -68,6 +92,23 @@ class DCFParams:
     mag_reject_max_s: float = 60.0
     mag_ref_tau_s: float = 20.0
     mag_init_s: float = 3.0
+    rest_bias: str = "kalman"
+    bias_sigma_init_rad_s: float = 0.0087
+    bias_sigma_drift_rad_s: float = 0.0017
+    bias_forgetting_s: float = 100.0
+    bias_sigma_rest_rad_s: float = 0.00052
+    mag_settle_s: float = 0.0
+    mag_gain: str = "kalman"
+    heading_kappa: float = 0.005
+    heading_q0_rad2_s: float = 2.7e-7
+    mag_noise_rad2_s: float = 0.05
+    mag_rate_ref_rad_s: float = 3.0
+
+    def __post_init__(self):
+        if self.rest_bias not in ("lowpass", "kalman"):
+            raise ValueError(f"DCFParams.rest_bias must be 'lowpass' or 'kalman', got {self.rest_bias!r}")
+        if self.mag_gain not in ("fixed", "kalman"):
+            raise ValueError(f"DCFParams.mag_gain must be 'fixed' or 'kalman', got {self.mag_gain!r}")
 
 
 def _gain(tau_s: float, dt: float) -> float:
@@ -86,8 +127,26 @@ def dcf_coefficients(params: DCFParams, sampling_rate_hz: float) -> np.ndarray:
         params.rest_gyr_rad_s, params.rest_acc_m_s2, params.rest_min_s, kb * dt,
         params.bias_max_rad_s, params.mag_norm_rel, np.radians(params.mag_dip_deg), params.mag_reject_max_s,
         _gain(params.mag_ref_tau_s, dt), max(1.0, params.tau_acc_s * sampling_rate_hz),
-        max(1.0, params.mag_init_s * sampling_rate_hz), *_butter2(params.tau_acc_s, sampling_rate_hz)],
-        dtype=np.float64)
+        max(1.0, params.mag_init_s * sampling_rate_hz), *_butter2(params.tau_acc_s, sampling_rate_hz),
+        *_rest_bias_kf(params, dt), params.mag_settle_s, *_heading_kf(params)], dtype=np.float64)
+
+
+def _heading_kf(params: DCFParams) -> tuple[float, float, float, float]:
+    """(q0, κ², r, 1/ω_ref²) of the heading Kalman filter; r = 0 selects the fixed gain."""
+    if params.mag_gain != "kalman":
+        return 0.0, 0.0, 0.0, 0.0
+    return (params.heading_q0_rad2_s, params.heading_kappa ** 2, params.mag_noise_rad2_s,
+            1.0 / params.mag_rate_ref_rad_s ** 2)
+
+
+def _rest_bias_kf(params: DCFParams, dt: float) -> tuple[float, float, float]:
+    """(P0, V, W) of the rest-bias Kalman filter; W = 0 selects the low-pass mode. The measurement noise W is
+    chosen so that the steady-state variance at rest is σ_rest² (W = p²/V + p, p = σ_rest², as VQF)."""
+    if params.rest_bias != "kalman":
+        return 0.0, 0.0, 0.0
+    v = params.bias_sigma_drift_rad_s ** 2 * dt / params.bias_forgetting_s
+    p = params.bias_sigma_rest_rad_s ** 2
+    return params.bias_sigma_init_rad_s ** 2, v, p * p / v + p
 
 
 def _butter2(tau_s: float, sampling_rate_hz: float) -> tuple[float, float, float, float, float]:
@@ -186,18 +245,21 @@ class DCFOfflineParams:
 
     online: the causal filter run first (rest detection, bias at rest, fallback bias).
     tau_acc_s: zero-phase low-pass time constant of the accelerometer in the strap-down frame, s.
-    tau_mag_s: zero-phase low-pass time constant of the heading offset, s (60 s: leave-trials-out CV on BROAD,
-        tuned_gains.json).
+    tau_mag_s: zero-phase low-pass time constant of the heading offset, s (40 s: leave-one-group-out on BROAD,
+        tuned_gains.json, validation/provenance.toml).
     mag_norm_rel: reject magnetometer samples whose norm deviates from the recording's median by more than this.
     mag_dip_deg: ... or whose dip deviates from the median dip by more than this, degrees.
     mag_margin_s: every rejected stretch longer than 0.5 s is widened by this on both sides (approaching disturbances), s.
+    mag_rate_ref_rad_s: each magnetometer sample is weighted by 1 / (1 + |ω|² / ω_ref²) in the heading low-pass (its
+        heading error grows with the rate, see ``DCFParams.mag_gain``); ≥ 1e6 = equal weights.
     """
     online: DCFParams = DCFParams()
     tau_acc_s: float = 3.0
-    tau_mag_s: float = 60.0
+    tau_mag_s: float = 40.0
     mag_norm_rel: float = 0.1
     mag_dip_deg: float = 10.0
-    mag_margin_s: float = 2.0
+    mag_margin_s: float = 4.0
+    mag_rate_ref_rad_s: float = 3.0
 
 
 def dcf_offline(gyr, acc, mag=None, *, sampling_rate_hz: float,
@@ -214,10 +276,18 @@ def dcf_offline(gyr, acc, mag=None, *, sampling_rate_hz: float,
        atan2(m_x, m_y) is unwrapped and zero-phase low-passed; 6D (mag=None): heading from the gyro.
     """
     gyr, acc, mag = _check_inputs(gyr, acc, mag, sampling_rate_hz)
+    filt = DCFFilter(params.online, sampling_rate_hz=float(sampling_rate_hz))
+    on = filt.update_batch(gyr, acc, mag)
+    return dcf_offline_from_online(gyr, acc, mag, on, filt.state[18:21].copy(), sampling_rate_hz=sampling_rate_hz,
+                                   params=params)
+
+
+def dcf_offline_from_online(gyr, acc, mag, on: OrientationResult, final_bias, *, sampling_rate_hz: float,
+                            params: DCFOfflineParams = DCFOfflineParams()) -> OrientationResult:
+    """Steps 1-3 of :func:`dcf_offline` from the causal filter's result ``on`` (run with ``params.online``) and its
+    final bias estimate (rad/s, used when no rest was found): lets a parameter search reuse one causal run."""
     n = gyr.shape[0]
     fs = float(sampling_rate_hz)
-    filt = DCFFilter(params.online, sampling_rate_hz=fs)
-    on = filt.update_batch(gyr, acc, mag)
     # 1. bias per rest period, interpolated
     rest = on.still & np.all(np.isfinite(gyr), axis=1)
     edges = np.flatnonzero(np.diff(np.r_[0, rest.astype(np.int8), 0]))
@@ -231,7 +301,7 @@ def dcf_offline(gyr, acc, mag=None, *, sampling_rate_hz: float,
         for j in range(3):
             bias[:, j] = np.interp(idx, centres, [v[j] for v in values])
     else:
-        bias[:] = filt.state[18:21]
+        bias[:] = final_bias
     # 2. strap-down and zero-phase inclination
     qg = np.empty((n, 4))
     strapdown_series(gyr, bias, 1.0 / fs, qg)
@@ -269,7 +339,12 @@ def dcf_offline(gyr, acc, mag=None, *, sampling_rate_hz: float,
             d = np.full(n, np.nan)
             d[ok] = np.unwrap(np.arctan2(h[ok, 0], h[ok, 1]))
             d = _fill_nan(d[:, None])
-            c = _zero_phase_lp(np.column_stack([np.cos(d[:, 0]), np.sin(d[:, 0])]), params.tau_mag_s, fs)
+            w = 1.0
+            if np.isfinite(params.mag_rate_ref_rad_s) and params.mag_rate_ref_rad_s < 1e6:
+                w2 = np.sum((np.nan_to_num(gyr) - bias) ** 2, axis=1)
+                w = (1.0 / (1.0 + w2 / params.mag_rate_ref_rad_s ** 2))[:, None]
+            # weighted zero-phase mean of the heading direction (the weights' own low-pass cancels in atan2)
+            c = _zero_phase_lp(w * np.column_stack([np.cos(d[:, 0]), np.sin(d[:, 0])]), params.tau_mag_s, fs)
             delta = np.arctan2(c[:, 1], c[:, 0])
         else:
             delta = np.zeros(n)

@@ -19,6 +19,9 @@ State vector layout (float64, length ``STATE_LEN``); all quaternions [w x y z]:
 27    n_samples     samples processed
 28    rest_flag     1 when the last sample was at rest
 29:35 acc biquad delay states (z1 xyz, z2 xyz), 2nd-order Butterworth in frame I
+35    bias_p  variance of the rest-bias estimate per axis, (rad/s)² (< 0 = not initialised; Kalman mode)
+36    mag_ok_t      time since the last rejected magnetometer sample (s)
+37    head_p        variance of the heading offset delta, rad² (< 0 = not initialised; heading Kalman mode)
 ====  ============================================================================
 """
 from __future__ import annotations
@@ -26,13 +29,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-STATE_LEN = 35
+STATE_LEN = 38
 
 
 def initial_state() -> np.ndarray:
     s = np.zeros(STATE_LEN)
     s[0] = 1.0
     s[4] = 1.0
+    s[35] = -1.0
+    s[36] = 1e9
+    s[37] = -1.0
     return s
 
 
@@ -57,7 +63,11 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
 
     coef = (k_acc, k_mag, k_rest_lp, rest_gyr_th, rest_acc_th, rest_min_s, k_bias_motion, bias_max,
             mag_norm_th, mag_dip_th, mag_rej_max_s, k_mag_ref, n_acc_init, n_mag_init,
-            b0, b1, b2, a1, a2)   -- the last five: 2nd-order Butterworth low-pass (k_acc unused when b0 > 0)
+            b0, b1, b2, a1, a2,   -- 2nd-order Butterworth low-pass (k_acc unused when b0 > 0)
+            bias_p0, bias_v, bias_w_rest,   -- rest-bias Kalman filter (bias_w_rest <= 0: bias = low-pass at rest)
+            mag_settle_s,   -- after a rejected magnetometer sample, accepted ones are used only after this long
+            head_q0, head_kappa², head_r, inv_rate_ref²)   -- heading Kalman filter (head_r <= 0: fixed gain k_mag):
+                P += (q0 + κ²|ω|²) dt per sample; a magnetometer sample has variance r (1 + |ω|²/ω_ref²) / dt
     """
     k_acc = coef[0]
     k_mag = coef[1]
@@ -74,6 +84,13 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
     n_ainit = coef[12]
     n_minit = coef[13]
     b0, b1, b2, a1, a2 = coef[14], coef[15], coef[16], coef[17], coef[18]
+    bp0, bv, bw = coef[19], coef[20], coef[21]
+    m_settle = coef[22]
+    hq0, hk2, hr, irr2 = coef[23], coef[24], coef[25], coef[26]
+    if s[37] < 0.0:
+        s[37] = 2.5                                   # (≈ 90°)²: the first samples set the heading
+    if s[35] < 0.0:
+        s[35] = bp0
     qg0, qg1, qg2, qg3 = s[0], s[1], s[2], s[3]
     qa0, qa1, qa2, qa3 = s[4], s[5], s[6], s[7]
     delta = s[8]
@@ -101,16 +118,30 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
                 s[22] += dt
             else:
                 s[22] = 0.0
+            if bw > 0.0 and s[35] < bp0:           # random-walk bias: the variance grows in motion and at rest
+                s[35] += bv
             if s[22] >= rest_min:
                 rest = True
-                s[18], s[19], s[20] = s[12], s[13], s[14]
+                if bw > 0.0:                         # Kalman update towards the low-passed gyro (isotropic P)
+                    kk = s[35] / (s[35] + bw)
+                    for j in range(3):
+                        s[18 + j] += kk * (s[12 + j] - s[18 + j])
+                        if s[18 + j] > bmax:
+                            s[18 + j] = bmax
+                        elif s[18 + j] < -bmax:
+                            s[18 + j] = -bmax
+                    s[35] -= kk * s[35]
+                else:
+                    s[18], s[19], s[20] = s[12], s[13], s[14]
         else:
             s[22] = 0.0
         out_rest[i] = rest
         # ---- strap-down integration with bias-corrected rate ----
+        w2 = 0.0
         if gyr_ok:
             wx, wy, wz = gx - s[18], gy - s[19], gz - s[20]
-            n = np.sqrt(wx * wx + wy * wy + wz * wz)
+            w2 = wx * wx + wy * wy + wz * wz
+            n = np.sqrt(w2)
             if n > 1e-15:
                 sn = np.sin(0.5 * n * dt) / n
                 c = np.cos(0.5 * n * dt)
@@ -168,6 +199,8 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
         q0, q1, q2, q3 = _qmul(qa0, qa1, qa2, qa3, qg0, qg1, qg2, qg3)
         rej = False
         # ---- heading from the magnetometer with disturbance rejection (norm + dip) ----
+        if hr > 0.0:
+            s[37] += (hq0 + hk2 * w2) * dt
         if use_mag:
             mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
             if mx == mx and my == my and mz == mz:
@@ -182,6 +215,7 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
                     dev_d = abs(dip - s[25])
                     if dev_n > m_nth or dev_d > m_dth:
                         rej = True
+                        s[36] = 0.0
                         s[26] += dt
                         if s[26] > m_rmax:               # a lasting new field: accept it as reference
                             s[24] = nm
@@ -190,15 +224,24 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
                             rej = False
                     else:
                         s[26] = 0.0
-                        s[24] += k_mref * (nm - s[24])
-                        s[25] += k_mref * (dip - s[25])
+                        s[36] += dt
+                        if s[36] < m_settle:             # the edge of a disturbance: not used yet
+                            rej = True
+                        else:
+                            s[24] += k_mref * (nm - s[24])
+                            s[25] += k_mref * (dip - s[25])
                     if not rej:
                         ang = np.arctan2(hx, hy) - delta
                         ang = (ang + np.pi) % (2.0 * np.pi) - np.pi
                         s[23] += 1.0
-                        km = k_mag
-                        if s[23] < n_minit:
-                            km = max(k_mag, 1.0 / s[23])
+                        if hr > 0.0:
+                            rr = hr * (1.0 + w2 * irr2) / dt
+                            km = s[37] / (s[37] + rr)
+                            s[37] -= km * s[37]
+                        else:
+                            km = k_mag
+                            if s[23] < n_minit:
+                                km = max(k_mag, 1.0 / s[23])
                         delta += km * ang
                         delta = (delta + np.pi) % (2.0 * np.pi) - np.pi
         out_magrej[i] = rej

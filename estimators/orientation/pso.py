@@ -268,23 +268,32 @@ def tune_pso(space: SwitchingSpace, data: SwarmData, train: Sequence[int] | None
                       time.perf_counter() - t0, res.n_evaluations)
 
 
-def pso_leave_trials_out(space: SwitchingSpace, data: SwarmData, *, n_folds: int = 3, **kw) -> dict:
-    """Leave-trials-out CV of :func:`tune_pso` (trial k in fold k mod n_folds). Returns a dict with the
+def pso_leave_trials_out(space: SwitchingSpace, data: SwarmData, *, n_folds: int = 3,
+                         folds: Sequence[Sequence[int]] | None = None, **kw) -> dict:
+    """Cross-validation of :func:`tune_pso`: ``folds`` (lists of trial indices held out together, e.g. one per
+    BROAD group for leave-one-group-out), default trial k in fold k mod n_folds. Returns a dict with the
     held-out error per trial (``heldout_deg``, trial order), ``cv_heldout_mean_deg``, per-fold params."""
     n = len(data.names)
-    if n < n_folds:
-        raise ValueError(f"need at least n_folds={n_folds} trials, got {n}")
+    if folds is None:
+        if n < n_folds:
+            raise ValueError(f"need at least n_folds={n_folds} trials, got {n}")
+        folds = [np.arange(k, n, n_folds) for k in range(n_folds)]
     held = np.full(n, np.nan)
-    folds = []
-    for k in range(n_folds):
-        test = np.arange(k, n, n_folds)
+    out = []
+    for f in folds:
+        test = np.asarray(f, dtype=np.int64)
         train = np.setdiff1d(np.arange(n), test)
         r = tune_pso(space, data, train, **kw)
         x = np.asarray(r.x)[None]
         held[test] = swarm_errors(space, x, data, test)[0]
-        folds.append({"test_trials": [data.names[i] for i in test], "train_cost_deg": r.train_cost_deg,
-                      "x": [float(v) for v in r.x], "seconds": r.seconds})
-    return {"heldout_deg": held, "cv_heldout_mean_deg": float(np.mean(held)), "folds": folds}
+        out.append({"test_trials": [data.names[i] for i in test], "train_cost_deg": r.train_cost_deg,
+                    "x": [float(v) for v in r.x], "params": _asdict(r.params), "seconds": r.seconds})
+    return {"heldout_deg": held, "cv_heldout_mean_deg": float(np.nanmean(held)), "folds": out}
+
+
+def _asdict(p):
+    import dataclasses
+    return dataclasses.asdict(p)
 
 
 # ------------------------------------------------------------------------------------------ full-state EKF

@@ -6,8 +6,15 @@ every BROAD trial, 9D (magnetometer used), with its default parameters; no per-t
 error quaternion ``q_est ⊗ q_ref*`` (earth frame) is split into total / heading / inclination angles
 and RMS'd over the trial's ``movement`` mask (``estimators.orientation.evaluation``). Speed is the
 wall time of the estimator call divided by the number of samples, after one warm-up call (numba JIT).
-vqf (online) and offline vqf run in the same process for comparison. ``--pso FILTER:LEVELS`` instead tunes
-Madgwick / Mahony switching gains by particle swarm with leave-trials-out CV (:func:`run_pso_tuning`).
+vqf (online) and offline vqf run in the same process for comparison.
+
+Cross-validation (issue 16; default, ``--no-cv`` skips it): leave-one-group-out over the BROAD groups of
+``trials.json`` (rotation / translation / disturbed). Ours and every comparison library get the same tuning
+budget, chosen by the same folds: a grid over the heading time constant for dcf / dcf_offline / vqf /
+vqf_offline (plus dcf's rest-bias mode and dcf_offline's rejection margin), the thesis' particle swarm
+(3-level switching, ``--cv-particles`` x ``--cv-iter``) for Madgwick and Mahony. The JSON's ``comparison``
+lists defaults and tuned (held out; in-sample) side by side. ``--pso FILTER:LEVELS`` instead tunes one
+Madgwick / Mahony configuration by particle swarm with the same folds (:func:`run_pso_tuning`).
 """
 from __future__ import annotations
 
@@ -23,20 +30,29 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BROAD = PROJECT_ROOT.parent / "shared" / "data" / "broad"
 
 
-def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True) -> dict:
-    """Run the benchmark; returns the JSON-able result (see module docstring)."""
+def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True, cv: bool = True,
+                  pso: tuple[int, int] | None = (30, 30)) -> dict:
+    """Run the benchmark; returns the JSON-able result (see module docstring). ``cv``: also the
+    leave-one-group-out tuning of ours and of the baselines (:func:`run_cross_validation`); ``pso``:
+    (particles, iterations) of the Madgwick / Mahony swarm inside it, None = skip the swarm."""
     from estimators.orientation import DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, REPLICATION
     from estimators.orientation.evaluation import orientation_rmse_deg
-    from pipeline.formats.broad import load_broad
+    from estimators.orientation.tuning import trial_groups
 
     ESTIMATORS = {**ESTIMATORS, **REPLICATION}
     unknown = [n for n in names if n not in ESTIMATORS]
     if unknown:
         raise UserError(f"unknown estimator(s) {', '.join(unknown)}; choose from {', '.join(sorted(ESTIMATORS))}")
+    trials = _load(broad)
     try:
-        trials = load_broad(broad)
+        labels = trial_groups(trials)
     except ValueError as e:
-        raise UserError(str(e)) from e
+        labels = None
+        if cv:
+            raise UserError(f"{e}; or pass --no-cv") from e
+    if cv and len(set(labels)) < 2:
+        raise UserError(f"{broad}: leave-one-group-out needs trials of at least two groups, found only "
+                        f"{', '.join(sorted(set(labels)))}; pass the BROAD folder or --no-cv")
     rows, summary = [], {}
     with progress(show_progress) as p:
         task = p.add_task("orientation", total=len(names) * len(trials))
@@ -46,19 +62,199 @@ def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True) 
             k = int(2 * t0.sampling_rate_hz)
             est(t0.gyr[:k], t0.acc[:k], t0.mag[:k], sampling_rate_hz=t0.sampling_rate_hz)   # warm-up / JIT
             seconds, samples, errs = 0.0, 0, []
-            for tr in trials:
+            for j, tr in enumerate(trials):
                 p.update(task, description=f"{name}: {tr.name}")
                 t1 = time.perf_counter()
                 res = est(tr.gyr, tr.acc, tr.mag, sampling_rate_hz=tr.sampling_rate_hz)
                 seconds += time.perf_counter() - t1
                 samples += len(tr.gyr)
                 e = orientation_rmse_deg(res.quat, tr.quat_ref, tr.movement)
-                rows.append({"trial": tr.name, "estimator": name, "total_rmse_deg": e.total_rmse_deg,
-                             "heading_rmse_deg": e.heading_rmse_deg, "inclination_rmse_deg": e.inclination_rmse_deg})
+                rows.append({"trial": tr.name, "group": labels[j] if labels else None, "estimator": name,
+                             "total_rmse_deg": e.total_rmse_deg, "heading_rmse_deg": e.heading_rmse_deg,
+                             "inclination_rmse_deg": e.inclination_rmse_deg})
                 errs.append(e.total_rmse_deg)
                 p.advance(task)
-            summary[name] = {"mean_total_rmse_deg": float(np.mean(errs)), "us_per_sample": 1e6 * seconds / samples}
-    return {"trials": rows, "summary": summary, "default": DEFAULT_ONLINE, "default_offline": DEFAULT_OFFLINE}
+            summary[name] = {"mean_total_rmse_deg": float(np.mean(errs)), "us_per_sample": 1e6 * seconds / samples,
+                             "in_sample": name in TUNED_ON_BROAD}
+            if labels:
+                summary[name]["by_group"] = _by_group(errs, labels)
+        out = {"trials": rows, "summary": summary, "default": DEFAULT_ONLINE, "default_offline": DEFAULT_OFFLINE,
+               "in_sample_note": "estimators whose defaults were tuned on these 15 trials (in_sample: true) are "
+                                 "scored in-sample here; their cross-validated figures are under 'cv'"}
+        if cv:
+            out["cv"] = run_cross_validation(trials, labels, pso=pso, progress_bar=p)
+            out["comparison"] = _comparison(out["summary"], out["cv"])
+    return out
+
+
+#: estimators whose default parameters were chosen on the public BROAD trials (their all-trial figure is in-sample)
+TUNED_ON_BROAD = ("dcf", "dcf_offline", "madgwick_tuned", "mahony_tuned", "robust_ekf", "full_state_lkf")
+
+
+def _load(broad: Path):
+    from pipeline.formats.broad import load_broad
+    try:
+        return load_broad(broad)
+    except ValueError as e:
+        raise UserError(str(e)) from e
+
+
+def _by_group(errs, labels) -> dict:
+    errs = np.asarray(errs, dtype=float)
+    lab = np.asarray(labels)
+    return {g: float(np.mean(errs[lab == g])) for g in dict.fromkeys(labels)}
+
+
+def candidate_grids() -> dict:
+    """The candidates each method may choose from (one budget rule: a small grid over the heading time
+    constant for every complementary filter, ours and VQF's, plus our design options; the same PSO budget for
+    Madgwick and Mahony). Returns name -> (estimate(params, gyr, acc, mag, fs) -> quat, [params...]).
+
+    Candidates are listed in order of preference: an exact tie on the training trials goes to the first. That
+    matters for ``mag_margin_s`` only: on undisturbed trials nothing is rejected, so the margin does not change
+    the result and a fold trained without disturbed trials cannot choose it; the larger margin (more rejection
+    around a disturbance) is then preferred, a rule fixed before looking at the held-out group.
+    """
+    from estimators.orientation import (DCFOfflineParams, DCFParams, DCFFilter, dcf, dcf_offline_from_online,
+                                        vqf_orientation)
+    cache: dict = {}
+
+    def _dcf(p, g, a, m, fs):
+        return dcf(g, a, m, sampling_rate_hz=fs, params=p).quat
+
+    def _dcf_off(p, g, a, m, fs):
+        key = (id(g), p.online)
+        if key not in cache:                 # one causal run per trial serves every offline candidate
+            cache.clear()
+            f = DCFFilter(p.online, sampling_rate_hz=fs)
+            cache[key] = (f.update_batch(g, a, m), f.state[18:21].copy())
+        on, bias = cache[key]
+        return dcf_offline_from_online(g, a, m, on, bias, sampling_rate_hz=fs, params=p).quat
+
+    def _vqf(p, g, a, m, fs):
+        return vqf_orientation(g, a, m, sampling_rate_hz=fs, params=p).quat
+
+    def _vqf_off(p, g, a, m, fs):
+        return vqf_orientation(g, a, m, sampling_rate_hz=fs, offline=True, params=p).quat
+
+    online = DCFParams()
+    dcf_grid = [DCFParams(tau_mag_s=t, rest_bias=rb, mag_gain="fixed") for rb in ("lowpass", "kalman")
+                for t in TAU_MAG_ONLINE]
+    dcf_grid += [DCFParams(mag_gain="kalman", mag_noise_rad2_s=r, mag_rate_ref_rad_s=w)
+                 for w in MAG_RATE_REF for r in MAG_NOISE]
+    return {
+        "dcf": (_dcf, dcf_grid),
+        "dcf_offline": (_dcf_off, [DCFOfflineParams(online=online, tau_mag_s=t, mag_margin_s=m, mag_rate_ref_rad_s=w)
+                                   for t in TAU_MAG_OFFLINE for m in MAG_MARGIN_S for w in MAG_RATE_REF]),
+        "vqf": (_vqf, [{"tauMag": t} for t in TAU_MAG_ONLINE]),
+        "vqf_offline": (_vqf_off, [{"tauMag": t} for t in TAU_MAG_OFFLINE]),
+    }
+
+
+#: heading time constants of the grids, s (VQF's default 9 s included)
+TAU_MAG_ONLINE = (9.0, 15.0, 25.0, 40.0)
+TAU_MAG_OFFLINE = (9.0, 25.0, 40.0, 60.0, 90.0)
+#: widening of rejected magnetometer stretches offered to dcf_offline, s (preference order, see candidate_grids)
+MAG_MARGIN_S = (4.0, 2.0, 1.0, 0.0)
+#: magnetometer noise density of dcf's heading Kalman filter, rad²·s (≈ 7-50 s time constant at 1 rad/s)
+MAG_NOISE = (0.02, 0.05, 0.15, 0.5)
+#: rate at which the magnetometer's heading error doubles its variance, rad/s (1e9 = rate-independent); 3 rad/s ≈
+#: 3° noise / 20 ms lag (docs/orientation.md)
+MAG_RATE_REF = (1e9, 3.0)
+
+
+def run_cross_validation(trials, labels, *, pso: tuple[int, int] | None = (30, 30), progress_bar=None) -> dict:
+    """Leave-one-group-out over the BROAD groups: for every method the candidate (grid point, or swarm optimum)
+    chosen on two groups is scored on the third. Returns the held-out figures per trial, group and overall,
+    the choice per fold, the shipped candidate (chosen most often) and its in-sample figure."""
+    import dataclasses
+
+    from estimators.orientation.tuning import leave_groups_out, score_grid
+    names = [t.name for t in trials]
+    folds = {g: [n for n, lab in zip(names, labels) if lab == g] for g in dict.fromkeys(labels)}
+    out = {"procedure": "leave-one-group-out: each BROAD group (trials.json) held out in turn, the candidate with "
+                        "the lowest mean total RMSE on the other two groups' trials scored on it; heldout_mean_deg = "
+                        "mean over the 15 trials of their held-out errors; shipped = the candidate chosen in most "
+                        "folds (ties: lowest all-trial mean, in-sample)",
+           "folds": folds, "methods": {}}
+    asdict = lambda c: dataclasses.asdict(c) if dataclasses.is_dataclass(c) else c
+    grids = candidate_grids()
+    task = progress_bar.add_task("cross-validation", total=sum(len(c) for _, c in grids.values()) * len(trials)) \
+        if progress_bar is not None else None
+    for name, (est, cands) in grids.items():
+        def counted(p, g, a, m, fs, est=est):
+            if task is not None:
+                progress_bar.update(task, description=f"cv {name}", advance=1)
+            return est(p, g, a, m, fs)
+        t0 = time.perf_counter()
+        err = score_grid(counted, cands, trials)
+        r = leave_groups_out(err, cands, labels)
+        out["methods"][name] = {
+            "tuning": "grid", "candidates": [asdict(c) for c in cands],
+            "candidate_mean_deg": [float(v) for v in err.mean(axis=1)],
+            "candidate_by_group_deg": [_by_group(e, labels) for e in err],
+            "chosen_per_fold": {g: asdict(cands[i]) for g, i in zip(folds, r.chosen_per_fold)},
+            "heldout_per_trial_deg": dict(zip(names, (float(v) for v in r.heldout_per_trial))),
+            "heldout_mean_deg": r.cv_error_deg, "heldout_by_group_deg": _by_group(r.heldout_per_trial, labels),
+            "shipped": asdict(cands[r.default_index]),
+            "shipped_is_code_default": _is_default(name, cands[r.default_index]),
+            "shipped_in_sample_deg": float(err[r.default_index].mean()),
+            "seconds": time.perf_counter() - t0}
+    if pso is not None:
+        out["methods"].update(_pso_cv(trials, labels, folds, *pso))
+    return out
+
+
+def _is_default(name: str, cand) -> bool | None:
+    """Whether the shipped candidate equals the estimator's default parameters (None: a library's defaults)."""
+    from estimators.orientation import DCFOfflineParams, DCFParams
+    return {"dcf": lambda: cand == DCFParams(), "dcf_offline": lambda: cand == DCFOfflineParams()}.get(
+        name, lambda: None)()
+
+
+def _pso_cv(trials, labels, folds, n_particles: int, n_iter: int) -> dict:
+    """Madgwick / Mahony 3-level switching (thesis VST2, the shipped presets' space) tuned by the same swarm
+    budget in each leave-one-group-out fold."""
+    from estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
+    data = SwarmData.from_trials(trials)
+    names = list(data.names)
+    idx = [[names.index(n) for n in f] for f in folds.values()]
+    out = {}
+    for filt in ("madgwick", "mahony"):
+        space = SwitchingSpace(filt, 3)
+        t0 = time.perf_counter()
+        r = pso_leave_trials_out(space, data, folds=idx, n_particles=n_particles, n_iter=n_iter, seed=0)
+        out[f"{filt}_pso"] = {
+            "tuning": f"particle swarm {n_particles} x {n_iter}, 3-level switching on Delta_A, Delta_M (+ bias gain)",
+            "chosen_per_fold": {g: f["params"] for g, f in zip(folds, r["folds"])},
+            "heldout_per_trial_deg": dict(zip(names, (float(v) for v in r["heldout_deg"]))),
+            "heldout_mean_deg": r["cv_heldout_mean_deg"], "heldout_by_group_deg": _by_group(r["heldout_deg"], labels),
+            "shipped": f"{filt}_tuned preset (tuned_gains.json: one swarm on all 15 trials)",
+            "seconds": time.perf_counter() - t0}
+    return out
+
+
+def _comparison(summary: dict, cv: dict) -> list[dict]:
+    """One row per method: its defaults (all trials; in-sample when tuned on BROAD), tuned held out, tuned
+    in-sample."""
+    rows = []
+    pairs = (("dcf", "dcf", "dcf"), ("vqf", "vqf", "vqf"), ("dcf_offline", "dcf_offline", "dcf_offline"),
+             ("vqf_offline", "vqf_offline", "vqf_offline"), ("madgwick", "madgwick", "madgwick_pso"),
+             ("mahony", "mahony", "mahony_pso"))
+    for method, default_name, cv_name in pairs:
+        m = cv["methods"].get(cv_name)
+        s = summary.get(default_name)
+        row = {"method": method, "defaults_deg": s["mean_total_rmse_deg"] if s else None,
+               "defaults_in_sample": bool(s and s["in_sample"]),
+               "defaults_by_group_deg": s.get("by_group") if s else None,
+               "tuned_heldout_deg": m["heldout_mean_deg"] if m else None,
+               "tuned_heldout_by_group_deg": m["heldout_by_group_deg"] if m else None}
+        if m and "shipped_in_sample_deg" in m:
+            row["tuned_in_sample_deg"] = m["shipped_in_sample_deg"]
+        elif cv_name.endswith("_pso") and f"{method}_tuned" in summary:
+            row["tuned_in_sample_deg"] = summary[f"{method}_tuned"]["mean_total_rmse_deg"]
+        rows.append(row)
+    return rows
 
 
 @click.command("orientation")
@@ -70,12 +266,17 @@ def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True) 
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
 @click.option("--pso", "pso", default=None, metavar="FILTER:LEVELS",
               help="instead of the benchmark, tune madgwick|mahony switching gains (1 = fixed, 2 = VST1, 3 = VST2) by "
-                   "particle swarm with 3-fold leave-trials-out CV, e.g. --pso madgwick:2")
+                   "particle swarm with leave-one-group-out CV, e.g. --pso madgwick:2")
 @click.option("--pso-particles", default=50, show_default=True, help="swarm size (thesis: 50)")
 @click.option("--pso-iter", default=50, show_default=True, help="PSO iterations (thesis: 50)")
-@click.option("--no-cv", is_flag=True, help="with --pso: skip the cross-validation, tune on all trials only")
+@click.option("--no-cv", is_flag=True, help="skip the leave-one-group-out tuning of ours and the baselines (with --pso: "
+                                             "tune on all trials only)")
+@click.option("--no-pso", is_flag=True, help="in the cross-validation, skip the Madgwick / Mahony particle swarm")
+@click.option("--cv-particles", default=30, show_default=True, help="swarm size of the cross-validated Madgwick/Mahony "
+                                                                    "baselines (the budget the shipped presets got)")
+@click.option("--cv-iter", default=30, show_default=True, help="swarm iterations of the cross-validated baselines")
 def command(broad: Path, estimators: tuple[str, ...], as_json: bool, pso: str | None, pso_particles: int,
-            pso_iter: int, no_cv: bool) -> None:
+            pso_iter: int, no_cv: bool, no_pso: bool, cv_particles: int, cv_iter: int) -> None:
     """Orientation accuracy (RMSE vs optical reference, degrees) and speed on BROAD.
 
     \b
@@ -98,11 +299,12 @@ def command(broad: Path, estimators: tuple[str, ...], as_json: bool, pso: str | 
         else:
             cv = res.get("cv", {}).get("cv_heldout_mean_deg")
             click.echo(f"{filt} {lv}-level: all-trials mean RMSE {res['all_trials']['train_cost_deg']:.3f}°"
-                       + (f", leave-trials-out held-out {cv:.3f}°" if cv is not None else "")
+                       + (f", leave-one-group-out held-out {cv:.3f}°" if cv is not None else "")
                        + f", {res['all_trials']['seconds']:.0f} s; params {res['all_trials']['params']}")
         return
     names = list(dict.fromkeys(estimators)) or list(ESTIMATORS) + list(REPLICATION)
-    result = run_benchmark(broad, names, show_progress=not as_json or err_console.is_terminal)
+    result = run_benchmark(broad, names, show_progress=not as_json or err_console.is_terminal, cv=not no_cv,
+                           pso=None if no_pso else (cv_particles, cv_iter))
     if as_json:
         emit_json(result)
         return
@@ -116,21 +318,27 @@ def command(broad: Path, estimators: tuple[str, ...], as_json: bool, pso: str | 
         t.add_row(name + tag, f"{s['mean_total_rmse_deg']:.3f}", f"{s['us_per_sample']:.2f}")
     from rich.console import Console
     Console().print(t)
+    if "comparison" in result:
+        c = Table(title="defaults vs tuned with the same budget, leave-one-group-out (held-out) and in-sample")
+        for col in ("method", "defaults (°)", "tuned held-out (°)", "tuned in-sample (°)"):
+            c.add_column(col, justify="left" if col == "method" else "right")
+        f = lambda v: "" if v is None else f"{v:.3f}"
+        for r in result["comparison"]:
+            c.add_row(r["method"], f(r["defaults_deg"]) + (" (in-sample)" if r["defaults_in_sample"] else ""),
+                      f(r["tuned_heldout_deg"]), f(r.get("tuned_in_sample_deg")))
+        Console().print(c)
 
 
 def run_pso_tuning(broad: Path, filter_name: str, n_levels: int, *, n_particles: int = 50, n_iter: int = 50,
                    cv: bool = True, seed: int = 0) -> dict:
     """Particle-swarm tuning of Madgwick / Mahony switching gains on BROAD (estimators.orientation.pso):
-    leave-trials-out CV (3 folds, trial k in fold k mod 3) for the honest held-out error, then one run on all
+    leave-one-group-out CV (BROAD groups) for the honest held-out error, then one run on all
     trials whose result is what tuned_gains.json ships. Returns a JSON-able dict with timings."""
     import dataclasses
 
     from estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
-    from pipeline.formats.broad import load_broad
-    try:
-        trials = load_broad(broad)
-    except ValueError as e:
-        raise UserError(str(e)) from e
+    from estimators.orientation.tuning import trial_groups
+    trials = _load(broad)
     space = SwitchingSpace(filter_name, n_levels)
     data = SwarmData.from_trials(trials)
     out = {"filter": filter_name, "n_levels": n_levels, "space": list(space.names), "n_particles": n_particles,
@@ -138,8 +346,14 @@ def run_pso_tuning(broad: Path, filter_name: str, n_levels: int, *, n_particles:
     kw = dict(n_particles=n_particles, n_iter=n_iter, seed=seed)
     if cv:
         t0 = time.perf_counter()
-        r = pso_leave_trials_out(space, data, **kw)
-        out["cv"] = {"heldout_deg": [float(v) for v in r["heldout_deg"]],
+        try:
+            labels = trial_groups(trials)
+        except ValueError as e:
+            raise UserError(f"{e}; or pass --no-cv") from e
+        folds = [[i for i, g in enumerate(labels) if g == name] for name in dict.fromkeys(labels)]
+        r = pso_leave_trials_out(space, data, folds=folds, **kw)
+        out["cv"] = {"procedure": "leave-one-group-out (BROAD groups of trials.json)",
+                     "heldout_deg": [float(v) for v in r["heldout_deg"]],
                      "cv_heldout_mean_deg": r["cv_heldout_mean_deg"], "folds": r["folds"],
                      "seconds": time.perf_counter() - t0}
     t = tune_pso(space, data, **kw)

@@ -163,8 +163,8 @@ def test_default_online_beats_vqf_on_broad(broad_trials):
 
 def test_shipped_tuned_gains_are_the_defaults():
     d = json.loads((PROJECT_ROOT / "estimators" / "orientation" / "tuned_gains.json").read_text())
-    assert DCFParams().tau_mag_s == d["dcf"]["params"]["tau_mag_s"]
-    assert DCFOfflineParams().tau_mag_s == d["dcf_offline"]["params"]["tau_mag_s"]
+    assert dataclasses.asdict(DCFParams()) == d["dcf"]["params"]
+    assert dataclasses.asdict(DCFOfflineParams()) == d["dcf_offline"]["params"]
 
 
 def test_leave_trials_out_picks_on_training_folds_only():
@@ -182,9 +182,83 @@ def test_bench_orientation_json_format():
     from pipeline.bench.orientation import command
     one = sorted(BROAD.glob("*.hdf5"))[0]
     r = CliRunner().invoke(command, ["--broad", str(one), "--estimator", "dcf", "--estimator", "vqf", "--json"])
+    assert r.exit_code != 0 and "at least two groups" in r.output          # one trial: no fold to hold out
+    r = CliRunner().invoke(command, ["--broad", str(one), "--estimator", "dcf", "--estimator", "vqf", "--json",
+                                     "--no-cv"])
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
-    assert set(d) == {"trials", "summary", "default", "default_offline"}
+    assert set(d) == {"trials", "summary", "default", "default_offline", "in_sample_note"}
     assert {t["estimator"] for t in d["trials"]} == {"dcf", "vqf"}
-    assert set(d["trials"][0]) == {"trial", "estimator", "total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"}
-    assert set(d["summary"]["dcf"]) == {"mean_total_rmse_deg", "us_per_sample"}
+    assert set(d["trials"][0]) == {"trial", "group", "estimator", "total_rmse_deg", "heading_rmse_deg",
+                                   "inclination_rmse_deg"}
+    assert set(d["summary"]["dcf"]) == {"mean_total_rmse_deg", "us_per_sample", "in_sample", "by_group"}
+    assert d["summary"]["dcf"]["in_sample"] and not d["summary"]["vqf"]["in_sample"]
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_bench_cross_validation_holds_each_group_out():
+    """Leave-one-group-out on three real BROAD trials (one per group, first 20 s): every trial's held-out error
+    is the error of the candidate chosen on the *other* trials, for ours and for the tuned baselines."""
+    if not BROAD.is_dir():
+        pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
+    from pipeline.bench.orientation import candidate_grids, run_cross_validation
+    from pipeline.formats.broad import load_broad
+    from estimators.orientation.tuning import trial_groups
+    names = ("05_undisturbed_slow_rotation_with_breaks_B", "18_undisturbed_fast_translation_with_breaks_B",
+             "24_disturbed_tapping_A")
+    trials = []
+    for n in names:
+        t = load_broad(BROAD / f"{n}.hdf5")[0]
+        k = int(20 * t.sampling_rate_hz)
+        trials.append(dataclasses.replace(t, gyr=t.gyr[:k], acc=t.acc[:k], mag=t.mag[:k], quat_ref=t.quat_ref[:k],
+                                          movement=t.movement[:k], pos_ref=None))
+    labels = trial_groups(trials)
+    assert labels == ("rotation", "translation", "disturbed")
+    cv = run_cross_validation(trials, labels, pso=(4, 2))
+    assert cv["folds"] == {g: [n] for g, n in zip(labels, names)}
+    for name, m in cv["methods"].items():
+        assert set(m["heldout_by_group_deg"]) == set(labels)
+        if m.get("tuning") != "grid":
+            continue
+        by = np.array([[c[g] for g in labels] for c in m["candidate_by_group_deg"]])   # (candidates, trials)
+        for j, g in enumerate(labels):
+            best = int(np.argmin(np.delete(by, j, axis=1).mean(axis=1)))
+            assert m["chosen_per_fold"][g] == m["candidates"][best], name
+            assert m["heldout_per_trial_deg"][names[j]] == pytest.approx(by[best, j], abs=1e-12)
+    assert set(candidate_grids()) <= set(cv["methods"]) and {"madgwick_pso", "mahony_pso"} <= set(cv["methods"])
+
+
+def test_leave_groups_out_chooses_without_the_held_out_group():
+    from estimators.orientation.tuning import leave_groups_out, trial_groups
+    err = np.array([[1.0, 1.0, 3.0, 3.0], [2.0, 2.0, 0.5, 0.5], [0.9, 5.0, 5.0, 0.9]])
+    cv = leave_groups_out(err, ["a", "b", "c"], ["g1", "g1", "g2", "g2"])
+    assert cv.folds == ((0, 1), (2, 3)) and cv.chosen_per_fold == (1, 0)
+    np.testing.assert_allclose(cv.heldout_per_trial, [2.0, 2.0, 3.0, 3.0])
+    assert cv.cv_error_deg == 2.5
+    with pytest.raises(ValueError, match="two groups"):
+        leave_groups_out(err, ["a", "b", "c"], ["g", "g", "g", "g"])
+
+    class T:
+        name, groups = "x", ("undisturbed", "combined")
+    with pytest.raises(ValueError, match="none of the groups"):
+        trial_groups([T()])
+
+
+def test_rest_bias_kalman_is_not_pulled_by_the_onset_of_a_slow_movement():
+    """20 s at rest with a 0.5°/s bias, then a slow yaw whose rate ramps up by 1.5°/s²: for ~2 s the causal
+    rest detector still says 'rest' (the gyro stays within 2°/s of its 0.5-s low-pass). Setting the bias to the
+    low-passed gyro then takes in the movement (≈ 4°/s, the detector's limit); the Kalman update (VQF's rest-bias
+    estimation, steady-state time constant ≈ 9 s) moves by a fraction of the onset (measured 0.43°/s)."""
+    fs, n0, n1 = 100.0, 2000, 600
+    t = np.arange(n1) / fs
+    rate = np.r_[np.zeros(n0), np.radians(1.5) * t]
+    gyr = np.column_stack([np.zeros(n0 + n1), np.zeros(n0 + n1), rate + np.radians(0.5)])
+    acc = np.tile([0.0, 0.0, G], (n0 + n1, 1))
+    bias = {}
+    for mode in ("lowpass", "kalman"):
+        f = DCFFilter(DCFParams(rest_bias=mode), sampling_rate_hz=fs)
+        f.update_batch(gyr, acc, None)
+        bias[mode] = np.degrees(f.state[20])
+    assert abs(bias["lowpass"] - 0.5) > 3.0
+    assert abs(bias["kalman"] - 0.5) < 0.5
