@@ -107,8 +107,8 @@ def _by_group(errs, labels) -> dict:
 
 def candidate_grids() -> dict:
     """The candidates each method may choose from (one budget rule: a small grid over the heading time
-    constant for every complementary filter, ours and VQF's, plus our design options; the same PSO budget for
-    Madgwick and Mahony). Returns name -> (estimate(params, gyr, acc, mag, fs) -> quat, [params...]).
+    constant for every complementary filter, ours and VQF's, times a few design switches of each; the same PSO
+    budget for Madgwick and Mahony). Returns name -> (estimate(params, gyr, acc, mag, fs) -> quat, [params...]).
 
     Candidates are listed in order of preference: an exact tie on the training trials goes to the first. That
     matters for ``mag_margin_s`` only: on undisturbed trials nothing is rejected, so the margin does not change
@@ -146,11 +146,15 @@ def candidate_grids() -> dict:
         "dcf": (_dcf, dcf_grid),
         "dcf_offline": (_dcf_off, [DCFOfflineParams(online=online, tau_mag_s=t, mag_margin_s=m, mag_rate_ref_rad_s=w)
                                    for t in TAU_MAG_OFFLINE for m in MAG_MARGIN_S for w in MAG_RATE_REF]),
-        "vqf": (_vqf, [{"tauMag": t} for t in TAU_MAG_ONLINE]),
-        "vqf_offline": (_vqf_off, [{"tauMag": t} for t in TAU_MAG_OFFLINE]),
+        "vqf": (_vqf, [{"tauMag": t, **o} for o in VQF_OPTIONS for t in TAU_MAG_ONLINE]),
+        "vqf_offline": (_vqf_off, [{"tauMag": t, **o} for o in VQF_OPTIONS for t in TAU_MAG_OFFLINE]),
     }
 
 
+#: VQF's design switches offered beside tauMag, the counterparts of dcf's rest-bias and heading-gain options (its
+#: motion bias estimation on / off; new-field acceptance only while rotating ≥ 20°/s, the default, or always): the
+#: library gets as many candidates online as dcf (16) and half as many offline (20 vs 40)
+VQF_OPTIONS = tuple({"motionBiasEstEnabled": mb, "magNewMinGyr": g} for mb in (True, False) for g in (20.0, 0.0))
 #: heading time constants of the grids, s (VQF's default 9 s included)
 TAU_MAG_ONLINE = (9.0, 15.0, 25.0, 40.0)
 TAU_MAG_OFFLINE = (9.0, 25.0, 40.0, 60.0, 90.0)
