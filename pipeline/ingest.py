@@ -110,6 +110,27 @@ class IngestOptions:
 CLOCK_OFFSET_WARN_S = 0.05
 
 
+#: plausible ranges of body-segment fields of the session metadata (m); other ``*_length_m`` fields
+SEGMENT_RANGES_M = {"height_m": (0.5, 2.5), "thigh_length_m": (0.2, 0.7), "shank_length_m": (0.2, 0.7),
+                    "foot_length_m": (0.1, 0.4)}
+OTHER_LENGTH_RANGE_M = (0.01, 2.5)
+RATE_TOLERANCE = 0.05        # declared sampling_rate_hz vs the rate of the stamps
+
+
+def _check_plausible(session: dict) -> None:
+    """Numbers in the session metadata that the stages use must be numbers in a plausible range."""
+    for k, v in session.items():
+        if k in SEGMENT_RANGES_M or k.endswith("_length_m") or k == "sampling_rate_hz":
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise IngestRejected(f"session metadata '{k}' is not a number; fix it at export") from None
+            lo, hi = (RATE_RANGE_HZ if k == "sampling_rate_hz" else SEGMENT_RANGES_M.get(k, OTHER_LENGTH_RANGE_M))
+            if not (lo <= x <= hi):
+                raise IngestRejected(f"session metadata '{k}' = {x:g} is outside the plausible range "
+                                     f"[{lo:g}, {hi:g}]; fix it at export")
+
+
 def _check_units(st: TopicSeries) -> None:
     acc_med = float(np.median(st.acc_norm_medians))
     if 0.5 < acc_med < 2.0:
@@ -172,6 +193,7 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOpt
         if not fields:
             raise IngestRejected(NO_SESSION)
         session = check_session_metadata({"session": fields}, root)
+        _check_plausible(session)
         out.metadata = session
         for s in states.values():
             s.finish()
@@ -208,6 +230,10 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOpt
                 out.issues.append({"severity": "warning", "topic": s.topic,
                                    "message": f"placement '{placement}' is not a standard placement"})
             check_identifier(placement, f"placement of topic {s.topic}")
+            declared = session.get("sampling_rate_hz")
+            if declared and s.kind == "imu" and abs(rate / float(declared) - 1.0) > RATE_TOLERANCE:
+                raise IngestRejected(f"{s.topic}: the session metadata declares {float(declared):g} Hz but the "
+                                     f"stamps give {rate:.2f} Hz; fix sampling_rate_hz or the time stamps")
         offsets = {s.topic: s.clock_offset_s for s in imu}
         if len(imu) > 1 and max(offsets.values()) - min(offsets.values()) > CLOCK_OFFSET_WARN_S:
             spread = max(offsets.values()) - min(offsets.values())

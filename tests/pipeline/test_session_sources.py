@@ -131,3 +131,13 @@ def test_manifest_topics_table_is_validated(tmp_path):
     p.write_text(text + '\n[topics]\n"no_slash" = "foot_left"\n')
     with pytest.raises(ValueError, match=r"\[topics.no_slash\]"):
         load_manifest(p)
+
+
+@pytest.mark.parametrize("field,value,needle", [("thigh_length_m", "8.41", "'thigh_length_m' = 8.41 is outside"),
+                                                ("height_m", "tall", "'height_m' is not a number"),
+                                                ("sampling_rate_hz", "200", "declares 200 Hz but the stamps give 100.00 Hz")])
+def test_implausible_session_numbers_are_refused(tmp_path, field, value, needle):
+    rec = small_recording(seconds=5.0, placements=("foot_left",))
+    f = write_mcap_ros2(tmp_path / "walk.mcap", rec, session=False)
+    s = _ingest(tmp_path / "wh", [f], session={**rec.metadata, field: value})
+    assert s.ingested == [] and needle in s.quarantined[0], s.quarantined
