@@ -132,14 +132,14 @@ def _check_plausible(session: dict) -> None:
 
 
 def _check_units(st: TopicSeries) -> None:
-    acc_med = float(np.median(st.acc_norm_medians))
+    acc_med = st.acc_norm_median
     if 0.5 < acc_med < 2.0:
         raise IngestRejected(f"{st.topic}: acceleration median norm is {acc_med:.2f}, which looks like g; "
                              f"the recording format needs m/s² (multiply by 9.80665 at export)")
     if acc_med > 200:
         raise IngestRejected(f"{st.topic}: acceleration median norm is {acc_med:.0f}, not m/s² "
                              f"(raw ADC counts or mm/s²?); export calibrated m/s²")
-    gyr = float(np.median(st.gyr_p99))
+    gyr = st.gyr_p99
     if gyr > 35.0:
         raise IngestRejected(f"{st.topic}: angular rate 99th percentile is {gyr:.0f}, which looks like deg/s; "
                              f"the recording format needs rad/s")

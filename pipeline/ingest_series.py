@@ -32,6 +32,7 @@ FLUSH_ROWS = 1 << 20
 HOLD_ROWS = FLUSH_ROWS // 4
 BATCH_TINY = 0.2            # a step below this fraction of the 90th-percentile step is inside a batch
 BATCH_FRACTION = 0.3        # batched stamping when more steps than this are inside batches
+SUBSAMPLE = 61              # statistics on every 61st sample (prime: no aliasing with batches or chunks)
 
 SCHEMAS = {
     "imu": pa.schema([("t_ns", pa.int64()), ("log_ns", pa.int64())]
@@ -64,9 +65,8 @@ class TopicSeries:
         self.last_orig: int | None = None   # received stamp of the last written row
         self.last_vals: np.ndarray | None = None
         self.dt_medians: list[float] = []
-        self.acc_norm_medians: list[float] = []
-        self.gyr_p99: list[float] = []
-        self.clock_offsets: list[float] = []   # median(log_time - stamp) per block, seconds
+        self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
+        self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
         self.gaps: list[tuple[int, float]] = []
         self.n_nan = 0
         self.n_zero = 0
@@ -97,12 +97,9 @@ class TopicSeries:
             self.n_zero += int(zero.sum())
         if len(t) > 1 and (np.diff(t) < 0).any():
             self.unsorted = True
-        if self.kind == "imu":
-            k = max(7, len(t) // 2048)              # a ~2,000-sample subsample per block is plenty for these medians
-            sub = v[::k]
-            self.acc_norm_medians.append(float(np.median(np.linalg.norm(sub[:, 3:], axis=1))))
-            self.gyr_p99.append(float(np.percentile(np.abs(sub[:, :3]), 99)))
-            self.clock_offsets.append(float(np.median((log[::k] - t[::k]).astype(np.float64))) / 1e9)
+        if self.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
+            self._sub.append(v[::SUBSAMPLE])
+            self._off.append(log[::SUBSAMPLE] - t[::SUBSAMPLE])
         self.n_in += len(t)
         self.buf.append((t, log, v))
         self.buf_rows += len(t)
@@ -239,7 +236,18 @@ class TopicSeries:
 
     @property
     def clock_offset_s(self) -> float:
-        return float(np.median(self.clock_offsets)) if self.clock_offsets else float("nan")
+        """Median of log_time - header.stamp (s): the sensor clock's offset to the host's."""
+        return float(np.median(np.concatenate(self._off))) / 1e9 if self._off else float("nan")
+
+    @property
+    def acc_norm_median(self) -> float:
+        v = np.concatenate(self._sub)
+        return float(np.median(np.linalg.norm(v[:, 3:], axis=1)))
+
+    @property
+    def gyr_p99(self) -> float:
+        v = np.concatenate(self._sub)
+        return float(np.percentile(np.abs(v[:, :3]), 99))
 
     def warnings(self) -> list[str]:
         out = []

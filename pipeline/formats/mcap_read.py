@@ -348,14 +348,16 @@ def _decode_records(recs: _Records, snap, with_defs: bool) -> _Piece:
         known = {**known, **local.topics}
     blocks, counts, pend = [], {}, None
     if len(recs.m_ch):
-        order = np.argsort(recs.m_ch, kind="stable")
-        ch_sorted = recs.m_ch[order]
-        ids, first = np.unique(ch_sorted, return_index=True)
-        bounds = list(first) + [len(order)]
+        if recs.m_ch[0] == recs.m_ch.min() == recs.m_ch.max():      # one channel: no grouping needed
+            ids, bounds, order = [int(recs.m_ch[0])], [0, len(recs.m_ch)], None
+        else:
+            order = np.argsort(recs.m_ch, kind="stable")
+            ids, first = np.unique(recs.m_ch[order], return_index=True)
+            ids, bounds = ids.tolist(), list(first) + [len(order)]
         missing = []
-        for j, cid in enumerate(ids.tolist()):
-            sel = order[bounds[j]:bounds[j + 1]]
-            counts[cid] = len(sel)
+        for j, cid in enumerate(ids):
+            sel = slice(None) if order is None else order[bounds[j]:bounds[j + 1]]
+            counts[cid] = bounds[j + 1] - bounds[j]
             ti = known.get(cid)
             if ti is None:
                 missing.append(sel)
@@ -364,7 +366,7 @@ def _decode_records(recs: _Records, snap, with_defs: bool) -> _Piece:
                 continue
             blocks.append(_decode(ti, recs.buf, recs.m_start[sel], recs.m_len[sel], recs.m_log[sel]))
         if missing:
-            sel = np.sort(np.concatenate(missing))
+            sel = np.sort(np.concatenate([np.arange(len(recs.m_ch))[m] for m in missing]))
             pend = (recs.buf, recs.m_ch[sel], recs.m_log[sel], recs.m_start[sel], recs.m_len[sel])
     return _Piece(blocks, defs, counts, pend)
 
