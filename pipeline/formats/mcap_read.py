@@ -431,12 +431,17 @@ class _Hasher:
         self.n = 0
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-hash")
         self._last: Future | None = None
+        self._queue: deque[Future] = deque()
 
     def feed(self, view, crc_upto: int | None) -> None:
-        """``view`` starts at file offset ``self.n``; CRC covers bytes before ``crc_upto`` (None: all)."""
+        """``view`` starts at file offset ``self.n``; CRC covers bytes before ``crc_upto`` (None: all).
+        At most 4 blocks wait for the hashing thread (bounded memory when hashing is the slower side)."""
         start = self.n
         self.n += len(view)
+        while len(self._queue) >= 4:
+            self._queue.popleft().result()
         self._last = self._pool.submit(self._work, view, start, crc_upto)
+        self._queue.append(self._last)
 
     def _work(self, view, start, crc_upto):
         self.sha.update(view)
@@ -512,57 +517,68 @@ def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None
     held = [0]
     dataend_crc: list[int] = []
     try:
-        with open(path, "rb") as f:
-            summ = _read_summary(f, size)
-            for op, rec in summ.registry_defs:
-                (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
-            result.statistics = summ.statistics
-            f.seek(0)
-
-            def finish(piece: _Piece) -> Iterator[Block]:
-                for op, rec in piece.defs:
-                    (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
-                for cid, n in piece.counts.items():
-                    result.message_counts[cid] = result.message_counts.get(cid, 0) + n
-                yield from piece.blocks
-                if piece.pending is not None:
-                    buf, ch, log, st, ln = piece.pending
-                    unknown = sorted(set(ch.tolist()) - set(reg.topics))
-                    if unknown:
-                        raise McapFormatError(f"messages on channel id {unknown[0]}, which no Channel record "
-                                              f"defines; {_FIX}")
-                    recs = _Records(buf, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64),
-                                    ch, log, st, ln, 0, False)
-                    p = _decode_records(recs, reg.snapshot(), False)
-                    yield from p.blocks
-
-            def drain(limit_bytes: int) -> Iterator[Block]:
-                while inflight and (held[0] > limit_bytes or inflight[0][0].done()):
-                    fut, nb = inflight.popleft()
-                    held[0] -= nb
-                    yield from finish(fut.result())
-
-            for kind, payload, nbytes in _top_level(f, size, summ, hasher, reg, result, dataend_crc):
-                if kind == "chunk":
-                    inflight.append((pool.submit(_chunk_task, payload, reg.snapshot()), nbytes))
-                else:
-                    inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False), nbytes))
-                held[0] += nbytes
-                yield from drain(MAX_IN_FLIGHT_BYTES)
-            yield from drain(-1)
-        hasher.finish()
-        if dataend_crc and dataend_crc[0] and dataend_crc[0] != hasher.crc:
-            raise McapFormatError(f"data-section CRC mismatch (the file changed after writing); {_FIX}")
-        _check_statistics(result, reg)
-        result.topics = dict(reg.topics)
-        result.ignored_topics = sorted(t.topic for t in reg.topics.values() if t.kind is None)
-        result.sha256 = hasher.sha.hexdigest()
-        result.n_bytes = hasher.n
+        yield from _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result)
+    except McapFormatError:
+        raise
+    except MemoryError:
+        raise McapFormatError("a record needs more memory than this machine has; rewrite the file with smaller "
+                              "chunks (`mcap compress`)") from None
+    except (struct.error, IndexError, KeyError, OverflowError, UnicodeDecodeError, ValueError, EOFError) as e:
+        raise McapFormatError(f"corrupt MCAP ({type(e).__name__} while parsing a record); {_FIX}") from None
     finally:
         for fut, _ in inflight:
             fut.cancel()
         pool.shutdown(wait=True, cancel_futures=True)
         hasher.finish()
+
+
+def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result) -> Iterator[Block]:
+    with open(path, "rb") as f:
+        summ = _read_summary(f, size)
+        for op, rec in summ.registry_defs:
+            (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
+        result.statistics = summ.statistics
+        f.seek(0)
+
+        def finish(piece: _Piece) -> Iterator[Block]:
+            for op, rec in piece.defs:
+                (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
+            for cid, n in piece.counts.items():
+                result.message_counts[cid] = result.message_counts.get(cid, 0) + n
+            yield from piece.blocks
+            if piece.pending is not None:
+                buf, ch, log, st, ln = piece.pending
+                unknown = sorted(set(ch.tolist()) - set(reg.topics))
+                if unknown:
+                    raise McapFormatError(f"messages on channel id {unknown[0]}, which no Channel record "
+                                          f"defines; {_FIX}")
+                recs = _Records(buf, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64),
+                                ch, log, st, ln, 0, False)
+                p = _decode_records(recs, reg.snapshot(), False)
+                yield from p.blocks
+
+        def drain(limit_bytes: int) -> Iterator[Block]:
+            while inflight and (held[0] > limit_bytes or inflight[0][0].done()):
+                fut, nb = inflight.popleft()
+                held[0] -= nb
+                yield from finish(fut.result())
+
+        for kind, payload, nbytes in _top_level(f, size, summ, hasher, reg, result, dataend_crc):
+            if kind == "chunk":
+                inflight.append((pool.submit(_chunk_task, payload, reg.snapshot()), nbytes))
+            else:
+                inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False), nbytes))
+            held[0] += nbytes
+            yield from drain(MAX_IN_FLIGHT_BYTES)
+        yield from drain(-1)
+    hasher.finish()
+    if dataend_crc and dataend_crc[0] and dataend_crc[0] != hasher.crc:
+        raise McapFormatError(f"data-section CRC mismatch (the file changed after writing); {_FIX}")
+    _check_statistics(result, reg)
+    result.topics = dict(reg.topics)
+    result.ignored_topics = sorted(t.topic for t in reg.topics.values() if t.kind is None)
+    result.sha256 = hasher.sha.hexdigest()
+    result.n_bytes = hasher.n
 
 
 def _check_statistics(result: ReadResult, reg: _Registry) -> None:
