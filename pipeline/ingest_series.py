@@ -28,7 +28,7 @@ from pipeline.formats.mcap_read import Block
 from warehouse.store import SeriesWriter
 
 GAP_WARN_S = 1.0            # gaps longer than this are recorded as warnings (the data are kept)
-FLUSH_ROWS = 1 << 20
+FLUSH_ROWS = 1 << 19
 HOLD_ROWS = FLUSH_ROWS // 4
 BATCH_TINY = 0.2            # a step below this fraction of the 90th-percentile step is inside a batch
 BATCH_FRACTION = 0.3        # batched stamping when more steps than this are inside batches
@@ -141,7 +141,8 @@ class TopicSeries:
             if cut <= 0:
                 self.buf, self.buf_rows = [(t, log, v)], len(t)
                 return
-            self.buf, self.buf_rows = [(t[cut:], log[cut:], v[cut:])], len(t) - cut
+            # copies: the held-back rows must not keep the whole concatenated slice alive
+            self.buf, self.buf_rows = [(t[cut:].copy(), log[cut:].copy(), v[cut:].copy())], len(t) - cut
         t, log, v = t[:cut], log[:cut], v[:cut]
         t, log, v = self._dedupe(t, log, v)
         if len(t) == 0:

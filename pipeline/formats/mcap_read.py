@@ -50,7 +50,7 @@ MAX_CHUNK_BYTES = 256 << 20
 MAX_RECORD_BYTES = 256 << 20
 READ_BLOCK = 8 << 20
 #: uncompressed bytes of chunks decoded ahead of the consumer (bounds memory)
-MAX_IN_FLIGHT_BYTES = 192 << 20
+MAX_IN_FLIGHT_BYTES = 96 << 20
 
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 OP_METADATA, OP_DATA_END, OP_STATISTICS = 0x0C, 0x0F, 0x0B
