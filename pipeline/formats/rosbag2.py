@@ -148,4 +148,11 @@ def _decode_batch(ti: TopicInfo, batch: list[tuple[int, bytes]]) -> Block:
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
     buf = np.frombuffer(b"".join(r for _, r in batch), dtype=np.uint8)
     log = np.array([s for s, _ in batch], dtype=np.int64)
-    return _decode(ti, buf, starts, lengths, log)
+    try:
+        return _decode(ti, buf, starts, lengths, log)
+    except McapFormatError:
+        if ti.kind != "range":
+            raise
+        # older bags carry no message definition: sensor_msgs/Range before or after Jazzy's ``variance``
+        ti.range_variance = not ti.range_variance
+        return _decode(ti, buf, starts, lengths, log)
