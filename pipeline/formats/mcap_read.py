@@ -257,6 +257,7 @@ class _Registry:
         self.schemas: dict[int, Schema] = dict(schemas or {})
         self.channels: dict[int, Channel] = {}
         self.topics: dict[int, TopicInfo] = {}
+        self._snap = None
 
     def add_schema(self, s: Schema) -> None:
         old = self.schemas.get(s.id)
@@ -264,6 +265,7 @@ class _Registry:
             if s.id == 0:
                 raise McapFormatError(f"a Schema record uses the reserved id 0; {_FIX}")
             self.schemas[s.id] = s
+            self._snap = None
         elif (old.name, old.encoding, bytes(old.data)) != (s.name, s.encoding, bytes(s.data)):
             raise McapFormatError(f"schema id {s.id} is defined twice with different content; {_FIX}")
 
@@ -282,9 +284,13 @@ class _Registry:
             raise McapFormatError(f"topic {c.topic} appears on two channels; re-export with one channel per topic")
         self.channels[c.id] = c
         self.topics[c.id] = _topic_info(c, self.schemas.get(c.schema_id))
+        self._snap = None
 
     def snapshot(self) -> tuple[dict[int, Schema], dict[int, TopicInfo]]:
-        return dict(self.schemas), dict(self.topics)
+        """Copies of the definitions so far (shared read-only by the chunk tasks until the next change)."""
+        if self._snap is None:
+            self._snap = (dict(self.schemas), dict(self.topics))
+        return self._snap
 
 
 # ---- decoding --------------------------------------------------------------------------------
