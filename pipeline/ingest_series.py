@@ -119,14 +119,17 @@ class TopicSeries:
             return
         t = np.concatenate([x[0] for x in self.buf])
         log = np.concatenate([x[1] for x in self.buf])
-        v = np.concatenate([x[2] for x in self.buf])
+        ncol = self.buf[0][2].shape[1]
+        v = np.empty((len(t), ncol), order="F")         # column by column: contiguous copies only
+        for k in range(ncol):
+            np.concatenate([x[2][:, k] for x in self.buf], out=v[:, k])
         self.buf, self.buf_rows = [], 0
         if (t == 0).any():
             raise SeriesRejected(f"{self.topic}: {int((t == 0).sum())} samples have neither a header.stamp nor a "
                                  f"log_time: no time base; export sensor time stamps")
-        order = np.argsort(t, kind="stable")
-        if (order != np.arange(len(t))).any():
-            t, log, v = t[order], log[order], v[order]
+        if len(t) > 1 and (t[1:] < t[:-1]).any():
+            order = np.argsort(t, kind="stable")
+            t, log, v = t[order], log[order], np.asfortranarray(v[order])
         if self.last_orig is not None and t[0] < self.last_orig:
             raise SeriesRejected(f"{self.topic}: messages arrive more than {HOLD_ROWS:,} samples out of "
                                  f"header.stamp order; sort the file first (`mcap sort`)")
@@ -142,7 +145,7 @@ class TopicSeries:
                 self.buf, self.buf_rows = [(t, log, v)], len(t)
                 return
             # copies: the held-back rows must not keep the whole concatenated slice alive
-            self.buf, self.buf_rows = [(t[cut:].copy(), log[cut:].copy(), v[cut:].copy())], len(t) - cut
+            self.buf, self.buf_rows = [(t[cut:].copy(), log[cut:].copy(), v[cut:].copy(order="F"))], len(t) - cut
         t, log, v = t[:cut], log[:cut], v[:cut]
         t, log, v = self._dedupe(t, log, v)
         if len(t) == 0:

@@ -200,7 +200,7 @@ def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_va
 
     ``buf`` uint8 chunk bytes; ``starts``/``lengths`` payload positions; ``fields`` indices of the
     doubles to extract; ``n_doubles`` float64 after the header in the schema; ``out_vals_u8`` is the
-    uint8 view of a float64 (N, len(fields)) array. ``status[i]``: 0 ok, 1 big-endian or unknown
+    uint8 view of a float64 (len(fields), N) array (column-major). ``status[i]``: 0 ok, 1 big-endian or unknown
     encapsulation, 2 message too short, 3 payload size not the schema's (up to 3 bytes of end padding
     allowed), 4 nanoseconds >= 1e9.
     """
@@ -227,9 +227,10 @@ def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_va
         if nsec >= 1_000_000_000:
             status[i] = 4
             continue
+        n = starts.shape[0]
         for k in range(nf):
             src = p + body + 8 * fields[k]
-            dst = (i * nf + k) * 8
+            dst = (k * n + i) * 8                  # column-major: each field's values contiguous
             for b in range(8):
                 out_vals_u8[dst + b] = buf[src + b]
 
@@ -265,14 +266,16 @@ def decode_range_kernel(buf, starts, lengths, n_floats, out_t, out_vals_u8, stat
 
 
 def decode_doubles(buf: np.ndarray, starts, lengths, fields: np.ndarray, n_doubles: int):
-    """Vectorised decode; returns (t_ns int64 (N,), values float64 (N, len(fields)), status uint8 (N,))."""
+    """Vectorised decode; returns (t_ns int64 (N,), values float64 (N, len(fields)), status uint8 (N,)).
+
+    ``values`` is Fortran-ordered (each column contiguous), which is what the column store wants."""
     n = len(starts)
     t = np.zeros(n, dtype=np.int64)
-    vals = np.zeros((n, len(fields)), dtype=np.float64)
+    cols = np.zeros((len(fields), n), dtype=np.float64)
     status = np.zeros(n, dtype=np.uint8)
     decode_doubles_kernel(buf, starts, lengths, fields.astype(np.int64), n_doubles, t,
-                          vals.reshape(-1).view(np.uint8), status)
-    return t, vals, status
+                          cols.reshape(-1).view(np.uint8), status)
+    return t, cols.T, status
 
 
 def decode_range(buf: np.ndarray, starts, lengths, variance: bool = True):
