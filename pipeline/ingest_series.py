@@ -98,7 +98,7 @@ class TopicSeries:
         if len(t) > 1 and (np.diff(t) < 0).any():
             self.unsorted = True
         if self.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
-            self._sub.append(v[::SUBSAMPLE])
+            self._sub.append(v[::SUBSAMPLE].copy())          # a copy: a view would keep the block alive
             self._off.append(log[::SUBSAMPLE] - t[::SUBSAMPLE])
         self.n_in += len(t)
         self.buf.append((t, log, v))
