@@ -55,9 +55,20 @@ def _ingest_child(path: str, root: str, q) -> None:
     from pipeline import runner
     t0 = time.perf_counter()
     s = runner.run(Path(root), None, files=[Path(path)], stages=False, command="bench ingest")
-    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     q.put({"seconds": time.perf_counter() - t0, "ingested": len(s.ingested), "quarantined": s.quarantined,
-           "peak_kb": peak_kb})
+           "peak_kb": _peak_kb()})
+
+
+def _peak_kb() -> int:
+    """Peak resident memory of this process. VmHWM belongs to the process's own address space; getrusage's
+    ru_maxrss survives exec on Linux, so a spawned child would report the parent's peak at fork time."""
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 
 
 def _ingest_in_child(path: Path, root: Path) -> dict:
