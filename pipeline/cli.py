@@ -336,13 +336,19 @@ def _write_reports(wh: Path, run_id: str, reports_dir: Path | None, failed: list
               help="Where the demo study lives [default: $STRIDELAB_HOME].")
 @click.option("--port", type=int, default=8501, show_default=True)
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=None, help="Worker processes [default: cores].")
-def demo(no_serve, home, port, jobs) -> None:
-    """Simulate the demo study, run the nightly pipeline on it, then serve the dashboard.
+@click.option("--public", "public_dir", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
+              help="Instead of simulating, import the public datasets found in DIR (broad, gaitmap_example, "
+                   "uci_chest, pyshoe_vicon, voisard_gait, xio_gait) into the study 'public'.")
+@click.option("--max-trials", type=click.IntRange(1, 100000), default=None,
+              help="With --public: at most N recordings per dataset (bounds the run time).")
+def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
+    """Simulate the demo study (or import public datasets), run the nightly pipeline, then serve the dashboard.
 
     \b
     Examples:
       stridelab demo               # then open http://localhost:8501
       stridelab demo --no-serve    # pipeline only
+      stridelab demo --public ../shared/data --max-trials 4 --no-serve
     """
     import os
     from pipeline.console import err_console
@@ -353,7 +359,13 @@ def demo(no_serve, home, port, jobs) -> None:
     from pipeline.config import default_inbox, default_warehouse
     inbox, wh = default_inbox(), default_warehouse()
     existing = sorted(inbox.glob("*.mcap")) if inbox.is_dir() else []
-    if existing:
+    if public_dir is not None:
+        from pipeline.importers import import_public
+        res = import_public(public_dir, inbox / "public", max_trials=max_trials,
+                            on_file=lambda m: err_console.print(f"  {m}", markup=False, highlight=False))
+        for e in res.errors:
+            err_console.print(f"  refused: {e}", markup=False, highlight=False)
+    elif existing:
         err_console.print(f"using the {len(existing)} recordings already in {inbox}")
     else:
         err_console.print(f"simulating the demo study into {inbox} …")

@@ -124,7 +124,7 @@ def _uci(path: Path, placement: str | None) -> list[Converted]:
     for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [len(lab)]])):
         code = int(lab[a])
         cls = LABEL_TO_CLASS.get(code)
-        end = int(t[b - 1]) + int(round(1e9 / u.sampling_rate_hz))
+        end = int(t[b - 1]) + int(round(0.5e9 / u.sampling_rate_hz))     # half a period after the run's last sample
         events.append({"t_ns": int(t[a]), "end_ns": end, "type": "activity", "code": code,
                        "label": SCORED_CLASSES[cls] if cls is not None else "unscored",
                        "source": "UCI chest label column"})
@@ -186,6 +186,76 @@ def _cwa(path: Path, placement: str | None) -> list[Converted]:
     return [Converted(rec, d, f"cwa-{_slug(path.stem)}", t0_ns=int(r.t_ns[0]))]
 
 
+def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.pyshoe import load_pyshoe_trial
+    tr = load_pyshoe_trial(path)
+    pl = _pick_placement(placement, "foot_right")
+    t = np.rint((tr.t - tr.t[0]) * 1e9).astype(np.int64)
+    q = np.full((len(t), 4), np.nan)          # Vicon gives the foot position only
+    rec = Recording(metadata={}, imu={pl: ImuData(t, tr.acc, tr.gyr, None)},
+                    reference_poses={pl: PoseData(t, tr.position, q)}, name=tr.name)
+    d = {"participant": "pyshoe01", "trial": _slug(tr.name), "kind": "lab", "protocol": "PyShoe Vicon trial",
+         "reference": "Vicon foot position (PyShoe gt, y flipped to right-handed z up)", "foot_side": "unknown"}
+    m = re.fullmatch(r"(\d{4})-(\d\d)-(\d\d)-(\d\d)-(\d\d)-(\d\d)", tr.name)
+    if m:
+        d["start"] = "{}-{}-{}T{}:{}:{}Z".format(*m.groups())
+    return [Converted(rec, d, f"pyshoe-{_slug(tr.name)}")]
+
+
+def _xsens_times(x) -> np.ndarray:
+    """Sample times from the packet counter (dropped packets keep their gap)."""
+    p = np.asarray(x.packet, np.int64)
+    return np.rint((p - p[0]) * (1e9 / x.sampling_rate_hz)).astype(np.int64)
+
+
+_XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "pelvis"}
+
+
+def _xsens(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.xsens_mt import load_xsens_mt_txt
+    x = load_xsens_mt_txt(path)
+    suffix = path.stem.rsplit("_", 1)[-1].lower()
+    pl = placement or _XSENS_SUFFIX.get(suffix)
+    if pl is None:
+        raise ImportRejected(f"{path}: cannot tell the placement from the name; pass --placement (e.g. foot_left)")
+    rec = Recording(metadata={}, imu={pl: ImuData(_xsens_times(x), x.acc, x.gyr, None)}, name=path.stem)
+    return [Converted(rec, {"participant": "xsens01", "trial": _slug(path.stem), "kind": "lab",
+                            "protocol": "Xsens MT Manager export",
+                            "magnetometer": "not imported (normalised units; give --session mag_field_ut=...)"},
+                      f"xsens-{_slug(path.stem)}")]
+
+
+def _voisard(path: Path, placement: str | None) -> list[Converted]:
+    from pipeline.formats.xsens_mt import load_voisard_trial
+    d = path.parent if path.is_file() else path
+    name = path.stem if path.is_file() else None
+    if name is None:
+        raise ImportRejected(f"{path}: give the trial's N-M.json (or the folder, which imports every trial)")
+    tr = load_voisard_trial(d, name)
+    a = tr.annotation
+    imu = {}
+    for pl, x in (("foot_left", tr.left), ("foot_right", tr.right), ("pelvis", tr.lower_back)):
+        if x is not None:
+            imu[pl] = ImuData(_xsens_times(x), x.acc, x.gyr, None)
+    events = []
+    for side, ev in (("left", a.left_events), ("right", a.right_events)):
+        t = imu[f"foot_{side}"].t_ns
+        for to, hs in np.asarray(ev, np.int64).reshape(-1, 2):
+            for typ, i in (("TC", to), ("IC", hs)):
+                if 0 <= i < len(t):
+                    events.append({"t_ns": int(t[i]), "type": typ, "side": side,
+                                   "source": "Voisard et al. 2023 annotations (two IMU algorithms, hand-checked)"})
+    tl = imu["foot_left"].t_ns
+    lo, hi = (int(v) for v in np.asarray(a.trial_boundaries).ravel()[:2])
+    events.append({"t_ns": int(tl[max(lo, 0)]), "end_ns": int(tl[min(hi, len(tl) - 1)]), "type": "score",
+                   "label": "trial", "source": "Voisard TrialBoundaries"})
+    rec = Recording(metadata={}, imu=imu, events=events, name=tr.name)
+    return [Converted(rec, {"participant": f"voisard{a.subject:02d}", "trial": _slug(tr.name), "kind": "lab",
+                            "protocol": "Voisard: stand, walk 10 m, U-turn, walk back",
+                            "reference": "Voisard et al. 2023 gait events",
+                            "magnetometer": "not imported (normalised units)"}, f"voisard-{_slug(tr.name)}")]
+
+
 FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("xio", "x-io / NGIMU CSV (Time (s), Gyroscope X (deg/s) ..., Accelerometer X (g) ...)", _xio, (".csv",)),
     Format("gaitmap", "gaitmap / NilsPod example folder (imu_sample.csv + mocap_sample.csv + stride events)",
@@ -194,7 +264,49 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("broad", "BROAD HDF5 trial (IMU + optical orientation)", _broad, (".hdf5", ".h5")),
     Format("apdm", "APDM Opal HDF5, v5 layout (Sensors/<id>/Accelerometer ...)", _apdm, (".h5", ".hdf5")),
     Format("cwa", "Axivity AX3/AX6 .cwa (read by scikit-digital-health)", _cwa, (".cwa",)),
+    Format("pyshoe", "PyShoe Vicon trial .mat (one shoe IMU + Vicon foot position)", _pyshoe, (".mat",)),
+    Format("xsens", "Xsens MT Manager text export (rate line, PacketCounter Acc_X ... Mag_Z)", _xsens, (".txt",)),
+    Format("voisard", "Voisard et al. gait trial: N-M.json events + N-M_{lf,rf,lb}.txt Xsens exports", _voisard,
+           (".json",)),
 )}
+
+#: sub-folders of a public-data folder (../shared/data) and how ``stridelab demo --public`` imports them
+PUBLIC_DATASETS = {"broad": "broad", "gaitmap_example": "gaitmap", "uci_chest": "uci", "pyshoe_vicon": "pyshoe",
+                   "voisard_gait": "voisard", "xio_gait": "xio"}
+PUBLIC_STUDY = "public"
+
+
+def import_public(directory: Path, inbox: Path, *, max_trials: int | None = None,
+                  on_file: Callable[[str], None] = lambda m: None) -> ImportResult:
+    """Import every known dataset found in ``directory`` into ``inbox/<dataset>/`` (study ``public``); folders
+    not in :data:`PUBLIC_DATASETS` are ignored with a note. A dataset already imported with the same
+    ``max_trials`` is not converted again (marker file ``.imported``)."""
+    total = ImportResult()
+    for sub in sorted(p for p in Path(directory).iterdir() if p.is_dir() and not p.name.startswith(".")):
+        fmt = PUBLIC_DATASETS.get(sub.name)
+        if fmt is None:
+            on_file(f"note: {sub} ignored (not one of {', '.join(PUBLIC_DATASETS)})")
+            continue
+        out = Path(inbox) / sub.name
+        marker = out / ".imported"
+        want = f"max_trials={max_trials}"
+        if marker.is_file() and marker.read_text() == want:
+            n = len(list(out.glob("*.mcap")))
+            on_file(f"{sub.name}: {n} recordings already imported into {out}")
+            total.written += sorted(out.glob("*.mcap"))
+            continue
+        if out.is_dir():
+            for old in out.glob("*.mcap"):
+                old.unlink()
+        files = expand(FORMATS[fmt], [sub])
+        if max_trials is not None and len(files) > max_trials:      # spread over the dataset (subjects, motions)
+            files = [files[i] for i in np.unique(np.linspace(0, len(files) - 1, max_trials).round().astype(int))]
+        res = import_paths(fmt, files, out, study=PUBLIC_STUDY, limit=max_trials, on_file=on_file)
+        total.written += res.written
+        total.errors += res.errors
+        marker.write_text(want)
+        on_file(f"{sub.name}: {len(res.written)} recordings ({fmt}), {len(res.errors)} refused")
+    return total
 
 
 def register(fmt: Format) -> None:

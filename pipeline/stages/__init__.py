@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class SessionInput:
@@ -64,6 +66,20 @@ def params_hash(params: dict) -> str:
 def stamp(stage: Stage, params: dict, input_hash: str) -> str:
     return hashlib.sha256(canonical_json({"stage": stage.name, "version": stage.version,
                                           "params": params_hash(params), "input": input_hash}).encode()).hexdigest()
+
+
+def scored_mask(events: list[dict], rec: dict, placement: str, t_ns: np.ndarray) -> np.ndarray:
+    """(N,) bool (``t_ns`` sorted): samples inside the reference's ``score`` spans for this placement and recording (BROAD's
+    ``movement`` mask, DESIGN "Recording format" annotations); all True when the reference marks none."""
+    spans = [(int(e["t_ns"]), int(e["end_ns"])) for e in events
+             if e.get("type") == "score" and e.get("end_ns") is not None and e.get("placement") in (None, placement)
+             and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]]
+    if not spans:
+        return np.ones(len(t_ns), bool)
+    m = np.zeros(len(t_ns), bool)
+    for a, b in spans:
+        m[np.searchsorted(t_ns, a):np.searchsorted(t_ns, b, side="right")] = True
+    return m
 
 
 def registry() -> list[Stage]:

@@ -53,7 +53,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
         raise ValueError(f"unknown activity preset '{params['preset']}'; choose one of {', '.join(PRESETS)}")
     s = inp.session
     tz = s.get("timezone") or "UTC"
-    bouts, transitions, daily, notes = [], [], [], []
+    bouts, transitions, daily, notes, accuracy = [], [], [], [], []
     for rec in inp.recordings:
         imu = rec["sensors"].get(params["placement"], {}).get("imu")
         if imu is None:
@@ -93,9 +93,41 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
             bouts.append({"session_id": s["session_id"], "content_hash": rec["content_hash"],
                           "start_ns": int(sec_t[a]), "end_ns": int(sec_t[b - 1]) + 1_000_000_000,
                           "class": CLASSES[int(sec[a])], "steps": int(steps_per_sec[a:b].sum())})
-    return StageOutput(rows={"activity_bouts": bouts, "activity_transitions": transitions, "activity_daily": daily},
-                       note="; ".join(notes)[:500])
+        accuracy += accuracy_rows(s["session_id"], inp.events, rec, inp.root, path, fs, sec, sec_t, params)
+    return StageOutput(rows={"activity_bouts": bouts, "activity_transitions": transitions, "activity_daily": daily,
+                             "accuracy_metrics": accuracy}, note="; ".join(notes)[:500])
 
 
-STAGE = Stage(name="activity", version="4", needs=(), tables=("activity_bouts", "activity_transitions", "activity_daily"),
+def accuracy_rows(sid: str, events: list[dict], rec: dict, root, path: str, fs: float, sec: np.ndarray,
+                  sec_t: np.ndarray, params: dict) -> list[dict]:
+    """Window accuracy against the recording's labelled ``activity`` intervals (each annotation is one label run;
+    labels outside :data:`estimators.activity.evaluation.SCORED_CLASSES` are not scored), by the one scorer
+    :func:`estimators.activity.evaluation.window_confusion` that ``stridelab bench activity`` uses."""
+    from estimators.activity.evaluation import SCORED_CLASSES, scores, window_confusion
+    act = [e for e in events if e.get("type") == "activity" and e.get("end_ns") is not None
+           and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]]
+    if not any(e.get("label") in SCORED_CLASSES for e in act):
+        return []
+    t_ns = read_column_range(root, path, ("t_ns",), 0, series_rows(root, path), dtype=np.int64).ravel()
+    k = (np.asarray(sec_t, np.int64) - int(t_ns[0])) // 1_000_000_000      # seconds from the first sample
+    second_class = np.zeros(int(k.max()) + 1 if len(k) else 1, np.int64)
+    second_class[k[k >= 0]] = np.asarray(sec)[k >= 0]
+    codes = np.full(len(t_ns), -1, np.int64)
+    code_to_class = {}
+    for i, e in enumerate(act):
+        codes[np.searchsorted(t_ns, e["t_ns"]):np.searchsorted(t_ns, e["end_ns"])] = i
+        if e.get("label") in SCORED_CLASSES:
+            code_to_class[i] = SCORED_CLASSES.index(e["label"])
+    sc = scores(window_confusion(second_class, codes, fs, code_to_class))
+    est = f"activity:{params['preset']}"
+    rows = [{"session_id": sid, "stage": "activity", "estimator": est, "placement": params["placement"],
+             "metric": m, "value": sc[m], "unit": "fraction"} for m in ("balanced_accuracy", "accuracy")
+            if sc[m] is not None]
+    rows.append({"session_id": sid, "stage": "activity", "estimator": est, "placement": params["placement"],
+                 "metric": "n_windows", "value": float(sc["windows"]), "unit": "windows"})
+    return rows
+
+
+STAGE = Stage(name="activity", version="5", needs=(),
+              tables=("activity_bouts", "activity_transitions", "activity_daily", "accuracy_metrics"),
               session_kinds=("free_living",), compute=compute, default_params=default_params)

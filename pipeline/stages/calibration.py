@@ -201,6 +201,11 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     from estimators.calibration._session import DEFAULT_PLACEMENTS
     cp = calibration_params(params)
     sid = inp.session["session_id"]
+    have = {p for r in inp.recordings for p, kinds in r["sensors"].items() if "imu" in kinds}
+    if not have & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
+        # sessions as they come (feet only, chest or lower back only, a hand-held sensor): nothing to calibrate
+        return StageOutput(note=f"calibration skipped: no pelvis/thigh/shank sensors (session has "
+                                f"{', '.join(sorted(have)) or 'no IMU'})")
     rec = find_calibration_recording(inp.recordings)
     if rec is None:
         cal = missing_calibration(DEFAULT_PLACEMENTS, params=cp)
@@ -251,5 +256,5 @@ def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
     return rows
 
 
-STAGE = Stage(name="calibration", version="2", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
+STAGE = Stage(name="calibration", version="3", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)

@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 
 from estimators.timebase import contiguous_segments
-from pipeline.stages import SessionInput, Stage, StageOutput, params_hash
+from pipeline.stages import SessionInput, Stage, StageOutput, params_hash, scored_mask
 from warehouse.read import read_imu_files
 from warehouse.store import read_table, series_relpath, write_table
 
@@ -271,9 +271,12 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                                                     (np.array([r["end_ns"] for r in mine]) - t0) / 1e9)
                     for r, v in zip(mine, lens):
                         r["stride_length_ref_m"] = _num(v)
+            scored = scored_mask(inp.events, rec, placement, t_ns)      # the reference's annotated span, if any
+            lo, hi = (int(t_ns[scored][0]), int(t_ns[scored][-1])) if scored.any() else (0, -1)
             for typ in ("IC", "TC"):      # one entry per recording and foot in both lists (scored per trial)
                 idx = [(t_ns[a:b][fk.events.ic_idx if typ == "IC" else fk.events.tc_idx]) for a, b, fk in fks]
-                det_ev.setdefault((side, typ), []).append(np.concatenate(idx) if idx else np.zeros(0, np.int64))
+                det = np.concatenate(idx) if idx else np.zeros(0, np.int64)
+                det_ev.setdefault((side, typ), []).append(det[(det >= lo) & (det <= hi)])
                 ref_ev.setdefault((side, typ), []).append(np.array(
                     [e["t_ns"] for e in inp.events if e["type"] == typ and _event_side(e) == side
                      and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]], np.int64))
@@ -334,5 +337,5 @@ def _session_status(statuses: dict, n_strides: dict) -> str:
     return "no_strides"
 
 
-STAGE = Stage(name="gait", version="2", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
+STAGE = Stage(name="gait", version="3", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
               default_params=default_params)

@@ -89,6 +89,10 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     cal_rows = inp.upstream.get("calibration", [])
     cal = session_calibration(cal_rows)
     if cal is None:
+        have = sorted({p for r in inp.recordings for p, k in r["sensors"].items() if "imu" in k})
+        if not set(have) & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
+            return StageOutput(note=f"joint angles skipped: no pelvis/thigh/shank sensors (session has "
+                                    f"{', '.join(have) or 'no IMU'})")
         return StageOutput(note="no calibration rows for this session")
     cal_rec = find_calibration_recording(inp.recordings)
     trials = [r for r in inp.recordings if cal_rec is None or r["content_hash"] != cal_rec["content_hash"]]

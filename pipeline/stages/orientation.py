@@ -7,7 +7,7 @@ import pyarrow as pa
 from estimators.orientation.blockwise import blockwise
 from estimators.orientation.evaluation import align_reference, orientation_error_deg
 from estimators.timebase import contiguous_segments
-from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash
+from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, scored_mask
 from warehouse.read import read_imu_files, reference_orientation_on
 from warehouse.store import series_relpath, write_table
 
@@ -42,8 +42,13 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     s = inp.session
     rows, notes, errors = [], [], {}
     for rec in inp.recordings:
+        meta = rec.get("metadata") or {}
+        no_gyro = {p.strip() for p in str(meta.get("accelerometer_only", "")).split(",") if p.strip()}
         for placement, kinds in sorted(rec["sensors"].items()):
             if "imu" not in kinds:
+                continue
+            if placement in no_gyro:
+                notes.append(f"{placement}: orientation skipped: accelerometer-only sensor (no gyroscope)")
                 continue
             imu = kinds["imu"]
             mag = kinds.get("mag") if params.get("use_magnetometer", True) else None
@@ -68,9 +73,13 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
             ref = kinds.get("reference_pose")
             if ref is not None:          # optical segment pose: score after aligning mounting and lab heading
                 q_ref = reference_orientation_on(inp.root, ref["series_path"], data.t_ns)
-                ok = np.isfinite(q_ref[:, 0]) & np.isfinite(quat[:, 0])
+                ok = np.isfinite(q_ref[:, 0]) & np.isfinite(quat[:, 0]) & scored_mask(inp.events, rec, placement,
+                                                                                      data.t_ns)
                 if ok.sum() >= data.sampling_rate_hz:
-                    e = orientation_error_deg(quat[ok], align_reference(quat[ok], q_ref[ok]))
+                    if meta.get("reference_frame") == "sensor_enu":      # BROAD: already the sensor frame in ENU
+                        e = orientation_error_deg(quat[ok], q_ref[ok])
+                    else:
+                        e = orientation_error_deg(quat[ok], align_reference(quat[ok], q_ref[ok]))
                     errors.setdefault(placement, []).append(e)
             if np.isnan(quat[:, 0]).any():
                 notes.append(f"{placement}: {int(np.isnan(quat[:, 0]).sum())} samples without orientation")

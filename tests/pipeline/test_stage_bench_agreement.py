@@ -1,0 +1,45 @@
+"""One scorer per quantity: a pipeline stage on an imported public recording and ``stridelab bench`` on the same
+file give the same figure (within 1 %). The stage reads the recording back from the warehouse (import -> MCAP ->
+ingest), the bench reads the source file with the format reader."""
+from __future__ import annotations
+
+import pytest
+
+from pipeline.importers import import_paths
+from pipeline.stages import activity, orientation
+from tests.conftest import shared_data
+from tests.pipeline._lab import df, run_with
+
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
+
+
+def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
+    from estimators.orientation import DEFAULT_OFFLINE
+    from pipeline.bench.orientation import run_benchmark
+    trial = shared_data("broad") / "07_undisturbed_fast_rotation_B.hdf5"
+    res = import_paths("broad", [trial], tmp_path / "inbox", study="public")
+    run_with(monkeypatch, tmp_path / "wh", res.written, [orientation.STAGE])
+    stage = df(tmp_path / "wh", "SELECT metric, value FROM accuracy_metrics WHERE stage = 'orientation' "
+                                "AND estimator = ?", [DEFAULT_OFFLINE]).set_index("metric")["value"]
+    bench = run_benchmark(trial, [DEFAULT_OFFLINE], show_progress=False)["trials"][0]
+    for m in ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"):
+        assert stage[m] == pytest.approx(bench[m], rel=0.01), m
+    assert 0.3 < stage["total_rmse_deg"] < 20          # a real figure, not an empty score
+
+
+def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch):
+    from pipeline.bench.activity import run_benchmark
+    src = shared_data("uci_chest")
+    d = tmp_path / "uci"
+    d.mkdir()
+    for n in ("3", "6"):                                # two participants (the bench's LOSO needs two)
+        (d / f"{n}.csv").symlink_to(src / f"{n}.csv")
+    res = import_paths("uci", [d], tmp_path / "inbox", study="public")
+    run_with(monkeypatch, tmp_path / "wh", res.written, [activity.STAGE])
+    stage = df(tmp_path / "wh", "SELECT s.participant_id, a.metric, a.value FROM accuracy_metrics a "
+                                "JOIN sessions s USING (session_id) WHERE a.stage = 'activity'")
+    bench = run_benchmark(d, show_progress=False, speed=False)["methods"]["default"]["per_participant"]
+    for n in ("3", "6"):
+        got = stage[stage.participant_id == f"uci0{n}"].set_index("metric")["value"]
+        assert got["balanced_accuracy"] == pytest.approx(bench[n]["balanced_accuracy"], rel=0.01)
+        assert got["n_windows"] == bench[n]["windows"]
