@@ -26,4 +26,7 @@ pages = [
     st.Page(_PAGES / "activity.py", title="Activity", icon=":material/directions_run:", url_path="activity"),
     st.Page(_PAGES / "runs.py", title="Runs", icon=":material/history:", url_path="runs"),
 ]
-st.navigation(pages).run()
+nav = st.navigation(pages)
+from dashboard.common import study_selector  # noqa: E402  (after set_page_config)
+study_selector()
+nav.run()

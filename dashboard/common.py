@@ -11,6 +11,7 @@ import streamlit as st
 from dashboard import queries as Q
 
 ENV = "STRIDELAB_WAREHOUSE"
+ALL_STUDIES = "All studies"
 
 
 def warehouse_root() -> Path:
@@ -54,13 +55,50 @@ def footer(snap: Q.Snapshot | None) -> None:
         st.caption(f"Snapshot `{snap.name}` of `{snap.root}` (read-only).")
 
 
+def study_selector() -> str | None:
+    """The study selector every page shares (sidebar, above the page's own filters; ``?study=`` in the URL):
+    the selected study id, or None for all studies side by side."""
+    snap = Q.open_snapshot(warehouse_root())
+    if snap is None:
+        return None
+    studies = sorted(snap.q(Q.studies)["study"].dropna().astype(str).unique())
+    if not studies:
+        return None
+    options = [ALL_STUDIES] + studies
+    if "study" not in st.session_state:
+        qp = st.query_params.get("study")
+        st.session_state["study"] = qp if qp in studies else ALL_STUDIES
+    if st.session_state["study"] not in options:
+        st.session_state["study"] = ALL_STUDIES
+    choice = st.sidebar.selectbox("Study", options, key="study",
+                                  help="Simulated and real studies live side by side in one warehouse; "
+                                       "every page shows the study chosen here.")
+    if choice == ALL_STUDIES:
+        st.query_params.pop("study", None)
+        return None
+    st.query_params["study"] = choice
+    return choice
+
+
+def current_study() -> str | None:
+    """The study chosen in the shared selector (None = all studies)."""
+    v = st.session_state.get("study")
+    return None if v in (None, ALL_STUDIES) else v
+
+
 def participant_picker(snap: Q.Snapshot, key: str = "participant") -> tuple[str | None, str | None]:
-    """Study and participant selectors in the sidebar; returns (study, participant_id)."""
+    """Participant selector in the sidebar, within the study of the shared selector (or a per-page study
+    selector when all studies are shown); returns (study, participant_id)."""
     parts = snap.q(Q.participants)
     if parts.empty:
         return None, None
     studies = sorted(parts["study"].unique())
-    study = st.sidebar.selectbox("Study", studies, key=f"{key}_study") if len(studies) > 1 else studies[0]
+    chosen = current_study()
+    if chosen in studies:
+        study = chosen
+    else:
+        study = st.sidebar.selectbox("Study of the participant", studies, key=f"{key}_study") \
+            if len(studies) > 1 else studies[0]
     ids = parts.loc[parts["study"] == study, "participant_id"].tolist()
     qp = st.query_params.get("participant")
     idx = ids.index(qp) if qp in ids else 0

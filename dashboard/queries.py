@@ -491,11 +491,70 @@ def accuracy_metrics(con, study=None, estimator=None, placement=None, trial=None
     join, where = _acc_where(r)
     trial_col = f"t.{r.q('trial')}" if r.has("trial") else "s.protocol"
     extra = ", ".join(f"t.{r.q(k)} AS \"{k}\"" for k in ("estimator", "placement", "unit", "session_id") if r.has(k))
-    return _df(con, f"""
+    m = _df(con, f"""
         SELECT t.{r.q('stage')} AS stage, t.{r.q('metric')} AS metric, CAST(t.{r.q('value')} AS DOUBLE) AS value,
                s.study, {trial_col} AS trial{', ' + extra if extra else ''}
         FROM {r.qtable} t {join} WHERE {where}
         ORDER BY 1, 2""", _acc_params(study, estimator, placement, trial))
+    return with_provenance(m, accuracy_provenance(con))
+
+
+#: what a stage's accuracy is scored against when the recording declares nothing more specific
+_REFERENCE_BY_STAGE = {"orientation": "optical segment orientation (/reference/pose/<placement>)",
+                       "calibration": "optical segment orientation (/reference/pose/<placement>)",
+                       "joint_angles": "optical segment poses of both segments (/reference/pose)",
+                       "gait_events": "annotated gait events (/reference/events IC/TC)",
+                       "strides": "optical foot position (/reference/pose/<foot>)",
+                       "foot_trajectory": "optical foot position (/reference/pose/<foot>)",
+                       "activity": "activity labels (/reference/events)"}
+
+
+def accuracy_provenance(con) -> pd.DataFrame:
+    """Per session: ``data`` (study · protocol · recordings) and the references the recordings declare
+    (session field ``reference``, sources of the reference events by kind)."""
+    if not _has_table(con, "reference_events"):
+        return pd.DataFrame(columns=["session_id", "dataset", "data", "ref_declared", "ev_source", "act_source"])
+    return _df(con, """
+        WITH rec AS (
+            SELECT r.session_id, count(*) AS n,
+                   string_agg(DISTINCT json_extract_string(r.metadata, '$.reference'), '; ') AS ref_declared,
+                   min(r.file_name) AS first_file
+            FROM recordings r WHERE r.status = 'ingested' GROUP BY 1),
+        ev AS (
+            SELECT session_id,
+                   string_agg(DISTINCT json_extract_string(payload, '$.source'), '; ')
+                       FILTER (WHERE upper(type) IN ('IC', 'TC')) AS ev_source,
+                   string_agg(DISTINCT json_extract_string(payload, '$.source'), '; ')
+                       FILTER (WHERE type = 'activity') AS act_source
+            FROM reference_events GROUP BY 1)
+        SELECT s.session_id, s.study || ' · ' || coalesce(s.protocol, s.kind) AS dataset,
+               s.study || ' · ' || coalesce(s.protocol, s.kind) || ' · ' ||
+                   CASE WHEN rec.n = 1 THEN rec.first_file ELSE rec.n || ' recordings' END AS data,
+               rec.ref_declared, ev.ev_source, ev.act_source
+        FROM sessions s LEFT JOIN rec USING (session_id) LEFT JOIN ev USING (session_id)""")
+
+
+def with_provenance(m: pd.DataFrame, prov: pd.DataFrame) -> pd.DataFrame:
+    """Accuracy rows + ``dataset`` (study · protocol), ``data`` (+ the file or number of recordings) and
+    ``reference`` columns: what each row was computed on and scored against."""
+    if m is None or m.empty or "session_id" not in m:
+        return m
+    out = m.merge(prov, on="session_id", how="left")
+
+    def ref(r) -> str:
+        stage = str(r["stage"])
+        if stage == "gait_events" and isinstance(r.get("ev_source"), str):
+            return r["ev_source"]
+        if stage == "activity" and isinstance(r.get("act_source"), str):
+            return r["act_source"]
+        if isinstance(r.get("ref_declared"), str):
+            return r["ref_declared"]
+        return _REFERENCE_BY_STAGE.get(stage, "reference topics of the recording")
+
+    out["reference"] = out.apply(ref, axis=1) if len(out) else pd.Series(dtype=str)
+    out["data"] = out["data"].fillna(out["session_id"])
+    out["dataset"] = out["dataset"].fillna(out["study"])
+    return out.drop(columns=["ref_declared", "ev_source", "act_source"])
 
 
 def accuracy_pairs(con, study=None, estimator=None, placement=None, trial=None) -> pd.DataFrame | None:

@@ -109,7 +109,9 @@ def _gaitmap(path: Path, placement: str | None) -> list[Converted]:
                                "source": "gaitmap stride_events_sample.csv (mocap)"})
     rec = Recording(metadata={}, imu=imu, reference_poses=poses, events=events, name="gaitmap_example")
     return [Converted(rec, {"participant": "gaitmap01", "trial": "walk", "kind": "lab",
-                            "protocol": "2x20 m straight walk"}, "gaitmap-example")]
+                            "protocol": "gaitmap example: 2x20 m straight walk",
+                            "reference": "Qualisys markers (heel FCC position, foot orientation from FCC/TOE/FM5)"},
+                      "gaitmap-example")]
 
 
 def _uci(path: Path, placement: str | None) -> list[Converted]:
@@ -154,7 +156,9 @@ def _broad(path: Path, placement: str | None) -> list[Converted]:
         trial = _slug(tr.name.replace("/", "-"))
         out.append(Converted(rec, {"participant": "broad01", "trial": trial, "kind": "lab",
                                    "protocol": "BROAD " + ("disturbed" if tr.disturbed else "undisturbed"),
-                                   "reference_frame": "sensor_enu"}, f"broad-{trial}"))
+                                   "reference_frame": "sensor_enu",
+                                   "reference": "OptiTrack orientation of the IMU case (BROAD opt_quat), movement mask"},
+                             f"broad-{trial}"))
     return out
 
 

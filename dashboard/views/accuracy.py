@@ -4,7 +4,7 @@ import streamlit as st
 
 from dashboard import figures as F
 from dashboard import queries as Q
-from dashboard.common import empty_warehouse_note, footer, hint, snapshot
+from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Accuracy against references")
 snap = snapshot()
@@ -12,7 +12,8 @@ if snap is not None and not empty_warehouse_note(snap):
     opts = snap.q(Q.accuracy_filters)
     with st.sidebar:
         st.subheader("Filters")
-        study = st.multiselect("Study", opts["study"], key="acc_study")
+        chosen = current_study()
+        study = [chosen] if chosen else st.multiselect("Studies to compare", opts["study"], key="acc_study")
         estimator = st.multiselect("Estimator", opts["estimator"], key="acc_estimator")
         placement = st.multiselect("Placement / joint", opts["placement"], key="acc_placement")
         trial = st.multiselect("Trial type", opts["trial"], key="acc_trial")
@@ -32,9 +33,17 @@ if snap is not None and not empty_warehouse_note(snap):
                 st.caption(f"No {stage.replace('_', ' ')} accuracy rows for these filters (a reference is needed; "
                            f"check the filters or run the stage).")
             else:
-                group = [c for c in ("estimator", "placement", "metric", "unit") if c in m and m[c].notna().any()]
+                group = [c for c in ("dataset", "reference", "estimator", "placement", "metric", "unit")
+                         if c in m and m[c].notna().any()]
                 table = m.groupby(group, dropna=False)["value"].agg(["count", "mean", "std", "median", "min", "max"])
-                st.dataframe(table.reset_index(), hide_index=True)
+                st.dataframe(table.reset_index().rename(columns={"count": "sessions"}), hide_index=True,
+                             column_config={"dataset": "data (study · protocol)", "reference": "scored against"})
+                if "data" in m:
+                    with st.expander(f"{m['session_id'].nunique() if 'session_id' in m else len(m)} sessions: "
+                                     f"every row with its recording and reference"):
+                        cols = [c for c in ("data", "reference", "estimator", "placement", "metric", "value", "unit")
+                                if c in m]
+                        st.dataframe(m[cols], hide_index=True, key=f"rows_{stage}")
                 for metric in [x for x in sorted(m["metric"].unique()) if not str(x).startswith("n_")][:4]:
                     st.plotly_chart(F.error_distribution(m, metric), key=f"dist_{stage}_{metric}")
             p = None if pairs is None else pairs[pairs["stage"].astype(str).str.startswith(stage.rstrip("s"))] \

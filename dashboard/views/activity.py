@@ -5,7 +5,7 @@ import streamlit as st
 
 from dashboard import figures as F
 from dashboard import queries as Q
-from dashboard.common import empty_warehouse_note, footer, hint, snapshot
+from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Daily activity")
 snap = snapshot()
@@ -14,7 +14,12 @@ if snap is not None and not empty_warehouse_note(snap):
         hint("activity_bouts")
     else:
         who = snap.q(Q.activity_participants)
-        if who.empty:
+        if current_study() is not None:
+            who = who[who["study"] == current_study()].reset_index(drop=True)
+        if who.empty and current_study() is not None:
+            st.info(f"No free-living chest recording classified in study {current_study()}; choose another study "
+                    f"in the sidebar.")
+        elif who.empty:
             st.info("The activity stage has run but found no free-living chest recording to classify.")
         else:
             labels = (who["participant_id"] + " · " + who["study"]).tolist()

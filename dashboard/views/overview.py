@@ -2,7 +2,7 @@
 import streamlit as st
 
 from dashboard import queries as Q
-from dashboard.common import empty_warehouse_note, footer, snapshot
+from dashboard.common import current_study, empty_warehouse_note, footer, snapshot
 
 st.title("StrideLab overview")
 snap = snapshot()
@@ -28,8 +28,8 @@ if snap is not None:
     if not empty_warehouse_note(snap):
         st.subheader("Studies")
         st.dataframe(snap.q(Q.studies), hide_index=True)
-        st.subheader("Participants")
-        parts = snap.q(Q.participants)
+        st.subheader("Participants" + (f" of {current_study()}" if current_study() else ""))
+        parts = snap.q(Q.participants, current_study())
         st.dataframe(parts, hide_index=True, column_config={"participant_id": "participant (pseudonym)"})
         st.subheader("Pipeline stages")
         cov = snap.q(Q.stage_coverage)

@@ -103,3 +103,22 @@ def app_env(monkeypatch):
         st.cache_data.clear()
         st.cache_resource.clear()
     return use
+
+
+@pytest.fixture(scope="session")
+def public_wh(tmp_path_factory) -> Path:
+    """The small simulated demo study and the public study side by side: one recording of every public dataset
+    in ../shared/data imported by ``import_public`` (skips when the data are absent), run by the real pipeline."""
+    from pipeline import runner
+    from pipeline.importers import import_public
+    from pipeline.simulate import simulate_to_dir
+    from tests.conftest import SHARED_DATA
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"public data not found at {SHARED_DATA} (needs ../shared/data)")
+    base = tmp_path_factory.mktemp("public")
+    simulate_to_dir(base / "inbox", participants=1, hours=0.1, jobs=2)
+    res = import_public(SHARED_DATA, base / "inbox" / "public", max_trials=1)
+    assert not res.errors, res.errors
+    summary = runner.run(base / "warehouse", base / "inbox", jobs=2, command="run")
+    assert not summary.failed and not summary.quarantined, summary.as_dict()
+    return base / "warehouse"
