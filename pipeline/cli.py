@@ -339,8 +339,9 @@ def _write_reports(wh: Path, run_id: str, reports_dir: Path | None, failed: list
 @click.option("--public", "public_dir", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
               help="Instead of simulating, import the public datasets found in DIR (broad, gaitmap_example, "
                    "uci_chest, pyshoe_vicon, voisard_gait, xio_gait) into the study 'public'.")
-@click.option("--max-trials", type=click.IntRange(1, 100000), default=None,
-              help="With --public: at most N recordings per dataset (bounds the run time).")
+@click.option("--max-trials", type=click.IntRange(0, 100000), default=4, show_default=True,
+              help="With --public: at most N recordings per dataset, spread over it (bounds the run time to a few "
+                   "minutes on 2 cores); 0 imports everything.")
 def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     """Simulate the demo study (or import public datasets), run the nightly pipeline, then serve the dashboard.
 
@@ -348,7 +349,8 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     Examples:
       stridelab demo               # then open http://localhost:8501
       stridelab demo --no-serve    # pipeline only
-      stridelab demo --public ../shared/data --max-trials 4 --no-serve
+      stridelab demo --public ../shared/data --no-serve     # real recordings, 4 per dataset
+      stridelab demo --public ../shared/data --max-trials 0  # every recording (slow)
     """
     import os
     from pipeline.console import err_console
@@ -361,7 +363,7 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     existing = sorted(inbox.glob("*.mcap")) if inbox.is_dir() else []
     if public_dir is not None:
         from pipeline.importers import import_public
-        res = import_public(public_dir, inbox / "public", max_trials=max_trials,
+        res = import_public(public_dir, inbox / "public", max_trials=max_trials or None,
                             on_file=lambda m: err_console.print(f"  {m}", markup=False, highlight=False))
         for e in res.errors:
             err_console.print(f"  refused: {e}", markup=False, highlight=False)

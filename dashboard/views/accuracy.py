@@ -36,7 +36,10 @@ if snap is not None and not empty_warehouse_note(snap):
                 group = [c for c in ("dataset", "reference", "estimator", "placement", "metric", "unit")
                          if c in m and m[c].notna().any()]
                 table = m.groupby(group, dropna=False)["value"].agg(["count", "mean", "std", "median", "min", "max"])
-                st.dataframe(table.reset_index().rename(columns={"count": "sessions"}), hide_index=True,
+                table = table.reset_index().rename(columns={"count": "sessions"})
+                first = [c for c in ("metric", "placement", "mean", "median", "std", "min", "max", "unit", "sessions")
+                         if c in table]
+                st.dataframe(table[first + [c for c in table if c not in first]], hide_index=True,
                              column_config={"dataset": "data (study · protocol)", "reference": "scored against"})
                 if "data" in m:
                     with st.expander(f"{m['session_id'].nunique() if 'session_id' in m else len(m)} sessions: "
