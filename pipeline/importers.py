@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import re
-import tomllib
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -194,7 +193,10 @@ def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
     from pipeline.formats.pyshoe import load_pyshoe_trial
     tr = load_pyshoe_trial(path)
     pl = _pick_placement(placement, "foot_right")
-    t = np.rint((tr.t - tr.t[0]) * 1e9).astype(np.int64)
+    # samples on the reader's nominal-rate grid (ts jitters 3.3-6.1 ms around 5 ms): the foot INS runs at a constant
+    # rate, and its PyShoe ARMSE moves by ~8 % between 200.1 Hz and the 200.24 Hz ingest would estimate from the
+    # jittered stamps, so the pipeline gets the rate stridelab bench trajectory --pyshoe uses
+    t = _rel_ns(len(tr.acc), tr.sampling_rate_hz)
     q = np.full((len(t), 4), np.nan)          # Vicon gives the foot position only
     rec = Recording(metadata={}, imu={pl: ImuData(t, tr.acc, tr.gyr, None)},
                     reference_poses={pl: PoseData(t, tr.position, q)}, name=tr.name)
@@ -208,8 +210,8 @@ def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
 
 def _xsens_times(x) -> np.ndarray:
     """Sample times from the packet counter (dropped packets keep their gap)."""
-    p = np.asarray(x.packet, np.int64)
-    return np.rint((p - p[0]) * (1e9 / x.sampling_rate_hz)).astype(np.int64)
+    k = np.concatenate([[0], np.cumsum(np.diff(np.asarray(x.packet, np.int64)) % 65536)])   # 16-bit counter unwrapped
+    return np.rint(k * (1e9 / x.sampling_rate_hz)).astype(np.int64)
 
 
 _XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "pelvis"}
@@ -235,23 +237,22 @@ def _voisard(path: Path, placement: str | None) -> list[Converted]:
     name = path.stem if path.is_file() else None
     if name is None:
         raise ImportRejected(f"{path}: give the trial's N-M.json (or the folder, which imports every trial)")
-    tr = load_voisard_trial(d, name)
+    tr = load_voisard_trial(d, name, packet_grid=False)      # the rows as recorded (no interpolated packets)
     a = tr.annotation
     imu = {}
     for pl, x in (("foot_left", tr.left), ("foot_right", tr.right), ("pelvis", tr.lower_back)):
         if x is not None:
             imu[pl] = ImuData(_xsens_times(x), x.acc, x.gyr, None)
     events = []
+    fs = tr.left.sampling_rate_hz
     for side, ev in (("left", a.left_events), ("right", a.right_events)):
-        t = imu[f"foot_{side}"].t_ns
         for to, hs in np.asarray(ev, np.int64).reshape(-1, 2):
             for typ, i in (("TC", to), ("IC", hs)):
-                if 0 <= i < len(t):
-                    events.append({"t_ns": int(t[i]), "type": typ, "side": side,
+                if i >= 0:      # annotations index the gap-free packet grid (sample = packet - first packet)
+                    events.append({"t_ns": int(round(i * 1e9 / fs)), "type": typ, "side": side,
                                    "source": "Voisard et al. 2023 annotations (two IMU algorithms, hand-checked)"})
-    tl = imu["foot_left"].t_ns
     lo, hi = (int(v) for v in np.asarray(a.trial_boundaries).ravel()[:2])
-    events.append({"t_ns": int(tl[max(lo, 0)]), "end_ns": int(tl[min(hi, len(tl) - 1)]), "type": "score",
+    events.append({"t_ns": int(round(max(lo, 0) * 1e9 / fs)), "end_ns": int(round(hi * 1e9 / fs)), "type": "score",
                    "label": "trial", "source": "Voisard TrialBoundaries"})
     rec = Recording(metadata={}, imu=imu, events=events, name=tr.name)
     return [Converted(rec, {"participant": f"voisard{a.subject:02d}", "trial": _slug(tr.name), "kind": "lab",
@@ -321,27 +322,25 @@ def register(fmt: Format) -> None:
 # ---- session record ------------------------------------------------------------------------
 
 def parse_session_options(items) -> dict:
-    """``FIELD=VALUE`` pairs -> dict (raises ImportRejected naming the bad item)."""
-    out = {}
-    for it in items or ():
-        k, sep, v = it.partition("=")
-        if not sep or not k.strip():
-            raise ImportRejected(f"--session {it!r}: expected FIELD=VALUE (e.g. --session participant=P07)")
-        out[k.strip()] = v.strip()
-    return out
+    """``FIELD=VALUE`` pairs -> dict, parsed as ``stridelab ingest --session`` does (raises ImportRejected)."""
+    from pipeline.session_sources import parse_assignments
+    try:
+        return parse_assignments(items, "--session")
+    except ValueError as e:
+        raise ImportRejected(f"{e} (e.g. --session participant=P07)") from None
 
 
 def read_sidecar(path: Path) -> dict:
-    """Fields of ``<file>.session.toml`` beside ``path`` (a ``[session]`` table or top-level keys), {} if none."""
-    side = path.with_name(path.name + ".session.toml")
-    if not side.is_file():
-        return {}
-    try:
-        d = tomllib.loads(side.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise ImportRejected(f"{side}: invalid TOML ({str(e).splitlines()[0]}); fix the sidecar") from None
-    d = d.get("session", d)
-    return {k: str(v) for k, v in d.items() if not isinstance(v, dict)}
+    """Fields of the sidecar beside an export (``<file>.session.toml`` or ``<stem>.session.toml``, a
+    ``[session]`` table or top-level keys; read as ingest reads sidecars), {} if there is none."""
+    from pipeline.session_sources import SessionSourceError, read_sidecar as _read, sidecar_paths
+    for side in [path.with_name(path.name + ".session.toml"), *sidecar_paths(path)]:
+        if side.is_file():
+            try:
+                return _read(side)
+            except SessionSourceError as e:
+                raise ImportRejected(f"{path}: {e}") from None
+    return {}
 
 
 def _t0_ns(start: str, where: Path) -> int:

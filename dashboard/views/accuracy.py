@@ -20,7 +20,7 @@ if snap is not None and not empty_warehouse_note(snap):
     filt = (tuple(study), tuple(estimator), tuple(placement), tuple(trial))
     metrics = snap.q(Q.accuracy_metrics, *filt)
     pairs = snap.q(Q.accuracy_pairs, *filt)
-    stages = ["orientation", "calibration", "joint_angles", "gait_events", "strides", "activity"]
+    stages = ["orientation", "calibration", "joint_angles", "gait_events", "strides", "foot_trajectory", "activity"]
     if metrics is not None and not metrics.empty:
         stages += [s for s in sorted(metrics["stage"].unique()) if s not in stages]
     tabs = st.tabs([s.replace("_", " ") for s in stages])

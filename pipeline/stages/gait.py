@@ -210,6 +210,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     pairs_for_session = []
     det_ev: dict = {}
     ref_ev: dict = {}
+    traj_rows: list[dict] = []
     recs = walking_recordings(inp.recordings)
     if not recs:
         notes.append("no walking trial in this session")
@@ -263,6 +264,8 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                 "series_path": rel})
             ref = _reference_pose(inp, rec, placement)
             if ref is not None:
+                traj_rows += _trajectory_accuracy_rows(sid, placement, t_ns, fks, ref, notes, rec["trial"])
+            if ref is not None:
                 mine = [r for r in out["strides"] if r["content_hash"] == rec["content_hash"] and r["side"] == side]
                 if mine:
                     t0 = int(ref[0][0]) if len(ref[0]) else 0
@@ -299,8 +302,42 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
         m, p = _accuracy_rows(sid, det_ev, ref_ev, float(params["event_tolerance_s"]),
                               int(s.get("start_ns") or 0))
         out["accuracy_metrics"], out["accuracy_pairs"] = m, p
-    out["accuracy_metrics"] += _stride_accuracy_rows(sid, out["strides"])
+    out["accuracy_metrics"] += _stride_accuracy_rows(sid, out["strides"]) + traj_rows
     return StageOutput(rows=out, note=f"gait {status}" + (f": {note}" if note and status != "ok" else ""))
+
+
+def _trajectory_accuracy_rows(sid: str, placement: str, t_ns: np.ndarray, fks: list, ref, notes: list,
+                              trial) -> list[dict]:
+    """Foot trajectory vs the optical foot position (PyShoe's Vicon): 2-D Euclidean ARMSE after PyShoe's alignment,
+    :func:`estimators.trajectory.evaluation.armse_2d_aligned` (the scorer of ``stridelab bench trajectory
+    --pyshoe``), per segment with a reference on at least half its samples, pooled weighted by length."""
+    from estimators.trajectory.evaluation import armse_2d_aligned
+    rt, rp = ref
+    if len(rt) < 2:
+        return []
+    half = 0.5 * float(np.median(np.diff(rt)))
+    parts = []
+    for a, b, fk in fks:
+        if fk.status == "no_stance":
+            continue
+        t = t_ns[a:b]
+        j = np.clip(np.searchsorted(rt, t), 1, len(rt) - 1)
+        j -= (t - rt[j - 1]) < (rt[j] - t)
+        on = np.where((np.abs(rt[j] - t) <= half)[:, None], rp[j], np.nan)
+        if np.all(np.isfinite(on), axis=1).mean() < 0.5:
+            continue
+        try:
+            e, _ = armse_2d_aligned(fk.trajectory.pos, on)
+        except ValueError as err:
+            notes.append(f"{trial} {placement}: trajectory not scored ({err})")
+            continue
+        if np.isfinite(e):
+            parts.append((e, b - a))
+    if not parts:
+        return []
+    v = float(np.average([p[0] for p in parts], weights=[p[1] for p in parts]))
+    return [{"session_id": sid, "stage": "foot_trajectory", "estimator": ESTIMATOR, "placement": placement,
+             "metric": "armse_2d_m", "value": v, "unit": "m"}]
 
 
 def _stride_accuracy_rows(sid: str, strides: list[dict]) -> list[dict]:

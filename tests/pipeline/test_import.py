@@ -261,4 +261,88 @@ def test_bad_session_field_is_refused_before_writing(tmp_path):
     res = import_paths("xio", [tmp_path / "a.csv"], tmp_path / "inbox", session={"start": "yesterday"})
     assert not res.written and "ISO 8601" in res.errors[0]
     r = CliRunner().invoke(main, ["import", "xio", str(tmp_path / "a.csv"), "--session", "participant"])
-    assert r.exit_code != 0 and "FIELD=VALUE" in r.output
+    assert r.exit_code != 0 and "KEY=VALUE" in r.output
+
+
+# ---- PyShoe Vicon .mat ----------------------------------------------------------------------
+
+def test_pyshoe_mat_foot_imu_and_vicon_position(tmp_path):
+    import scipy.io as sio
+    n, fs = 400, 200.0
+    rng = np.random.default_rng(6)
+    imu = np.column_stack([rng.normal(size=(n, 3)) + [0, 0, 9.81], rng.normal(size=(n, 3))])
+    gt = np.cumsum(rng.normal(0, 0.01, (n, 3)), axis=0)
+    ts = 100.0 + np.arange(n) / fs
+    sio.savemat(tmp_path / "2018-02-09-11-16-53.mat", {"imu": imu, "ts": ts[None, :], "gt": gt})
+    res = import_paths("pyshoe", [tmp_path], tmp_path / "inbox", study="public")
+    topics, _, sess = read_mcap(res.written[0])
+    t, g, a = _imu(topics, "foot_right")
+    np.testing.assert_array_equal(a, imu[:, :3])
+    np.testing.assert_array_equal(g, imu[:, 3:])
+    pos = topics["/reference/pose/foot_right"][1][:, :3]
+    np.testing.assert_allclose(pos, gt * [1, -1, 1])                      # Vicon y flipped (data README)
+    assert t[0] == 1518175013 * 10**9                                     # 2018-02-09T11:16:53Z, from the name
+    assert sess["foot_side"] == "unknown" and "Vicon" in sess["reference"]
+
+
+# ---- Xsens MT Manager text + Voisard events ---------------------------------------------------
+
+def _write_xsens(path, n=300, drop=()):
+    rng = np.random.default_rng(7)
+    packet = np.array([p for p in range(n) if p not in drop], float)
+    v = rng.normal(size=(len(packet), 9))
+    with open(path, "w") as f:
+        f.write("Acquisition frequency: 100 Hz\n")
+        f.write("PacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\tMag_X\tMag_Y\tMag_Z\n")
+        for p, row in zip(packet, v):
+            f.write("\t".join([f"{p:.1f}"] + [f"{x:.6f}" for x in row]) + "\n")
+    return packet, np.round(v, 6)
+
+
+def test_voisard_trial_feet_lower_back_and_events_on_the_packet_grid(tmp_path):
+    d = tmp_path / "v"
+    d.mkdir()
+    pk, v = _write_xsens(d / "3-2_lf.txt", drop=(50, 51))
+    _write_xsens(d / "3-2_rf.txt")
+    _write_xsens(d / "3-2_lb.txt")
+    (d / "3-2.json").write_text(json.dumps({
+        "Subject": 3, "Trial": 2, "Age": 30, "Gender": "F", "Height": 170.0, "Weight": 60.0,
+        "TrialBoundaries": [10, 280], "UTurnBoundaries": [100, 150],
+        "LeftFootEvents": [[60, 90], [160, 190]], "RightFootEvents": [[110, 140]]}))
+    res = import_paths("voisard", [d], tmp_path / "inbox", study="public")
+    assert not res.errors, res.errors
+    topics, events, sess = read_mcap(res.written[0])
+    assert sorted(k for k in topics if k.startswith("/imu/")) == ["/imu/foot_left", "/imu/foot_right", "/imu/pelvis"]
+    t, g, a = _imu(topics, "foot_left")
+    np.testing.assert_allclose(a, v[:, :3], atol=1e-12)
+    np.testing.assert_allclose(g, v[:, 3:6], atol=1e-12)
+    np.testing.assert_array_equal(t - t[0], (pk * 1e7).astype(np.int64))       # dropped packets keep their gap
+    left_ic = sorted(e["t_ns"] - int(t[0]) for e in events if e["type"] == "IC" and e["side"] == "left")
+    assert left_ic == [900_000_000, 1_900_000_000]                             # sample 90, 190 of the packet grid
+    assert sess["participant"] == "voisard03" and not any(k.startswith("/mag/") for k in topics)
+
+
+def test_xsens_single_file_placement_from_the_name(tmp_path):
+    _write_xsens(tmp_path / "walk_rf.txt")
+    _write_xsens(tmp_path / "walk.txt")
+    res = import_paths("xsens", [tmp_path], tmp_path / "inbox")
+    assert [p.name for p in res.written] == ["xsens-walk_rf.mcap"]
+    assert len(res.errors) == 1 and "walk.txt" in res.errors[0] and "--placement" in res.errors[0]
+
+
+@pytest.mark.realdata
+def test_public_voisard_and_pyshoe_files(tmp_path):
+    from pipeline.formats.pyshoe import load_pyshoe_trial
+    from pipeline.formats.xsens_mt import load_voisard_trial
+    vd, pd_ = shared_data("voisard_gait"), shared_data("pyshoe_vicon")
+    res = import_paths("voisard", [vd / "2-3.json"], tmp_path / "inbox")
+    tr = load_voisard_trial(vd, "2-3", packet_grid=False)
+    topics, events, _ = read_mcap(res.written[0])
+    _, g, _ = _imu(topics, "foot_right")
+    np.testing.assert_array_equal(g, tr.right.gyr)
+    assert sum(e["type"] == "IC" for e in events) == len(tr.annotation.left_events) + len(tr.annotation.right_events)
+    f = sorted(pd_.glob("*.mat"))[0]
+    res = import_paths("pyshoe", [f], tmp_path / "inbox")
+    p = load_pyshoe_trial(f)
+    topics, _, _ = read_mcap(res.written[0])
+    np.testing.assert_array_equal(topics["/reference/pose/foot_right"][1][:, :3], p.position)

@@ -43,3 +43,19 @@ def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch)
         got = stage[stage.participant_id == f"uci0{n}"].set_index("metric")["value"]
         assert got["balanced_accuracy"] == pytest.approx(bench[n]["balanced_accuracy"], rel=0.01)
         assert got["n_windows"] == bench[n]["windows"]
+
+
+def test_foot_trajectory_stage_equals_bench_on_a_pyshoe_trial(tmp_path, monkeypatch):
+    from pipeline.bench.trajectory import pyshoe_benchmark
+    from pipeline.stages import gait
+    src = sorted(shared_data("pyshoe_vicon").glob("*.mat"))[0]
+    d = tmp_path / "pyshoe"
+    d.mkdir()
+    (d / src.name).symlink_to(src)
+    res = import_paths("pyshoe", [d], tmp_path / "inbox", study="public")
+    run_with(monkeypatch, tmp_path / "wh", res.written, [gait.STAGE])
+    stage = df(tmp_path / "wh", "SELECT value FROM accuracy_metrics WHERE stage = 'foot_trajectory' "
+                                "AND metric = 'armse_2d_m'")["value"]
+    bench = pyshoe_benchmark(d, show_progress=False, anchors=False)["trials"][0]
+    assert len(stage) == 1
+    assert stage[0] == pytest.approx(bench["armse_2d_m_in_sample"], rel=0.01)     # the same default parameters
