@@ -119,7 +119,8 @@ def accuracy_rows(sid: str, events: list[dict], rec: dict, root, path: str, fs: 
         if e.get("label") in SCORED_CLASSES:
             code_to_class[i] = SCORED_CLASSES.index(e["label"])
     sc = scores(window_confusion(second_class, codes, fs, code_to_class))
-    est = f"activity:{params['preset']}"
+    wm = params.get("window_model", "default")
+    est = f"activity:{params['preset']}" + (f"+window_model:{wm}" if wm else "")
     rows = [{"session_id": sid, "stage": "activity", "estimator": est, "placement": params["placement"],
              "metric": m, "value": sc[m], "unit": "fraction"} for m in ("balanced_accuracy", "accuracy")
             if sc[m] is not None]
