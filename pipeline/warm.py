@@ -1,7 +1,7 @@
 """``stridelab warm-kernels``: compile every numba kernel the pipeline uses, once, at install time.
 
 ``make install`` runs it after ``pip install``: a tiny simulated study (one participant's calibration and
-walking trials and half an hour of free-living chest data, with the opt-in free-living orientation asked
+walking trials and the first free-living hour from 07:00, with getting up and sit-stand transitions, with the opt-in free-living orientation asked
 for) goes through ingest and every stage in this process, so each kernel is compiled for the argument types
 the pipeline really passes and written to the installation's shared cache (``estimators/_numba_cache.py``).
 Every later process (``make demo``, the nightly run's pool or Dask workers) loads the machine code from there
@@ -44,7 +44,7 @@ def kernel_stats() -> dict:
             "kernels_not_called": unused, "compiled": sorted(names_compiled)}
 
 
-def run_small_study(workdir: Path, *, index: int = 0, hours: float = 0.5, start_local: str = "10:00") -> dict:
+def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_local: str = "07:00") -> dict:
     """Simulate one participant of the demo study (lab session + ``hours`` of free-living chest data) and run
     ingest and every stage on it in this process; returns :func:`kernel_stats` afterwards."""
     from pipeline import config, runner
