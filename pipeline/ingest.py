@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import zoneinfo
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from pipeline.privacy import screen_session, study_policy
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
 from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
 from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
@@ -29,9 +29,6 @@ from warehouse.catalog import first, Warehouse
 from warehouse.store import check_identifier, series_relpath
 
 RATE_RANGE_HZ = (5.0, 5000.0)
-_PERSONAL_KEYS = re.compile(r"(^|_)(name|first_?name|last_?name|surname|email|e_?mail|birth|dob|address|phone)($|_)",
-                            re.I)
-_EMAIL = re.compile(r"[^@\s]+@[^@\s]+\.[A-Za-z]{2,}")
 
 
 class IngestRejected(ValueError):
@@ -58,8 +55,10 @@ class Prepared:
     ignored_topics: list[str] = field(default_factory=list)
 
 
-def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None) -> dict[str, str]:
-    """Validate the ``session`` metadata record and pseudonymise site identifiers (raises IngestRejected)."""
+def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
+                           notes: list[dict] | None = None) -> dict[str, str]:
+    """Validate the ``session`` metadata record, pseudonymise site identifiers, refuse personal data and drop
+    free text the study does not allow-list (warnings appended to ``notes``); raises IngestRejected."""
     if "session" not in meta:
         raise IngestRejected("no 'session' metadata record (study, participant, session, kind): "
                              "add it when exporting (DESIGN.md 'Recording format')")
@@ -75,24 +74,18 @@ def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None)
     missing = [k for k in SESSION_KEYS_REQUIRED if not s.get(k)]
     if missing:
         raise IngestRejected(f"'session' metadata lacks {', '.join(missing)}")
-    for k, v in s.items():
-        if _PERSONAL_KEYS.search(k) or _EMAIL.search(str(v)):
-            raise IngestRejected(f"'session' metadata field '{k}' looks like personal data (names, e-mail "
-                                 f"addresses, birth dates are never stored); export pseudonyms only")
-    if s["kind"] not in SESSION_KINDS:
-        raise IngestRejected(f"'session' kind '{s['kind']}' is not one of {', '.join(SESSION_KINDS)}")
     try:
-        for k in ("study", "participant", "session"):
-            check_identifier(s[k], f"session metadata '{k}'")
-        if s.get("trial"):
-            check_identifier(s["trial"], "session metadata 'trial'")
+        check_identifier(s["study"], "session metadata 'study'")
+        s = screen_session(s, study_policy(s["study"]), notes)       # personal data refused, free text dropped
     except ValueError as e:
-        raise IngestRejected(str(e)) from None
+        raise IngestRejected(str(e).splitlines()[0]) from None
+    if s["kind"] not in SESSION_KINDS:
+        raise IngestRejected(f"'session' kind is not one of {', '.join(SESSION_KINDS)}")
     tz = s.get("timezone") or "UTC"
     try:
         zoneinfo.ZoneInfo(tz)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-        raise IngestRejected(f"'session' timezone '{tz}' is not an IANA time zone (e.g. Europe/Zurich)") from None
+        raise IngestRejected("'session' timezone is not an IANA time zone name (e.g. Europe/Zurich)") from None
     s["timezone"] = tz
     return s
 
@@ -192,7 +185,7 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOpt
         fields, _sources = gather_session(path, res.metadata, custom, options.session)
         if not fields:
             raise IngestRejected(NO_SESSION)
-        session = check_session_metadata({"session": fields}, root)
+        session = check_session_metadata({"session": fields}, root, out.issues)
         _check_plausible(session)
         out.metadata = session
         for s in states.values():

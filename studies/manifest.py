@@ -18,6 +18,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from studies.privacy import PrivacyPolicy, identifier_problem, privacy_policy
+
 __all__ = ["DEFAULT_MANIFEST", "ParticipantSpec", "LabProtocol", "FreeLivingSpec", "SensorModelSpec",
            "StudyManifest", "load_manifest"]
 
@@ -121,6 +123,7 @@ class StudyManifest:
     stages: MappingProxyType = field(default_factory=lambda: MappingProxyType({}), compare=False)
     #: ``[topics]``: recording topic -> placement, for recordings whose topics are not /imu/<placement>
     topics: MappingProxyType = field(default_factory=lambda: MappingProxyType({}), compare=False)
+    privacy: PrivacyPolicy = PrivacyPolicy()
     path: Path | None = field(default=None, compare=False)
 
     def with_free_living_hours(self, hours: float) -> "StudyManifest":
@@ -138,7 +141,8 @@ class StudyManifest:
 
 # ---- loading and validation ----------------------------------------------------------------
 
-_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages", "topics", "compute"}
+_TOP_KEYS = {"study", "lab", "free_living", "sensor_model", "participants", "stages", "topics", "compute",
+             "privacy"}
 _SESSION_KINDS = ("lab", "free_living", "calibration")
 
 
@@ -154,7 +158,7 @@ def _take(ctx: _Ctx, table: dict, where: str, cls, overrides: dict | None = None
     """Build dataclass ``cls`` from TOML ``table``, type-checking each field against the default's type."""
     if not isinstance(table, dict):
         raise ctx.err(where, f"expected a table, got {type(table).__name__}")
-    known = {f.name: f for f in fields(cls) if f.name not in ("stages", "path")}
+    known = {f.name: f for f in fields(cls) if f.name not in ("stages", "path", "privacy")}
     unknown = set(table) - set(known)
     if unknown:
         raise ctx.err(where, f"unknown field(s) {sorted(unknown)}; known: {sorted(known)}")
@@ -209,10 +213,11 @@ def _check_hhmm(ctx: _Ctx, where: str, s: str) -> None:
         raise ctx.err(where, f"expected a local time HH:MM, got {s!r}") from None
 
 
-def _validate_participant(ctx: _Ctx, i: int, p: ParticipantSpec) -> None:
+def _validate_participant(ctx: _Ctx, i: int, p: ParticipantSpec, policy: PrivacyPolicy) -> None:
+    why = identifier_problem(p.id, policy)
+    if why:      # the id is not repeated: it may be personal data
+        raise ctx.err(f"participants[{i}].id", f"the id {why}")
     where = f"participants[{i}] ({p.id})"
-    if not p.id or not p.id.replace("-", "").replace("_", "").isalnum():
-        raise ctx.err(where, f"id must be a non-empty alphanumeric pseudonym, got {p.id!r}")
     if p.sex not in ("F", "M"):
         raise ctx.err(f"{where}.sex", f"expected 'F' or 'M', got {p.sex!r}")
     checks = [("height_m", 1.0, 2.3), ("thigh_m", 0.25, 0.65), ("shank_m", 0.25, 0.65),
@@ -299,6 +304,10 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
     if not (0 < sm.earth_dip_deg < 90 or -90 < sm.earth_dip_deg <= 0):
         raise ctx.err("sensor_model.earth_dip_deg", f"{sm.earth_dip_deg} outside (-90, 90)")
 
+    try:
+        privacy = privacy_policy(raw.get("privacy"), "privacy")
+    except ValueError as e:
+        raise ctx.err("privacy", str(e)) from None
     plist = raw.get("participants", [])
     if not isinstance(plist, list) or not plist:
         raise ctx.err("participants", "at least one [[participants]] entry is required")
@@ -307,7 +316,7 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
         if not isinstance(t, dict) or "id" not in t:
             raise ctx.err(f"participants[{i}]", "each [[participants]] entry needs an 'id'")
         p = _take(ctx, t, f"participants[{i}]", ParticipantSpec)
-        _validate_participant(ctx, i, p)
+        _validate_participant(ctx, i, p, privacy)
         parts.append(p)
     ids = [p.id for p in parts]
     if len(set(ids)) != len(ids):
@@ -333,7 +342,7 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
                          sampling_rate_hz=tmp.sampling_rate_hz, first_lab_date=tmp.first_lab_date,
                          lab_start_local=tmp.lab_start_local, participants=tuple(parts), lab=lab,
                          free_living=fl, sensor_model=sm, stages=MappingProxyType(stages),
-                         topics=MappingProxyType(dict(topics)), path=path)
+                         topics=MappingProxyType(dict(topics)), privacy=privacy, path=path)
 
 
 @dataclass(frozen=True)

@@ -16,14 +16,15 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-_SAFE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
+_SAFE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")     # whole string (fullmatch: '$' would pass 'P001\n')
 TMP_PREFIX = ".tmp-"
 
 
 def check_identifier(value: str, what: str) -> str:
-    """Identifiers that become path parts: letters, digits, ``. _ -``; never ``..`` or ``/``."""
-    if not isinstance(value, str) or not _SAFE.match(value) or ".." in value:
-        raise ValueError(f"{what} {value!r} is not a safe identifier (use letters, digits, '.', '_', '-'; "
+    """Identifiers that become path parts: letters, digits, ``. _ -``; never ``..`` or ``/``. The message
+    does not repeat the value (it may be personal data)."""
+    if not isinstance(value, str) or not _SAFE.fullmatch(value) or ".." in value:
+        raise ValueError(f"{what} is not a safe identifier (use letters, digits, '.', '_', '-'; "
                          f"at most 128 characters)")
     return value
 
