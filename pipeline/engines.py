@@ -8,13 +8,19 @@ immutable Parquet files and return rows, so a task that dies can simply be run a
   breaks the pool, which is rebuilt and the unfinished tasks resubmitted (at most ``max_attempts``).
 - ``dask``: the same tasks on Dask distributed, a LocalCluster by default or ``--scheduler
   ADDRESS``; the warehouse directory must be on a filesystem shared with the workers.
+
+Workers of both engines die with the coordinator (``pipeline/lifeline.py``): a coordinator killed
+by the OOM killer leaves no worker behind.
 """
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
+
+from pipeline.lifeline import COORDINATOR_ENV, die_with_parent
 
 
 class TaskLost(RuntimeError):
@@ -30,7 +36,9 @@ class LocalEngine:
         self.pool: ProcessPoolExecutor | None = None
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"))
+        # workers die with this coordinator (kill -9, OOM killer) instead of lingering
+        return ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"), initializer=die_with_parent,
+                                   initargs=(os.getpid(),))
 
     def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
         """Call ``fn(*item)`` for each item; ``on_done(item, result_or_exception)`` runs in the coordinator."""
@@ -104,8 +112,10 @@ class DaskEngine:
         if scheduler:
             self.client = Client(scheduler, timeout="30s")
         else:
+            # the preload makes each worker process die with this coordinator (pipeline/lifeline.py)
+            os.environ[COORDINATOR_ENV] = str(os.getpid())
             self.cluster = LocalCluster(n_workers=max(1, jobs), threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=40)
+                                        dashboard_address=None, silence_logs=40, preload=["pipeline.lifeline"])
             self.client = Client(self.cluster)
         self.max_attempts = max_attempts
 
