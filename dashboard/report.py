@@ -431,6 +431,12 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
 _SAFE = re.compile(r"[^A-Za-z0-9._-]")
 
 
+def _replace_durably(tmp: Path, final: Path) -> None:
+    with open(tmp, "rb") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, final)
+
+
 def build_report(warehouse_root: Path, participant_id: str, out_dir: Path, *, study: str | None = None) -> dict:
     """Write ``<out_dir>/<study>_<participant>.html`` and ``.pdf`` from the newest snapshot.
 
@@ -460,13 +466,15 @@ def build_report(warehouse_root: Path, participant_id: str, out_dir: Path, *, st
     stem = f"{_SAFE.sub('_', d['study'])}_{_SAFE.sub('_', participant_id)}"
     html_path, pdf_path = out_dir / f"{stem}.html", out_dir / f"{stem}.pdf"
     try:
+        # each file appears whole or not at all: temporary name (.tmp-<pid>-, removed by the next run if
+        # this process is killed), fsync, rename
         text = render_html(d, pages, meta)
         tmp = html_path.with_name(f".tmp-{os.getpid()}-{html_path.name}")
         tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, html_path)
+        _replace_durably(tmp, html_path)
         tmp = pdf_path.with_name(f".tmp-{os.getpid()}-{pdf_path.name}")
         render_pdf(d, pages, meta, tmp)
-        os.replace(tmp, pdf_path)
+        _replace_durably(tmp, pdf_path)
     finally:
         for blocks in pages.values():
             for b in blocks:

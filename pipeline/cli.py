@@ -269,7 +269,7 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> N
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (tcp://host:8786); workers must see the warehouse directory.")
 @click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Where to write the reports of participants with new results [default: $STRIDELAB_HOME/reports].")
+              help="Where the run writes every missing or stale participant report [default: $STRIDELAB_HOME/reports].")
 @click.option("--no-reports", is_flag=True, help="Do not write participant reports.")
 @_session_options
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
@@ -292,42 +292,22 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
     if scheduler and engine != "dask":
         from pipeline.console import UserError
         raise UserError("--scheduler needs --engine dask")
+    from pipeline.config import default_reports
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
-                                 scheduler=scheduler, ingest_options=_ingest_options(session_fields, topic_map))
-    if not no_reports:
-        summary.reports = _write_reports(_wh(warehouse_dir), summary.run_id, reports_dir, summary.failed)
+                                 scheduler=scheduler, ingest_options=_ingest_options(session_fields, topic_map),
+                                 reports_dir=reports_dir or default_reports(),
+                                 build_report=None if no_reports else _report_builder(_wh(warehouse_dir)))
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
 
 
-def _write_reports(wh: Path, run_id: str, reports_dir: Path | None, failed: list[str] | None = None) -> list[str]:
-    """Reports for the participants whose results changed in this run; a report that fails is appended to
-    ``failed`` (exit code 1) and does not stop the others."""
-    from pipeline.config import default_reports
-    from pipeline.console import err_console
-    from warehouse.read import connect_snapshot
-    con = connect_snapshot(wh)
-    if con is None:
-        return []
-    try:
-        who = con.execute("SELECT DISTINCT s.study, s.participant_id FROM stage_runs r JOIN sessions s USING (session_id) "
-                          "WHERE r.run_id = ? AND r.status = 'ok' ORDER BY 1, 2", [run_id]).fetchall()
-    finally:
-        con.close()
-    if not who:
-        return []
-    from dashboard.report import build_report
-    out = []
-    for study, pid in who:
-        try:
-            paths = build_report(wh, pid, reports_dir or default_reports(), study=study)
-            out.append(str(paths["pdf"]))
-        except Exception as e:  # noqa: BLE001 - a report problem must not fail the nightly run
-            err_console.print(f"warning: report for {study}/{pid} failed: {e}", markup=False)
-            if failed is not None:
-                failed.append(f"report {study}/{pid}: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
-    return out
+def _report_builder(wh: Path):
+    """The dashboard's report writer for the runner's report phase (the CLI wires the layers)."""
+    def build(study: str, participant: str, out_dir: Path) -> dict:
+        from dashboard.report import build_report
+        return build_report(wh, participant, out_dir, study=study)
+    return build
 
 
 @main.command()
@@ -373,8 +353,9 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
         err_console.print(f"simulating the demo study into {inbox} …")
         simulate_to_dir(inbox, jobs=jobs or os.cpu_count() or 1,
                         on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
-    summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo")
-    summary.reports = _write_reports(wh, summary.run_id, None)
+    from pipeline.config import default_reports
+    summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo",
+                                 reports_dir=default_reports(), build_report=_report_builder(wh))
     _print_summary(summary, False)
     if no_serve:
         err_console.print(f"warehouse: {wh}")

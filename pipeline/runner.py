@@ -26,6 +26,7 @@ from typing import Callable, Iterable
 from pipeline import ingest as ingest_mod
 from pipeline.formats.rosbag2 import is_bag
 from pipeline.engines import make_engine
+from pipeline.reports import ReportBuilder, write_reports
 from pipeline.config import requested, stage_params
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
 from warehouse.catalog import first, Warehouse
@@ -324,8 +325,12 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
         command: str = "run", engine: str = "local", scheduler: str | None = None,
         ingest_options: dict | None = None,
         on_progress: Callable[[str], None] = lambda m: None,
-        on_phase: Callable[[str, int], None] = _no_phase) -> RunSummary:
+        on_phase: Callable[[str, int], None] = _no_phase,
+        reports_dir: Path | None = None, build_report: ReportBuilder | None = None) -> RunSummary:
     """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout.
+
+    With ``build_report`` and ``reports_dir``, the run ends by writing every participant report that is
+    missing or stale (pipeline/reports.py); a report that fails counts as a failure of the run.
 
     ``on_phase(name, total)`` announces a phase (ingest, then each stage) and its number of tasks;
     ``on_progress(message)`` reports each completed task (a committed file or session).
@@ -352,6 +357,11 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                 ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options)
                 if stages:
                     run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
+                if stages and build_report is not None and reports_dir is not None:
+                    written, failed = write_reports(wh, run_id, Path(reports_dir), build_report, _version(),
+                                                    on_progress)
+                    summary.reports += written
+                    summary.failed += failed
                 status = "failed" if summary.failed else "ok"
             except BaseException:
                 status = "failed"
