@@ -93,8 +93,11 @@ def _print_summary(summary, as_json: bool) -> None:
         return
     d = summary.as_dict()
     err_console.print(f"run {d['run_id']}: {d['ingested']} ingested, {d['duplicates']} unchanged, "
+                      f"{len(d['reexports'])} re-exports, "
                       f"{len(d['quarantined'])} quarantined, {d['stage_runs']} stage runs, {d['fresh']} up to date, "
                       f"{len(d['failed'])} failed, {len(d['reports'])} reports, {d['seconds']} s")
+    for q in d["reexports"]:
+        err_console.print(f"  re-export: {q}", markup=False)
     for q in d["quarantined"]:
         err_console.print(f"  quarantined: {q}", markup=False)
     for f in d["failed"]:
@@ -130,7 +133,7 @@ def _run_with_progress(**kw):
                     bar.advance(current["task"])
                 if bar.disable:
                     err_console.print(msg, markup=False, highlight=False)
-                elif "quarantined" in msg or "FAILED" in msg or "warning" in msg:
+                elif "quarantined" in msg or "re-export" in msg or "FAILED" in msg or "warning" in msg:
                     bar.console.print(msg, markup=False, highlight=False)
             return runner.run(on_progress=on_progress, on_phase=on_phase, **kw)
     except WarehouseBusy as e:
@@ -186,8 +189,11 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
 @_warehouse_option
 @click.option("--jobs", "-j", type=click.IntRange(1, 64), default=1, show_default=True, help="Worker processes.")
 @_session_options
+@click.option("--replace", is_flag=True,
+              help="The files are corrections: each supersedes the ingested recording with the same samples or the "
+                   "same file name (the next `run` recomputes what depended on it).")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, as_json) -> None:
+def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_json) -> None:
     """Load recordings (MCAP files, rosbag2 bag directories, or folders holding them) into the
     warehouse; idempotent by content.
 
@@ -206,7 +212,8 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, as_json) -> No
     for p in paths:
         files += inbox_recordings(p) if p.is_dir() and not is_bag(p) else [p]
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
-                                 command="ingest", ingest_options=_ingest_options(session_fields, topic_map))
+                                 command="ingest", ingest_options=_ingest_options(session_fields, topic_map),
+                                 replace=files if replace else None)
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
 
@@ -272,9 +279,12 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> N
               help="Where the run writes every missing or stale participant report [default: $STRIDELAB_HOME/reports].")
 @click.option("--no-reports", is_flag=True, help="Do not write participant reports.")
 @_session_options
+@click.option("--replace", "replace", multiple=True, type=click.Path(exists=True, path_type=Path),
+              help="A corrected export (repeatable): it supersedes the ingested recording with the same samples or "
+                   "the same file name, and what depended on it is recomputed in this run.")
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
 def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, session_fields, topic_map,
-        as_json) -> None:
+        replace, as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
     A second run started while one is active refuses with a clear message (exit code 2). Failures of
@@ -286,6 +296,7 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
       stridelab run
       stridelab run --inbox /data/inbox --warehouse /data/wh --jobs 2 --json
       stridelab run --engine dask --scheduler tcp://10.0.0.5:8786
+      stridelab run --replace inbox/P001_walk-1_fixed.mcap   # a corrected export supersedes the old one
     """
     import os
     from pipeline.config import default_inbox
@@ -297,7 +308,8 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
                                  scheduler=scheduler, ingest_options=_ingest_options(session_fields, topic_map),
                                  reports_dir=reports_dir or default_reports(),
-                                 build_report=None if no_reports else _report_builder(_wh(warehouse_dir)))
+                                 build_report=None if no_reports else _report_builder(_wh(warehouse_dir)),
+                                 replace=list(replace))
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
 

@@ -9,6 +9,7 @@ with a one-line reason; nothing of it reaches the catalog, so it is never half-w
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import zoneinfo
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
 from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
@@ -53,6 +55,7 @@ class Prepared:
     end_ns: int | None = None
     n_samples: int = 0
     ignored_topics: list[str] = field(default_factory=list)
+    sample_hash: str = ""                    # sha256 over the decoded samples of every topic (re-export check)
 
 
 def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
@@ -248,6 +251,7 @@ def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOpt
         out.start_ns = min(s.t0 for s in imu)
         out.end_ns = max(s.last_t for s in imu)
         out.ignored_topics = sorted(set(out.ignored_topics) | set(res.ignored_topics))
+        out.sample_hash = sample_hash({placement_of[t]: s for t, s in ((s.topic, s) for s in mapped.values())})
         for e in out.events:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
@@ -282,6 +286,17 @@ def _content_hash(path: Path) -> str:
     return _sha256(path)
 
 
+def sample_hash(series: dict) -> str:
+    """Identity of a recording by content: the same samples exported again (another file name, writer,
+    chunking, compression or topic names) give the same hash. ``series``: (placement, series name) ->
+    TopicSeries; hashed in key order over each series' header stamps and values."""
+    h = hashlib.sha256()
+    for key in sorted(series):
+        s = series[key]
+        h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + s.stamp_digest.digest() + s.value_digest.digest())
+    return h.hexdigest()
+
+
 def _sha256(path: Path) -> str:
     import hashlib
     if path.is_dir():
@@ -307,17 +322,36 @@ def known_hash(wh: Warehouse, path: Path) -> str | None:
     return r[0] if r else None
 
 
-def commit(wh: Warehouse, p: Prepared) -> CommitResult:
-    """Write one prepared file's catalog rows in a single transaction (idempotent by content hash)."""
+def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
+    """Write one prepared file's catalog rows in a single transaction (idempotent by content hash).
+
+    A file with the samples of an ingested recording is a re-export: recorded, not ingested again. With
+    ``replace`` the file supersedes the recordings with its samples or its file name (pipeline/supersede.py)."""
     con = wh.con
     now = datetime.now(timezone.utc).replace(tzinfo=None)
     with wh.transaction():
         con.execute("INSERT OR IGNORE INTO inbox_seen VALUES (?, ?, ?, ?)",
                     [p.source_path, p.size_bytes, p.mtime_ns, p.content_hash])
         prev = first(con.execute("SELECT status, reason FROM recordings WHERE content_hash = ?", [p.content_hash]))
+        if prev is not None and replace and prev[0] == "reexport":
+            con.execute("DELETE FROM recordings WHERE content_hash = ?", [p.content_hash])   # now deliberate
+            prev = None
         if prev is not None:
             return CommitResult("duplicate", f"{p.file_name}: already {prev[0]} (same content), nothing changed")
-        if p.status == "ingested":
+        old = supersede.previous_versions(con, p) if p.status == "ingested" and replace else []
+        if p.status == "ingested" and not replace and p.sample_hash:
+            same = first(con.execute("SELECT file_name, session_id FROM recordings WHERE sample_hash = ? "
+                                     "AND status = 'ingested'", [p.sample_hash]))
+            if same is not None:
+                reason = (f"same samples as {same[0]} (session {same[1]}), ingested before: a re-export, not "
+                          f"ingested again; to correct that recording, rerun with --replace {p.file_name}")
+                wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
+                                          "source_path": p.source_path, "size_bytes": p.size_bytes,
+                                          "status": "reexport", "reason": reason, "sample_hash": p.sample_hash,
+                                          "ingested_at": now}])
+                return CommitResult("reexport", f"{p.file_name}: {reason}")
+        emptied = supersede.sessions_emptied(con, old)
+        if p.status == "ingested" and not old:
             clash = first(con.execute("SELECT content_hash, session_id FROM recordings WHERE file_name = ? "
                                 "AND status = 'ingested'", [p.file_name]))
             if clash is not None:
@@ -327,6 +361,8 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
         if p.status == "ingested":
             owner = first(con.execute("SELECT study, participant_id, kind FROM sessions WHERE session_id = ?",
                                       [p.metadata["session"]]))
+            if p.metadata["session"] in emptied:
+                owner = None              # the session goes away with the recordings this file supersedes
             if owner is not None and tuple(owner[:2]) != (p.metadata["study"], p.metadata["participant"]):
                 p.status = "quarantined"
                 p.reason = (f"session id {p.metadata['session']} already belongs to {owner[0]}/{owner[1]}, not "
@@ -340,6 +376,7 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
                                       "status": "quarantined", "reason": p.reason, "ingested_at": now}])
             return CommitResult("quarantined", f"{p.file_name}: quarantined: {p.reason}")
+        superseded = supersede.supersede(con, old, p, emptied)
         s = p.metadata
         con.execute("INSERT OR IGNORE INTO participants VALUES (?, ?)", [s["study"], s["participant"]])
         row = first(con.execute("SELECT study, participant_id, start_ns, end_ns FROM sessions WHERE session_id = ?",
@@ -355,7 +392,8 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
                                   "source_path": p.source_path, "size_bytes": p.size_bytes, "status": "ingested",
                                   "session_id": s["session"], "trial": s.get("trial"),
                                   "metadata": json.dumps(s, sort_keys=True), "start_ns": p.start_ns,
-                                  "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now}])
+                                  "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now,
+                                  "sample_hash": p.sample_hash or None}])
         wh.insert("sensors", [dict(r, content_hash=p.content_hash) for r in p.sensors])
         wh.insert("recording_issues", [dict(r, content_hash=p.content_hash) for r in p.issues])
         wh.insert("reference_events", [{
@@ -363,7 +401,11 @@ def commit(wh: Warehouse, p: Prepared) -> CommitResult:
             "end_ns": int(e["end_ns"]) if e.get("end_ns") is not None else None, "type": str(e["type"]),
             "side": e.get("side"), "placement": e.get("placement"), "label": e.get("label"),
             "payload": json.dumps(e, sort_keys=True)} for e in p.events])
+        if superseded:
+            supersede.refresh_session_span(con, s["session"])
     msg = f"{p.file_name}: ingested {p.n_samples:,} IMU samples into session {s['session']}"
+    if superseded:
+        msg += f", superseding {', '.join(superseded)}"
     if p.issues:
         msg += f" ({len(p.issues)} warning{'s' if len(p.issues) > 1 else ''}: {p.issues[0]['message']})"
     return CommitResult("ingested", msg)

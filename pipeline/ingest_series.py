@@ -17,6 +17,8 @@ Clock policy (docs/clocks.md), each case reported as a warning of the recording,
 """
 from __future__ import annotations
 
+import hashlib
+
 import uuid
 from datetime import datetime, timezone
 from pathlib import Path
@@ -77,6 +79,9 @@ class TopicSeries:
         self.period_ns = 0.0
         self.batch_size = 1.0
         self.batch_thresh = 0
+        # the stored samples (not the file bytes) identify a recording (ingest.sample_hash); stamps and
+        # values hashed apart, so that where the writes cut the stream does not matter
+        self.stamp_digest, self.value_digest = hashlib.sha256(), hashlib.sha256()
 
     # ---- input -------------------------------------------------------------------------------
     def add(self, b: Block) -> None:
@@ -159,6 +164,8 @@ class TopicSeries:
         if self.t0 is None:
             self.t0 = int(t[0])
         self.n += len(t)
+        self.stamp_digest.update(np.ascontiguousarray(t, dtype=np.int64).tobytes())
+        self.value_digest.update(np.ascontiguousarray(v, dtype=np.float64).tobytes())
         if self.kind == "mag":
             v = v * 1e6          # tesla on the wire -> µT in the warehouse
         schema = SCHEMAS[self.kind]

@@ -52,6 +52,7 @@ class RunSummary:
     run_id: str
     ingested: list[str] = field(default_factory=list)
     duplicates: list[str] = field(default_factory=list)
+    reexports: list[str] = field(default_factory=list)       # same samples as an ingested recording: not ingested
     quarantined: list[str] = field(default_factory=list)
     stage_runs: int = 0
     skipped_fresh: int = 0
@@ -62,7 +63,7 @@ class RunSummary:
 
     def as_dict(self) -> dict:
         return {"run_id": self.run_id, "ingested": len(self.ingested), "duplicates": len(self.duplicates),
-                "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
+                "reexports": self.reexports, "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
                 "failed": self.failed, "reports": self.reports, "seconds": round(self.seconds, 2)}
 
 
@@ -117,12 +118,21 @@ def _no_phase(name: str, total: int) -> None:
 
 def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
                  on_progress: Callable[[str], None] = lambda m: None,
-                 on_phase: Callable[[str, int], None] = _no_phase, options: dict | None = None) -> None:
-    todo = []
+                 on_phase: Callable[[str, int], None] = _no_phase, options: dict | None = None,
+                 replace: Iterable[Path] = ()) -> None:
+    """Ingest ``files``; those also in ``replace`` supersede the recordings they correct (``--replace``)."""
+    replacing = {str(Path(f).resolve()) for f in replace}
+    todo, seen = [], set()
     for f in files:
         f = Path(f)
+        if str(f.resolve()) in seen:        # named with --replace and found in the inbox too
+            continue
+        seen.add(str(f.resolve()))
         if not (f.is_file() or is_bag(f)):
             summary.quarantined.append(f"{f}: not a recording file or rosbag2 bag directory (metadata.yaml)")
+            continue
+        if str(f.resolve()) in replacing:
+            todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
             continue
         h = ingest_mod.known_hash(wh, f)
         if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
@@ -138,9 +148,10 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             res = ingest_mod.Prepared(source_path=item[0], file_name=Path(item[0]).name, size_bytes=0, mtime_ns=0,
                                       content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
                                       reason=f"internal error while reading: {res}")
-        r = ingest_mod.commit(wh, res)
-        {"ingested": summary.ingested, "duplicate": summary.duplicates,
-         "quarantined": summary.quarantined}[r.status].append(r.message if r.status == "quarantined" else res.file_name)
+        r = ingest_mod.commit(wh, res, replace=str(Path(item[0]).resolve()) in replacing)
+        {"ingested": summary.ingested, "duplicate": summary.duplicates, "reexport": summary.reexports,
+         "quarantined": summary.quarantined}[r.status].append(
+            r.message if r.status in ("quarantined", "reexport") else res.file_name)
         summary.messages.append(r.message)
         wh.publish_snapshot()
         on_progress(r.message)
@@ -326,12 +337,14 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
         ingest_options: dict | None = None,
         on_progress: Callable[[str], None] = lambda m: None,
         on_phase: Callable[[str, int], None] = _no_phase,
-        reports_dir: Path | None = None, build_report: ReportBuilder | None = None) -> RunSummary:
+        reports_dir: Path | None = None, build_report: ReportBuilder | None = None,
+        replace: list[Path] | None = None) -> RunSummary:
     """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout.
 
     With ``build_report`` and ``reports_dir``, the run ends by writing every participant report that is
     missing or stale (pipeline/reports.py); a report that fails counts as a failure of the run.
 
+    ``replace``: files that supersede the recordings they correct (same samples or same file name).
     ``on_phase(name, total)`` announces a phase (ingest, then each stage) and its number of tasks;
     ``on_progress(message)`` reports each completed task (a committed file or session).
     ``ingest_options``: ``{"session": {...}, "topic_map": {...}}`` for every recording (see ingest.IngestOptions).
@@ -351,10 +364,10 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
             wh.gc()
             ex = make_engine(engine, jobs, scheduler)
             try:
-                todo = list(files or [])
+                todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
                 if inbox is not None and Path(inbox).is_dir():
                     todo += inbox_recordings(Path(inbox))
-                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options)
+                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or ())
                 if stages:
                     run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
                 if stages and build_report is not None and reports_dir is not None:

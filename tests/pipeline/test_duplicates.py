@@ -1,0 +1,107 @@
+"""Duplicate recordings by sample content, and `--replace` for deliberate corrections (issue 17 point 4)."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+from pipeline import runner
+from pipeline.formats.mcap_write import write_recording
+from tests.corpus import small_recording
+from tests.pipeline.test_runner import cli
+from warehouse.read import connect_snapshot
+
+
+def _q(root, sql, params=()):
+    con = connect_snapshot(root)
+    try:
+        return con.execute(sql, list(params)).fetchall()
+    finally:
+        con.close()
+
+
+def test_the_same_recording_exported_under_other_names_is_reported_and_ingested_once(tmp_path):
+    rec = small_recording(seconds=6, session="P001-lab-1", trial="walk-1")
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    # twelve exports of the same samples: other names, compression levels and chunk sizes, so the file bytes differ
+    files = [write_recording(rec, inbox / f"walk-1_export{k:02d}.mcap", zstd_level=1 + k % 6,
+                             chunk_bytes=(1 << 16) * (1 + k)) for k in range(12)]
+    assert len({f.read_bytes() for f in files}) == 12
+    once = runner.run(tmp_path / "once", None, files=files[:1])
+    s = runner.run(tmp_path / "wh", inbox)
+    assert len(s.ingested) == 1 and len(s.reexports) == 11 and not s.quarantined and not s.failed
+    assert all("same samples as walk-1_export00.mcap" in m and "--replace" in m for m in s.reexports)
+    for t in ("orientation", "sensors"):
+        assert _q(tmp_path / "wh", f"SELECT count(*) FROM {t}") == _q(tmp_path / "once", f"SELECT count(*) FROM {t}")
+    assert _q(tmp_path / "wh", "SELECT status, count(*) FROM recordings GROUP BY 1 ORDER BY 1") == \
+        [("ingested", 1), ("reexport", 11)]
+    assert not once.reexports
+    # the next night: nothing new, nothing counted twice
+    s = runner.run(tmp_path / "wh", inbox)
+    assert not s.ingested and not s.reexports and len(s.duplicates) == 12 and s.stage_runs == 0
+
+
+def test_a_re_export_with_other_metadata_is_still_the_same_recording(tmp_path):
+    rec = small_recording(seconds=4)
+    a = write_recording(rec, tmp_path / "a.mcap")
+    b = write_recording(replace(rec, metadata=dict(rec.metadata, protocol="test-v2")), tmp_path / "b.mcap")
+    s = runner.run(tmp_path / "wh", None, files=[a, b], stages=False)
+    assert len(s.ingested) == 1 and len(s.reexports) == 1
+
+
+def test_replace_supersedes_the_old_recording_and_recomputes_what_depended_on_it(tmp_path):
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    wrong = small_recording(seconds=6, participant="P001", session="P001-lab-1", trial="walk-1")
+    other = small_recording(seconds=6, participant="P001", session="P001-lab-1", trial="walk-2", seed=5)
+    write_recording(wrong, inbox / "walk-1.mcap")
+    write_recording(other, inbox / "walk-2.mcap")
+    args = ("--warehouse", tmp_path / "wh", "-j", "1", "--no-reports", "--json")
+    r = cli("run", "--inbox", inbox, *args)
+    assert r.returncode == 0, r.stderr
+    n_orient = _q(tmp_path / "wh", "SELECT count(*) FROM orientation WHERE session_id = 'P001-lab-1'")[0][0]
+
+    # walk-1 belonged to P003: the site re-exports it with the corrected participant and session
+    fixed = replace(wrong, metadata=dict(wrong.metadata, participant="P003", session="P003-lab-1"))
+    write_recording(fixed, inbox / "walk-1_fixed.mcap")
+    r = cli("run", "--inbox", inbox, *args)                     # without --replace: reported, not ingested
+    assert r.returncode == 0 and len(json.loads(r.stdout)["reexports"]) == 1, r.stderr
+    assert "walk-1_fixed.mcap: same samples as walk-1.mcap" in r.stderr
+    r = cli("run", "--inbox", inbox, "--replace", inbox / "walk-1_fixed.mcap", *args)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["ingested"] == 1 and out["stage_runs"] > 0, out
+    wh = tmp_path / "wh"
+    assert _q(wh, "SELECT file_name, status, session_id FROM recordings ORDER BY 1") == [
+        ("walk-1.mcap", "superseded", "P001-lab-1"), ("walk-1_fixed.mcap", "ingested", "P003-lab-1"),
+        ("walk-2.mcap", "ingested", "P001-lab-1")]
+    assert "superseded by walk-1_fixed.mcap" in _q(wh, "SELECT reason FROM recordings WHERE file_name = 'walk-1.mcap'")[0][0]
+    # the old session is recomputed from walk-2 alone, the new one from the corrected file
+    assert _q(wh, "SELECT DISTINCT st.stamp <> r.stamp FROM stage_state st JOIN ("
+                  "SELECT session_id, stage, stamp FROM stage_runs WHERE status = 'ok' AND session_id = 'P001-lab-1' "
+                  "ORDER BY started_at LIMIT 1) r USING (session_id, stage)") == [(True,)]
+    assert _q(wh, "SELECT count(*) FROM stage_state WHERE session_id = 'P003-lab-1'")[0][0] > 0
+    assert _q(wh, "SELECT count(*) FROM orientation WHERE session_id = 'P003-lab-1'")[0][0] > 0
+    assert _q(wh, "SELECT count(*) FROM sensors s JOIN recordings r USING (content_hash) "
+                  "WHERE r.status <> 'ingested'") == [(0,)]
+    assert _q(wh, "SELECT participant_id FROM participants ORDER BY 1") == [("P001",), ("P003",)]
+    assert 0 < _q(wh, "SELECT count(*) FROM orientation WHERE session_id = 'P001-lab-1'")[0][0] <= n_orient
+    # the next night is a no-op: the old file in the inbox stays superseded
+    r = cli("run", "--inbox", inbox, *args)
+    out = json.loads(r.stdout)
+    assert r.returncode == 0 and out["ingested"] == 0 and out["stage_runs"] == 0 and not out["reexports"], out
+
+
+def test_replace_of_the_only_recording_of_a_session_removes_the_session_and_its_outputs(tmp_path):
+    wrong = small_recording(seconds=5, participant="P001", session="P001-lab-9")
+    a = write_recording(wrong, tmp_path / "a.mcap")
+    runner.run(tmp_path / "wh", None, files=[a])
+    fixed = write_recording(replace(wrong, metadata=dict(wrong.metadata, participant="P007", session="P007-lab-1")),
+                            tmp_path / "a_fixed.mcap")
+    s = runner.run(tmp_path / "wh", None, files=[fixed], replace=[fixed])
+    assert len(s.ingested) == 1 and "superseding a.mcap" in s.messages[0], s.messages
+    wh = tmp_path / "wh"
+    assert _q(wh, "SELECT session_id FROM sessions") == [("P007-lab-1",)]
+    assert _q(wh, "SELECT participant_id FROM participants") == [("P007",)]
+    assert _q(wh, "SELECT DISTINCT session_id FROM orientation") == [("P007-lab-1",)]
+    assert _q(wh, "SELECT DISTINCT session_id FROM stage_state") == [("P007-lab-1",)]
