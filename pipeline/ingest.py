@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import zoneinfo
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -22,6 +23,7 @@ import numpy as np
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
 from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
+from studies.privacy import value_problem
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
 from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
 from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
@@ -83,14 +85,25 @@ def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
     except ValueError as e:
         raise IngestRejected(str(e).splitlines()[0]) from None
     if s["kind"] not in SESSION_KINDS:
-        raise IngestRejected(f"'session' kind is not one of {', '.join(SESSION_KINDS)}")
+        raise IngestRejected(f"'session' kind{_shown(s['kind'])} is not one of {', '.join(SESSION_KINDS)}")
     tz = s.get("timezone") or "UTC"
     try:
         zoneinfo.ZoneInfo(tz)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-        raise IngestRejected("'session' timezone is not an IANA time zone name (e.g. Europe/Zurich)") from None
+        raise IngestRejected(f"'session' timezone{_shown(tz)} is not an IANA time zone name (e.g. Europe/Zurich)") from None
     s["timezone"] = tz
     return s
+
+
+def _shown(value) -> str:
+    """`` 'value'`` for a refused enum-like value that is safe to repeat (a short token that holds no
+    personal data), else nothing: reasons never echo what could be personal data."""
+    v = str(value)
+    ok = re.fullmatch(r"[A-Za-z0-9_/+-]{1,40}", v) and value_problem(v) is None and not _TITLE_WORDS.search(v)
+    return f" '{v}'" if ok else ""
+
+
+_TITLE_WORDS = re.compile(r"[A-Z][a-z]+[_ .-][A-Z][a-z]+$")
 
 
 @dataclass
