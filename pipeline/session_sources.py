@@ -83,8 +83,8 @@ def gather_session(path: Path, metadata: dict[str, dict[str, str]], custom_data:
     origin: dict[str, str] = {}
     for name, fields in sources:
         for k, v in fields.items():
-            v = str(v).strip()
-            if k in merged and merged[k] != v:
+            v = str(v)       # not stripped: 'P001\n' must reach the identifier check and be refused, not become P001
+            if k in merged and merged[k].strip() != v.strip():
                 raise SessionSourceError(f"session field '{k}' differs between {origin[k]} and {name}; "
                                          f"make the sources agree")
             if k not in merged:
