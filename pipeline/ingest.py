@@ -335,6 +335,11 @@ def known_hash(wh: Warehouse, path: Path) -> str | None:
     return r[0] if r else None
 
 
+def _has_sample_hash(con) -> bool:
+    return bool(con.execute("SELECT 1 FROM information_schema.columns WHERE table_name = 'recordings' "
+                            "AND column_name = 'sample_hash'").fetchall())
+
+
 def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
     """Write one prepared file's catalog rows in a single transaction (idempotent by content hash).
 
@@ -351,6 +356,8 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             prev = None
         if prev is not None:
             return CommitResult("duplicate", f"{p.file_name}: already {prev[0]} (same content), nothing changed")
+        if not _has_sample_hash(con):
+            p.sample_hash = ""          # a catalog before migration 009 (only tests open one without migrating)
         old = supersede.previous_versions(con, p) if p.status == "ingested" and replace else []
         if p.status == "ingested" and not replace and p.sample_hash:
             same = first(con.execute("SELECT file_name, session_id FROM recordings WHERE sample_hash = ? "
@@ -406,7 +413,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                   "session_id": s["session"], "trial": s.get("trial"),
                                   "metadata": json.dumps(s, sort_keys=True), "start_ns": p.start_ns,
                                   "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now,
-                                  "sample_hash": p.sample_hash or None}])
+                                  **({"sample_hash": p.sample_hash} if p.sample_hash else {})}])
         wh.insert("sensors", [dict(r, content_hash=p.content_hash) for r in p.sensors])
         wh.insert("recording_issues", [dict(r, content_hash=p.content_hash) for r in p.issues])
         wh.insert("reference_events", [{

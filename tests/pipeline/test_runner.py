@@ -26,12 +26,19 @@ def cli(*args, env=None, **kw):
                           env={**os.environ, **(env or {})}, timeout=600, **kw)
 
 
+def _study_seed(study: str) -> int:
+    """Seed offset of a study's recordings."""
+    import zlib
+    return 1000 * (zlib.crc32(study.encode()) % 100000)
+
+
 def make_inbox(d: Path, n_sessions: int = 3, seconds: float = 30.0, study: str = "testing") -> list[Path]:
     d.mkdir(parents=True, exist_ok=True)
     files = []
     for i in range(n_sessions):
-        for trial in ("walk-1", "walk-2"):
-            rec = small_recording(seconds=seconds, seed=10 * i + len(trial), session=f"{study}-S{i:02d}",
+        for j, trial in enumerate(("walk-1", "walk-2")):
+            # distinct samples per trial and study (equal samples would be one recording, a re-export)
+            rec = small_recording(seconds=seconds, seed=10 * i + j + _study_seed(study), session=f"{study}-S{i:02d}",
                                   participant=f"P{i % 2:03d}", trial=trial, study=study,
                                   placements=("foot_left", "foot_right", "shank_left", "pelvis"))
             files.append(write_recording(rec, d / f"{study}_S{i:02d}_{trial}.mcap"))
