@@ -622,16 +622,21 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                 raise McapFormatError(f"a record at byte {offset} runs past the end of the file "
                                       f"(truncated or corrupt file); copy or export it again")
             need = max(need, 9 + length - len(rest))
-        data = f.read(need)
-        if not data and len(rest) < 9 + (int.from_bytes(rest[1:9], "little") if len(rest) >= 9 else 0):
+        # read straight behind the carried-over bytes (one copy of ``rest``, none of the new data; was
+        # ``rest + f.read(need)``: a second full copy of every block on the reading thread)
+        need = max(0, min(need, size - f.tell()))
+        arr = np.empty(len(rest) + need, dtype=np.uint8)
+        arr[:len(rest)] = np.frombuffer(rest, dtype=np.uint8)
+        got = f.readinto(memoryview(arr)[len(rest):]) or 0
+        if not got and len(rest) < 9 + (int.from_bytes(rest[1:9], "little") if len(rest) >= 9 else 0):
             raise McapFormatError("truncated MCAP: the file ends inside a record "
                                   "(copy interrupted? try `mcap recover`)")
-        buf_bytes = rest + data if rest else data
-        buf = np.frombuffer(buf_bytes, dtype=np.uint8)
+        buf = arr[:len(rest) + got]
+        buf_bytes = memoryview(buf)
         p = 0
         if first:
             p, first = 8, False
-            hasher.feed(memoryview(buf_bytes)[:8], None)
+            hasher.feed(buf_bytes[:8], None)
             offset += 8
         recs = _scan(buf, p, len(buf), True)
         consumed = recs.end
@@ -647,7 +652,7 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                     raise McapFormatError(f"a chunk declares {usize} bytes uncompressed, above the "
                                           f"{MAX_CHUNK_BYTES >> 20} MiB limit; rewrite the file with smaller "
                                           f"chunks (`mcap compress`) if it is genuine")
-                yield "chunk", memoryview(buf_bytes)[s:s + n], usize
+                yield "chunk", buf_bytes[s:s + n], usize
             elif op == OP_SCHEMA:
                 reg.add_schema(_parse(Schema, buf[s:s + n], "Schema"))
             elif op == OP_CHANNEL:
@@ -664,17 +669,17 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                 crc_upto = offset + (s - 9 - p)
         if len(recs.m_ch):
             yield "messages", recs, int(recs.m_len.sum())
-        hasher.feed(memoryview(buf_bytes)[p:consumed], crc_upto)
+        hasher.feed(buf_bytes[p:consumed], crc_upto)
         offset += consumed - p
         if recs.footer:
             tail = f.read()
-            tail = buf_bytes[consumed:] + tail
+            tail = bytes(buf_bytes[consumed:]) + tail
             if tail != MAGIC:
                 raise McapFormatError(f"unexpected bytes after the footer; {_FIX}")
             hasher.feed(tail, crc_upto)
             return
-        rest = buf_bytes[consumed:]
-        if not data and not rest:
+        rest = bytes(buf_bytes[consumed:])         # a copy: must not keep this block alive
+        if not got and not rest:
             raise McapFormatError("truncated MCAP: the file ends before its footer "
                                   "(copy interrupted? try `mcap recover`)")
 
