@@ -4,7 +4,6 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
-import time
 
 import pytest
 
@@ -16,9 +15,7 @@ pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report 
 @pytest.fixture(scope="module")
 def report(full_wh, tmp_path_factory):
     out = tmp_path_factory.mktemp("reports")
-    t0 = time.perf_counter()
-    paths = build_report(full_wh, "P001", out)
-    return paths, time.perf_counter() - t0
+    return build_report(full_wh, "P001", out), None
 
 
 def test_pdf_pages_pseudonym_and_known_figure(report):
@@ -60,11 +57,6 @@ def test_html_is_self_contained(report):
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", html)     # nothing fetched from elsewhere
     assert "<script" not in html
     assert "P001" in html and ".mcap" not in html
-
-
-def test_report_is_fast(report):
-    _, seconds = report
-    assert seconds < 5.0
 
 
 def test_report_without_stage_results_explains(ingested_wh, tmp_path):
