@@ -92,7 +92,27 @@ def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise IngestRejected(f"'session' timezone{_shown(tz)} is not an IANA time zone name (e.g. Europe/Zurich)") from None
     s["timezone"] = tz
+    _check_stage_fields(s)
     return s
+
+
+#: ``reference_frame`` values (how the orientation stage scores an optical reference pose): ``sensor_enu`` = the
+#: reference is the sensor's own orientation in ENU (BROAD: scored as it stands, as ``stridelab bench orientation``
+#: does); ``segment_lab`` (the default) = a marker cluster in the lab frame (mounting and lab heading estimated first)
+REFERENCE_FRAMES = ("sensor_enu", "segment_lab")
+
+
+def _check_stage_fields(s: dict) -> None:
+    """The session fields stages read (not free text): closed values, refused with one line otherwise."""
+    rf = s.get("reference_frame")
+    if rf is not None and rf not in REFERENCE_FRAMES:
+        raise IngestRejected(f"'session' reference_frame{_shown(rf)} is not one of {', '.join(REFERENCE_FRAMES)}")
+    ao = s.get("accelerometer_only")
+    if ao is not None:
+        bad = [p for p in str(ao).split(",") if not re.fullmatch(r"[a-z][a-z0-9_]{0,40}", p.strip())]
+        if bad:
+            raise IngestRejected("'session' accelerometer_only must be comma-separated placements "
+                                 "(e.g. chest,pelvis)")
 
 
 def _shown(value) -> str:

@@ -12,10 +12,11 @@ from studies.privacy import PrivacyPolicy, identifier_problem, is_number, key_pr
 #: session-metadata fields of the recording format (DESIGN.md "Recording format"): validated on their
 #: own, stored; any other non-numeric field is free text
 FORMAT_FIELDS = {"study", "participant", "session", "kind", "protocol", "trial", "timezone", "condition",
-                 "paretic_side", "pseudonymised"}
+                 "paretic_side", "pseudonymised", "reference_frame", "accelerometer_only"}
 ID_FIELDS = ("participant", "session", "trial")
 #: fields checked against a closed list elsewhere (kind, IANA zone): not screened as text ("America/New_York")
-_ENUM_FIELDS = {"kind", "timezone", "pseudonymised"}
+#: (``reference_frame``, ``accelerometer_only``: closed values the stages read, checked by pipeline.ingest)
+_ENUM_FIELDS = {"kind", "timezone", "pseudonymised", "reference_frame", "accelerometer_only"}
 #: quantities with a unit in the name (thigh_length_m, sampling_rate_hz): kept for the plausibility checks
 _UNIT_SUFFIXES = ("_m", "_hz", "_s", "_deg", "_kg")
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from estimators.quaternion import quat_conj, quat_mul, quat_normalize
 
-__all__ = ["OrientationError", "orientation_error_deg", "orientation_rmse_deg", "segment_alignment",
+__all__ = ["OrientationError", "orientation_error_deg", "orientation_rmse_deg", "pooled_rmse", "segment_alignment",
            "align_reference"]
 
 
@@ -75,6 +75,20 @@ def orientation_rmse_deg(q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray 
         return float(np.sqrt(np.mean(x[ok] ** 2)))
 
     return OrientationError(rms(total), rms(heading), rms(incl), n)
+
+
+def pooled_rmse(parts: list[OrientationError]) -> OrientationError:
+    """The RMS errors of several scored pieces (recordings of one session) taken together: the mean squares
+    weighted by the scored sample counts, i.e. the figure :func:`orientation_rmse_deg` gives on the pieces
+    concatenated."""
+    n = sum(p.n_scored for p in parts)
+    if n == 0:
+        raise ValueError("no sample to score: every piece is empty")
+
+    def pool(k):
+        return float(np.sqrt(sum(p.n_scored * getattr(p, k) ** 2 for p in parts) / n))
+
+    return OrientationError(pool("total_rmse_deg"), pool("heading_rmse_deg"), pool("inclination_rmse_deg"), n)
 
 
 def _mean_quat(q: np.ndarray) -> np.ndarray:

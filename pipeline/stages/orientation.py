@@ -5,7 +5,7 @@ import numpy as np
 import pyarrow as pa
 
 from estimators.orientation.blockwise import blockwise
-from estimators.orientation.evaluation import align_reference, orientation_error_deg
+from estimators.orientation.evaluation import align_reference, orientation_rmse_deg, pooled_rmse
 from estimators.timebase import contiguous_segments
 from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, scored_mask
 from warehouse.read import read_imu_files, reference_orientation_on
@@ -13,15 +13,16 @@ from warehouse.store import series_relpath, write_table
 
 
 def _accuracy_rows(sid: str, name: str, errors: dict) -> list[dict]:
-    """Per placement, RMS errors pooled over the session's recordings (after per-recording alignment)."""
+    """Per placement, RMS errors pooled over the session's recordings (each scored by ``orientation_rmse_deg``,
+    the scorer of ``stridelab bench orientation``, after its per-recording alignment if any)."""
     rows = []
     for placement, parts in sorted(errors.items()):
-        tot, hea, inc = (np.concatenate([p[k] for p in parts]) for k in range(3))
-        for metric, e in (("total_rmse_deg", tot), ("heading_rmse_deg", hea), ("inclination_rmse_deg", inc)):
+        e = pooled_rmse(parts)
+        for metric in ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"):
             rows.append({"session_id": sid, "stage": "orientation", "estimator": name, "placement": placement,
-                         "metric": metric, "value": float(np.sqrt(np.mean(e ** 2))), "unit": "deg"})
+                         "metric": metric, "value": getattr(e, metric), "unit": "deg"})
         rows.append({"session_id": sid, "stage": "orientation", "estimator": name, "placement": placement,
-                     "metric": "n_scored", "value": float(len(tot)), "unit": "samples"})
+                     "metric": "n_scored", "value": float(e.n_scored), "unit": "samples"})
     return rows
 
 
@@ -71,23 +72,24 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                          "n_samples": len(data.t_ns), "sampling_rate_hz": data.sampling_rate_hz,
                          "mag_used": data.mag is not None, "series_path": rel})
             ref = kinds.get("reference_pose")
-            if ref is not None:          # optical segment pose: score after aligning mounting and lab heading
+            if ref is not None:          # optical reference: the bench's scorer over the reference's score spans
                 q_ref = reference_orientation_on(inp.root, ref["series_path"], data.t_ns)
                 ok = np.isfinite(q_ref[:, 0]) & np.isfinite(quat[:, 0]) & scored_mask(inp.events, rec, placement,
                                                                                       data.t_ns)
                 if ok.sum() >= data.sampling_rate_hz:
-                    if meta.get("reference_frame") == "sensor_enu":      # BROAD: already the sensor frame in ENU
-                        e = orientation_error_deg(quat[ok], q_ref[ok])
-                    else:
-                        e = orientation_error_deg(quat[ok], align_reference(quat[ok], q_ref[ok]))
-                    errors.setdefault(placement, []).append(e)
+                    # BROAD (reference_frame = sensor_enu): the sensor's own frame in ENU, scored as it stands;
+                    # else a segment pose in the lab frame: mounting and lab heading aligned first
+                    if meta.get("reference_frame") != "sensor_enu":
+                        q_ref = q_ref.copy()
+                        q_ref[ok] = align_reference(quat[ok], q_ref[ok])
+                    errors.setdefault(placement, []).append(orientation_rmse_deg(quat, q_ref, ok))
             if np.isnan(quat[:, 0]).any():
                 notes.append(f"{placement}: {int(np.isnan(quat[:, 0]).sum())} samples without orientation")
     return StageOutput(rows={"orientation": rows, "accuracy_metrics": _accuracy_rows(s["session_id"], name, errors)},
                        note="; ".join(notes))
 
 
-STAGE = Stage(name="orientation", version="3", needs=(), tables=("orientation", "accuracy_metrics"),
+STAGE = Stage(name="orientation", version="4", needs=(), tables=("orientation", "accuracy_metrics"),
               session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params,
               # a free-living chest day's orientation is read by no stage, page or report (half of a night's
               # compute went to it): computed only for studies that ask ([compute.orientation] free_living = true)

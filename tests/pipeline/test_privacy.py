@@ -55,3 +55,17 @@ def test_personal_data_and_path_or_sql_tricks_in_metadata_are_refused(tmp_path, 
     con = connect_snapshot(tmp_path / "wh")
     assert first(con.execute("SELECT count(*) FROM recordings"))[0] == 1    # the table survived
     assert not (tmp_path / "etc").exists() and not list(tmp_path.rglob("passwd*"))
+
+
+def test_stage_fields_are_kept_and_checked():
+    """``reference_frame`` and ``accelerometer_only`` are read by the orientation stage: stored as given (a dropped
+    ``reference_frame`` once made the stage align BROAD's sensor-frame reference and score 1.263° vs the bench's
+    1.329°), and refused with one line when they hold anything but their closed values."""
+    from pipeline.ingest import IngestRejected, check_session_metadata
+    base = {"study": "public", "participant": "broad01", "session": "s1", "kind": "lab"}
+    s = check_session_metadata({"session": {**base, "reference_frame": "sensor_enu", "accelerometer_only": "chest"}})
+    assert s["reference_frame"] == "sensor_enu" and s["accelerometer_only"] == "chest"
+    with pytest.raises(IngestRejected, match="reference_frame .* is not one of sensor_enu, segment_lab"):
+        check_session_metadata({"session": {**base, "reference_frame": "lab_ned"}})
+    with pytest.raises(IngestRejected, match="accelerometer_only must be comma-separated placements"):
+        check_session_metadata({"session": {**base, "accelerometer_only": "Chest Sensor!"}})

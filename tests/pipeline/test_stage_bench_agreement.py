@@ -15,9 +15,6 @@ from tests.pipeline._lab import df, run_with
 pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 
-@pytest.mark.xfail(strict=False, reason="known defect, open: since the orientation changes of issue 16 (89ac00f) the "
-                   "stage scores 1.263 deg and the bench 1.329 deg on trial 07 with bit-equal input samples and rate; "
-                   "the difference is in the stage's scoring or reference path, not yet found")
 def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
     from estimators.orientation import DEFAULT_OFFLINE
     from pipeline.bench.orientation import run_benchmark
