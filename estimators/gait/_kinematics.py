@@ -114,6 +114,17 @@ def _empty_strides() -> StrideTable:
     return StrideTable(np.zeros((0, 5), np.int64), np.zeros((0, len(PARAM_COLUMNS))))
 
 
+def _after_last(points: np.ndarray, x: np.ndarray, side: str) -> np.ndarray:
+    """(len(x),) int64: 1 + the last of the sorted ``points`` before each ``x`` (at or before with side="right"),
+    0 where there is none (also when ``points`` is empty)."""
+    points = np.asarray(points, np.int64)
+    k = np.searchsorted(points, x, side=side) - 1
+    out = np.zeros(len(x), np.int64)
+    has = k >= 0
+    out[has] = points[k[has]] + 1
+    return out
+
+
 def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float, params: FootParams) -> GaitEvents:
     """(T1) on the Algorithm-1 TCs (pitch minima: detection = extremum + 1); flat-lift TCs (R4) stay. The
     mediolateral axis m_S = up_S × u_S, up_S = mean sensor-frame vertical over the mid-stances."""
@@ -125,10 +136,9 @@ def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float,
         return ev
     alg1 = ev.tc_detect_idx == ev.tc_idx + 1
     still = np.flatnonzero(traj.zupt)
-    i_ic = np.searchsorted(ev.ic_idx, ev.tc_idx) - 1                 # last IC before each TC
-    i_st = np.searchsorted(still, ev.tc_idx, side="right") - 1      # last still sample at or before it
-    lo = np.maximum(np.where(i_ic >= 0, ev.ic_idx[np.maximum(i_ic, 0)] + 1, 0),
-                    np.where(i_st >= 0, still[np.maximum(i_st, 0)] + 1, 0)).astype(np.int64)
+    # TC' stays after the last IC before the TC and after the last still sample at or before it; a sequence may
+    # start with a TC (a recording starting mid-stance or mid-swing) or hold no IC at all: no bound then
+    lo = np.maximum(_after_last(ev.ic_idx, ev.tc_idx, "left"), _after_last(still, ev.tc_idx, "right"))
     ref = refine_toe_off(gyr, ev.tc_idx, ml, sampling_rate_hz=fs, onset_fraction=params.toe_off_onset_fraction,
                          window_s=params.toe_off_window_s, lower_bound=lo)
     tc = np.where(alg1, ref, ev.tc_idx)
