@@ -4,6 +4,12 @@ compiled reader follows the Open Movement block layout: 1024-byte ``MD`` header,
 skdh returns acceleration in g, angular velocity in deg/s and (naive local) timestamps in s; the reader converts
 to m/s², rad/s and int64 ns. The CWA clock is the device's local time without a zone: the timestamps are taken
 as UTC unless ``tz_name`` says where the device was set up.
+
+Before skdh sees the file, :func:`check_cwa_blocks` checks the block structure of Open Movement's ``cwa.h``: size
+1024 + 512·k with k ≥ 1, every data block tagged ``AX`` with length 508 and a zero 16-bit word-wise sum (its
+checksum), a known rate code. skdh itself keeps a block that fails its checksum (it only prints a warning and
+returns altered samples) and aborts the whole process (a Fortran runtime error) on a file without data blocks, so
+a damaged file is refused here with one line instead.
 """
 from __future__ import annotations
 
@@ -30,13 +36,37 @@ class CwaRecording:
     device_id: int
 
 
+def check_cwa_blocks(path: Path, raw: bytes) -> None:
+    """Raise ``ValueError`` (one line: file, what is wrong, what to do) unless ``raw`` has the CWA block structure
+    (module docstring)."""
+    if len(raw) < 1024 or raw[:2] != b"MD":
+        raise ValueError(f"{path}: not an Axivity CWA file (no 1024-byte 'MD' header)")
+    body = len(raw) - 1024
+    if body < 512:
+        raise ValueError(f"{path}: CWA file without data blocks (header only); download the recording again")
+    if body % 512:
+        raise ValueError(f"{path}: CWA file truncated ({body % 512} bytes of a partial 512-byte data block at the "
+                         f"end); copy it again from the device")
+    blocks = np.frombuffer(raw, dtype="<u2", offset=1024).reshape(-1, 256)
+    tag_ok = (blocks[:, 0] == 0x5841) & (blocks[:, 1] == 508)             # "AX", 508 bytes after the 4-byte tag
+    if not tag_ok.all():
+        raise ValueError(f"{path}: data block {int(np.argmin(tag_ok))} of {len(blocks)} is not an 'AX' block; the "
+                         f"file is damaged: copy it again from the device")
+    bad = np.flatnonzero(blocks.sum(axis=1, dtype=np.uint64) % 65536)
+    if len(bad):
+        raise ValueError(f"{path}: {len(bad)} of {len(blocks)} data blocks fail their checksum (first: block "
+                         f"{int(bad[0])}); the file is damaged: copy it again from the device")
+    rate = raw[1024 + 24]
+    if not 6 <= (rate & 0x0F) <= 15:
+        raise ValueError(f"{path}: unknown CWA sample-rate code {rate:#04x}; not a recording of an AX3/AX6")
+
+
 def load_cwa(path: str | Path, tz_name: str | None = None) -> CwaRecording:
     """Read one CWA file; raises ``ValueError`` naming the file and the problem."""
     path = Path(path)
-    head = path.read_bytes()[:1024] if path.is_file() else b""
-    if len(head) < 1024 or head[:2] != b"MD":
-        raise ValueError(f"{path}: not an Axivity CWA file (no 1024-byte 'MD' header)")
-    device_id = struct.unpack_from("<H", head, 5)[0]
+    raw = path.read_bytes() if path.is_file() else b""
+    check_cwa_blocks(path, raw)
+    device_id = struct.unpack_from("<H", raw, 5)[0]
     import warnings
     from skdh.io import ReadCwa
     with warnings.catch_warnings():

@@ -234,6 +234,98 @@ def test_apdm_older_layout_is_refused_with_one_line(tmp_path):
     assert "old.h5" in res.errors[0] and "v5" in res.errors[0] and "\n" not in res.errors[0]
 
 
+# ---- Axivity CWA ----------------------------------------------------------------------------
+# written from the block layout of Open Movement's cwa.h (openmovement Docs/ax3/cwa.h): a 1024-byte "MD" header,
+# then 512-byte "AX" data blocks, little-endian, with 16-bit unpacked samples (numAxesBPS 0x32 = 3 axes, 0x62 =
+# gyro then accel), the accel scale 1/2^(8+n) g and gyro range 8000/2^n deg/s, and a checksum that makes the
+# block's 16-bit word-wise sum zero
+
+def _om_time(y, mo, d, h, mi, s):
+    """cwa_timestamp_t: (MSB) YYYYYYMM MMDDDDDh hhhhmmmm mmssssss (LSB), years after 2000."""
+    return ((y - 2000) << 26) | (mo << 22) | (d << 17) | (h << 12) | (mi << 6) | s
+
+
+def write_cwa(path, acc_counts, gyr_counts=None, *, fs=100, device_id=4321, session_id=7, start=(2024, 5, 1, 9, 0, 0)):
+    """acc_counts (N, 3) int16 at +-8 g (1/4096 g per count); gyr_counts (N, 3) int16 at 2000 deg/s range
+    (2000/32768 deg/s per count), or None for an AX3. Every block carries the whole-second RTC time of one of its
+    samples (``timestampOffset``), as the device writes them."""
+    import struct
+    ax6 = gyr_counts is not None
+    rate = (1 << 6) | {100: 10, 50: 9, 200: 11}[fs]          # (16 >> 1) = 8 g range, 3200 / 2^(15 - n) Hz
+    gyro_n, accel_n = 2, 4                                   # 8000 / 2^2 = 2000 deg/s; 1 / 2^(8 + 4) g
+    h = bytearray(b"\xff" * 1024)
+    struct.pack_into("<2sHBHIHII", h, 0, b"MD", 1020, 0x64 if ax6 else 0x00, device_id, session_id, 0, 0, 0xFFFFFFFF)
+    struct.pack_into("<IBB", h, 21, 0, 0, 0)
+    h[27:35] = bytes(8)
+    h[35], h[36] = (gyro_n if ax6 else 0), rate
+    struct.pack_into("<IBh", h, 37, _om_time(*start), 45, -1)
+    h[44:64] = bytes(20)
+    per = 40 if ax6 else 80                                  # samples in the 480 data bytes
+    y, mo, d, hh, mi, ss = start
+    blocks = [bytes(h)]
+    for seq, a in enumerate(range(0, len(acc_counts) - len(acc_counts) % per, per)):
+        i = (-a) % fs                                        # a sample of this block on a whole second
+        i = i - fs if i >= per else i
+        tot = hh * 3600 + mi * 60 + ss + (a + i) // fs
+        b = bytearray(512)
+        struct.pack_into("<2sHHIII", b, 0, b"AX", 508, device_id & 0x7FFF, session_id, seq,
+                         _om_time(y, mo, d, tot // 3600, tot // 60 % 60, tot % 60))
+        struct.pack_into("<HHBBBBhH", b, 18, (accel_n << 13) | ((gyro_n if ax6 else 0) << 10) | 300, 256, 0, 168,
+                         rate, 0x62 if ax6 else 0x32, i, per)
+        v = np.hstack([gyr_counts[a:a + per], acc_counts[a:a + per]]) if ax6 else acc_counts[a:a + per]
+        data = np.ascontiguousarray(v, dtype="<i2").tobytes()
+        b[30:30 + len(data)] = data
+        struct.pack_into("<H", b, 510, -sum(struct.unpack("<255H", bytes(b[:510]))) & 0xFFFF)
+        blocks.append(bytes(b))
+    path.write_bytes(b"".join(blocks))
+
+
+@pytest.mark.parametrize("ax6", [False, True])
+def test_cwa_counts_become_m_s2_rad_s_on_the_device_clock(tmp_path, ax6):
+    rng = np.random.default_rng(5)
+    n = 1200
+    acc = rng.integers(-8000, 8000, (n, 3)).astype(np.int16)
+    gyr = rng.integers(-20000, 20000, (n, 3)).astype(np.int16) if ax6 else None
+    write_cwa(tmp_path / "wrist.cwa", acc, gyr)
+    res = import_paths("cwa", [tmp_path / "wrist.cwa"], tmp_path / "inbox", session={"participant": "P03"})
+    assert not res.errors, res.errors
+    topics, _, sess = read_mcap(res.written[0])
+    t, g, a = _imu(topics, "chest")
+    assert len(t) == n
+    np.testing.assert_allclose(a, acc.astype(float) / 4096 * G0, rtol=1e-12, atol=1e-12)          # 1/4096 g -> m/s²
+    if ax6:
+        np.testing.assert_allclose(g, np.deg2rad(gyr.astype(float) * 2000 / 32768), rtol=1e-12)    # deg/s -> rad/s
+        assert "accelerometer_only" not in sess
+    else:
+        assert not g.any() and sess["accelerometer_only"] == "chest"
+    # the device clock: 2024-05-01 09:00:00 at sample 0, 100 Hz (skdh's float seconds: < 1 µs off)
+    want = 1_714_554_000_000_000_000 + np.arange(n) * 10_000_000
+    assert np.abs(t - want).max() < 1000
+    assert sess["participant"] == "P03" and sess["kind"] == "free_living" and "/mag/chest" not in topics
+
+
+def test_bad_cwa_files_one_line_each_nothing_written(tmp_path):
+    acc = np.random.default_rng(6).integers(-8000, 8000, (800, 3)).astype(np.int16)
+    write_cwa(tmp_path / "good.cwa", acc)
+    raw = (tmp_path / "good.cwa").read_bytes()
+    flipped = bytearray(raw)
+    flipped[1024 + 3 * 512 + 100] ^= 0xFF                   # one sample byte of block 3: its checksum fails
+    files = {"flipped.cwa": bytes(flipped), "cut.cwa": raw[:1024 + 2 * 512 + 100], "header.cwa": raw[:1024],
+             "text.cwa": b"time,x,y,z\n" * 200}
+    for name, b in files.items():
+        (tmp_path / name).write_bytes(b)
+    inbox = tmp_path / "inbox"
+    res = import_paths("cwa", [tmp_path / n for n in files], inbox)
+    assert not res.written and len(res.errors) == len(files)
+    assert all("\n" not in e for e in res.errors)
+    why = dict(zip(files, res.errors))
+    assert "flipped.cwa" in why["flipped.cwa"] and "1 of 10 data blocks fail their checksum" in why["flipped.cwa"]
+    assert "truncated" in why["cut.cwa"] and "copy it again" in why["cut.cwa"]
+    assert "without data blocks" in why["header.cwa"]           # skdh would abort the process on this one
+    assert "not an Axivity CWA file" in why["text.cwa"]
+    assert not inbox.exists() or not list(inbox.iterdir())
+
+
 # ---- bad files ------------------------------------------------------------------------------
 
 def test_bad_files_one_line_each_nothing_written(tmp_path):
