@@ -220,7 +220,7 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_js
 
 def _format_choices() -> list[str]:
     from pipeline.importers import FORMATS
-    return sorted(FORMATS)
+    return sorted([*FORMATS, "c3d"])
 
 
 @main.command("import")
@@ -233,8 +233,18 @@ def _format_choices() -> list[str]:
               help="Session field (repeatable): participant, session, trial, kind, protocol, timezone, start "
                    "(ISO 8601 time of the first sample for files without a clock).")
 @click.option("--placement", default=None, help="Placement of a single-sensor file (e.g. foot_left, chest).")
+@click.option("--recording", type=click.Path(path_type=Path), default=None,
+              help="c3d only: the recording (.mcap) the markers belong to; the output holds both.")
+@click.option("--segment", "segments", multiple=True, metavar="PLACEMENT=M1[,M2,M3]",
+              help="c3d only (repeatable): the markers that are the reference of a sensor: M1's path = position "
+                   "(e.g. the heel), the M1-M2-M3 cluster = orientation.")
+@click.option("--offset-s", type=float, default=0.0, show_default=True,
+              help="c3d only: time of the C3D's first frame after the recording's first IMU sample.")
+@click.option("--up", type=click.Choice(["z", "y"]), default="z", show_default=True,
+              help="c3d only: the capture volume's vertical axis.")
 @click.option("--json", "as_json", is_flag=True, help="Print the written files and the errors as JSON.")
-def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> None:
+def import_cmd(fmt, paths, inbox, study, session_items, placement, recording, segments, offset_s, up,
+               as_json) -> None:
     """Convert device exports (FORMAT: xio, gaitmap, uci, broad, apdm, cwa, ...) into recording-format MCAP.
 
     References the file carries (optical poses, annotated events, activity labels) become reference topics.
@@ -247,10 +257,19 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> N
       stridelab import gaitmap ../shared/data/gaitmap_example --study public
       stridelab import apdm opals.h5 --inbox /data/inbox --session kind=lab --session trial=tug
       stridelab import cwa day1.cwa --placement chest --session participant=P12 --session timezone=Europe/Zurich
+      stridelab import c3d walk01.c3d --recording walk01.mcap --segment foot_left=LHEE,LTOE,LMT5 \\
+          --segment foot_right=RHEE,RTOE,RMT5 --offset-s 0.25     # markers beside a recording (docs/import.md)
     """
     from pipeline.config import default_inbox
     from pipeline.console import UserError, emit_json, err_console
     from pipeline.importers import ImportRejected, import_paths, parse_session_options
+    if fmt == "c3d":
+        if study or session_items or placement:
+            raise UserError("c3d: the session comes from --recording; --study, --session and --placement do not "
+                            "apply (use --segment PLACEMENT=M1,M2,M3)")
+        return _import_c3d(paths, recording, segments, offset_s, up, inbox or default_inbox(), as_json)
+    if recording or segments:
+        raise UserError(f"--recording and --segment are options of 'import c3d', not of '{fmt}'")
     try:
         overrides = parse_session_options(session_items)
     except ImportRejected as e:
@@ -263,6 +282,26 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, as_json) -> N
         err_console.print(f"{len(res.written)} recordings written, {len(res.errors)} files refused", markup=False)
     if res.errors:
         raise SystemExit(1)
+
+
+def _import_c3d(paths, recording, segments, offset_s, up, inbox, as_json) -> None:
+    from pipeline.c3d_reference import C3DImportRejected, import_c3d_reference, parse_segments
+    from pipeline.console import UserError, emit_json, err_console
+    if recording is None:
+        raise UserError("import c3d: give --recording REC.mcap (the recording the markers belong to)")
+    if len(paths) != 1:
+        raise UserError("import c3d: give one C3D file (one trial's markers for one --recording)")
+    try:
+        out = import_c3d_reference(paths[0], recording, inbox, parse_segments(segments), offset_s=offset_s, up=up)
+    except C3DImportRejected as e:
+        if as_json:
+            emit_json({"written": [], "errors": [str(e)]})
+            raise SystemExit(1)
+        raise UserError(str(e)) from None
+    if as_json:
+        emit_json({"written": [str(out)], "errors": []})
+    else:
+        err_console.print(f"wrote {out}", markup=False, highlight=False)
 
 
 @main.command()
