@@ -8,7 +8,7 @@ from pathlib import Path
 
 import streamlit as st
 
-from dashboard import queries as Q
+from warehouse import queries as Q
 
 ENV = "STRIDELAB_WAREHOUSE"
 ALL_STUDIES = "All studies"

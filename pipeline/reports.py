@@ -5,7 +5,7 @@ report was built from (the participant's stage stamps and recordings, the report
 package version). Each run, under the run lock, writes every report that is missing from the
 ledger, stale, or whose files are gone, so a run killed in the middle of writing reports is
 completed by the next one. Files appear atomically (temporary name, fsync, rename: see
-``dashboard/report.py``); temporaries left by a killed run are removed first. The report builder
+``reports/participant.py``); temporaries left by a killed run are removed first. The report builder
 is passed in by the command line (the pipeline does not import the dashboard layer).
 """
 from __future__ import annotations

@@ -3,7 +3,7 @@ length, joint range of motion), event timing error histograms, posture confusion
 import streamlit as st
 
 from dashboard import figures as F
-from dashboard import queries as Q
+from warehouse import queries as Q
 from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Accuracy against references")

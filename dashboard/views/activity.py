@@ -4,7 +4,7 @@ import pandas as pd
 import streamlit as st
 
 from dashboard import figures as F
-from dashboard import queries as Q
+from warehouse import queries as Q
 from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Daily activity")

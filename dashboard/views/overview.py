@@ -1,7 +1,7 @@
 """Overview: studies, participants, sessions, last nightly run, quarantined files, QC flags."""
 import streamlit as st
 
-from dashboard import queries as Q
+from warehouse import queries as Q
 from dashboard.common import current_study, empty_warehouse_note, footer, snapshot
 
 st.title("StrideLab overview")

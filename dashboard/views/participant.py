@@ -3,7 +3,7 @@ normative band, foot trajectories, calibration QC, data quality."""
 import streamlit as st
 
 from dashboard import figures as F
-from dashboard import queries as Q
+from warehouse import queries as Q
 from dashboard.common import empty_warehouse_note, footer, hint, participant_picker, snapshot, warehouse_root
 
 st.title("Participant")
@@ -56,7 +56,7 @@ if snap is not None and not empty_warehouse_note(snap):
                 sel = jc[(jc["joint"] == joint) & ((jc["plane"] == plane) if plane is not None else True)]
                 st.plotly_chart(F.joint_cycles(sel, joint, plane), key="joint_cycles")
                 st.caption("Grey band: approximate adult normative mean ± SD (sagittal plane only; see "
-                           "dashboard/normative.py). Curves: mean ± SD over the session's gait cycles.")
+                           "reports/normative.py). Curves: mean ± SD over the session's gait cycles.")
         with tab_foot:
             traj = snap.q(Q.foot_trajectories, str(warehouse_root()), pid, study)
             if traj is None:

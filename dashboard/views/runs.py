@@ -2,7 +2,7 @@
 import streamlit as st
 
 from dashboard import figures as F
-from dashboard import queries as Q
+from warehouse import queries as Q
 from dashboard.common import footer, snapshot
 
 st.title("Pipeline runs")

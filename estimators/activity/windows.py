@@ -9,7 +9,7 @@ chest set); the pipeline's activity stage does not use it (see docs/activity.md)
 
 Units: input m/s²; internally g (1 g = 9.80665 m/s²); angles in degrees, frequencies in Hz, amplitudes as
 log10 of g (so ``-2`` = 10 mg). Windows start at sample 0 and have ``round(window_s * fs)`` samples; a trailing
-partial window is dropped (same windows as ``pipeline.bench.activity.window_confusion``).
+partial window is dropped (same windows as ``validation.bench.activity.window_confusion``).
 """
 from __future__ import annotations
 
@@ -277,7 +277,7 @@ def moving_fraction(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     acc RMS (vector norm, g, after ``calibrated_g``) is at least ``rel`` × ``gait_level_g``, the participant's
     typical walking intensity (``10 ** median(log_dyn)`` over its gait-like windows). A person walking or
     climbing stairs moves in nearly every second at about that level; standing or sitting still stays far
-    below it (a few mg against ≈ 0.2 g). Used to check labels against the signal (``pipeline.bench.activity``).
+    below it (a few mg against ≈ 0.2 g). Used to check labels against the signal (``validation.bench.activity``).
     """
     fs = float(sampling_rate_hz)
     w = int(round(window_s * fs))

@@ -8,7 +8,7 @@
   every stage by the real pipeline — what a newcomer's ``stridelab demo`` shows;
 * ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write
   (strides, calibration QC, joint-angle cycles, activity bouts with reference labels, accuracy,
-  foot trajectories), added through the pipeline's writer by ``pipeline.bench.dashboard``.
+  foot trajectories), added through the pipeline's writer by ``validation.bench.dashboard``.
 """
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ def ingested_wh(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def full_wh(tmp_path_factory, ingested_wh) -> Path:
-    from pipeline.bench.dashboard import add_synthetic_results
+    from validation.bench.dashboard import add_synthetic_results
     root = tmp_path_factory.mktemp("full") / "warehouse"
     shutil.copytree(ingested_wh, root)
     day = 86_400 * 10**9
@@ -85,7 +85,7 @@ def full_wh(tmp_path_factory, ingested_wh) -> Path:
 @pytest.fixture(scope="session")
 def demo_wh(tmp_path_factory) -> Path:
     from pipeline import runner
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     base = tmp_path_factory.mktemp("demo")
     simulate_to_dir(base / "inbox", participants=2, hours=0.1, jobs=2)
     summary = runner.run(base / "warehouse", base / "inbox", jobs=2, command="run")
@@ -111,7 +111,7 @@ def public_wh(tmp_path_factory) -> Path:
     in ../shared/data imported by ``import_public`` (skips when the data are absent), run by the real pipeline."""
     from pipeline import runner
     from pipeline.importers import import_public
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     from tests.conftest import SHARED_DATA
     if not SHARED_DATA.is_dir():
         pytest.skip(f"public data not found at {SHARED_DATA} (needs ../shared/data)")

@@ -5,7 +5,7 @@ import duckdb
 import numpy as np
 import pytest
 
-from dashboard import queries as Q
+from warehouse import queries as Q
 from warehouse.read import connect_snapshot
 
 HOSTILE = ["x' OR '1'='1", "'; DROP TABLE sessions; --", "P001\" OR 1=1 --", "%", "*", "P001'/*", "\x00"]

@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from dashboard.report import build_report
+from reports.participant import build_report
 
 pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report PDF (pip install pypdf)")
 

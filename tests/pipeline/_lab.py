@@ -13,7 +13,7 @@ def write_lab_session(directory, *, distance_sensors: bool, optical_reference: b
     files into ``directory``. Returns (files, truths) in recording order."""
     from pipeline.formats.mcap_write import write_recording
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_lab_session, study_participants
+    from validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=distance_sensors,
                                optical_reference=optical_reference))

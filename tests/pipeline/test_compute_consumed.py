@@ -17,7 +17,7 @@ from warehouse.read import connect_snapshot
 @pytest.fixture
 def free_living_file(tmp_path):
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_chest_day, study_participants
+    from validation.simulator import simulate_chest_day, study_participants
     m = replace(load_manifest(DEFAULT_MANIFEST), name="optin").with_free_living_hours(0.05)
     rec, _ = simulate_chest_day(m, study_participants(m, 1)[0], 0)
     return write_recording(rec, tmp_path / f"{rec.name}.mcap")
@@ -74,7 +74,7 @@ def test_a_long_recording_is_classified_day_by_day(tmp_path, monkeypatch):
     per-second timeline still covers every second once and a bout crossing midnight stays one bout."""
     from pipeline.stages import activity
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_chest_day, study_participants
+    from validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, free_living=replace(m.free_living, hours=0.4, start_local="23:48"))
     rec, _ = simulate_chest_day(m, study_participants(m, 1)[0], 0)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pipeline.cli import main
+from stridelab.cli import main
 from pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
 from pipeline.importers import import_paths
 from tests.conftest import shared_data

@@ -115,7 +115,7 @@ def test_every_file_simulate_writes_opens_in_rosbags_and_mcap_ros2(tmp_path):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     files = simulate_to_dir(tmp_path / "inbox", participants=1, hours=0.05)
     mcaps = [Path(f) for f in files if str(f).endswith(".mcap")]
     assert mcaps

@@ -8,7 +8,7 @@ import pytest
 from click.testing import CliRunner
 
 from pipeline import runner
-from pipeline.cli import main
+from stridelab.cli import main
 from tests.corpus import small_recording
 from tests.pipeline._interop import assert_bit_equal, rosbags_write, stored, write_mcap_ros2
 from warehouse.read import connect_snapshot

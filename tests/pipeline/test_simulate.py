@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import hashlib
 
-from pipeline.simulate import simulate_to_dir
+from validation.simulate import simulate_to_dir
 
 
 def _digests(files):

@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
     from estimators.orientation import DEFAULT_OFFLINE
-    from pipeline.bench.orientation import run_benchmark
+    from validation.bench.orientation import run_benchmark
     trial = shared_data("broad") / "07_undisturbed_fast_rotation_B.hdf5"
     res = import_paths("broad", [trial], tmp_path / "inbox", study="public")
     run_with(monkeypatch, tmp_path / "wh", res.written, [orientation.STAGE])
@@ -30,7 +30,7 @@ def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
 
 
 def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch):
-    from pipeline.bench.activity import run_benchmark
+    from validation.bench.activity import run_benchmark
     src = shared_data("uci_chest")
     d = tmp_path / "uci"
     d.mkdir()
@@ -52,7 +52,7 @@ def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch)
 
 
 def test_foot_trajectory_stage_equals_bench_on_a_pyshoe_trial(tmp_path, monkeypatch):
-    from pipeline.bench.trajectory import pyshoe_benchmark
+    from validation.bench.trajectory import pyshoe_benchmark
     from pipeline.stages import gait
     src = sorted(shared_data("pyshoe_vicon").glob("*.mat"))[0]
     d = tmp_path / "pyshoe"

@@ -198,7 +198,7 @@ def test_cli_simulate_then_run_gives_calibration_and_joint_angles(tmp_path, monk
     else:
         from click.testing import CliRunner
 
-        from pipeline.cli import main
+        from stridelab.cli import main
         _patch(monkeypatch, _registry(with_gait=False))
         res = CliRunner().invoke(main, args + ["--no-reports"])
         assert res.exit_code == 0, res.output

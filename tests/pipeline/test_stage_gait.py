@@ -224,7 +224,7 @@ def test_distance_sensors_feed_the_duong_suh_height(warehouse):
 
 def test_saturated_distance_sensors_give_a_clear_status(tmp_path):
     import pyarrow as pa
-    from estimators.trajectory._sim_ds import simulate_ds_walk
+    from validation.simulator.duong_suh_walk import simulate_ds_walk
     from pipeline.stages import SessionInput
     from warehouse.store import write_table
     w = simulate_ds_walk(0, n_strides=4)

@@ -8,7 +8,7 @@ import pytest
 
 from estimators.quaternion import quat_angle_deg, quat_conj, quat_exp_step_1, quat_mul, quat_rotate
 from studies.manifest import DEFAULT_MANIFEST, SensorModelSpec, load_manifest
-from studies.simulator import simulate_chest_day, simulate_lab_session, simulate_study, study_participants
+from validation.simulator import simulate_chest_day, simulate_lab_session, simulate_study, study_participants
 
 G = 9.81
 
@@ -190,7 +190,7 @@ def test_range_sensors(ideal_sessions):
     assert ok.max() > 0.08                                # foot lifted in swing
     np.testing.assert_allclose(np.median(ok), 0.03, atol=1e-9)   # flat foot: sensor 3 cm above the floor
     # out of range (beyond 0.2 m or beam not towards the floor) reads NaN: lift the whole foot 0.3 m
-    from studies.simulator._lab import range_geometry
+    from validation.simulator._lab import range_geometry
     assert set(range_geometry(tr.geometry)) == set(rec.ranges)
 
 
@@ -212,7 +212,7 @@ def test_chest_day_labels_cover_duration(manifest):
 
 def test_chest_day_full_day_is_scripted(manifest):
     m = replace(manifest, free_living=replace(manifest.free_living, hours=24.0, start_local="00:00"))
-    from studies.simulator._chest_day import build_day_script
+    from validation.simulator._chest_day import build_day_script
     bouts = build_day_script(np.random.default_rng(1), m.participants[2], 24 * 3600)
     labels = {b.label for b in bouts if b.t0 < 24 * 3600}
     assert {"lying", "sitting", "standing", "level_walking", "stairs_up", "stairs_down", "transition",

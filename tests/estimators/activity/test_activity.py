@@ -251,7 +251,7 @@ def test_autocalibration_recovers_gain_and_offset():
 def test_uci_bench_runs_on_real_data(tmp_path):
     """Three real participants (links, not copies) of the default's training set: the default is scored by
     nested LOPO outer folds among them (never by the shipped model, which has seen them)."""
-    from pipeline.bench.activity import run_benchmark
+    from validation.bench.activity import run_benchmark
     d = shared_data("uci_chest")
     for q in ("1", "2", "3"):
         (tmp_path / f"{q}.csv").symlink_to(d / f"{q}.csv")
@@ -271,7 +271,7 @@ def test_uci_bench_runs_on_real_data(tmp_path):
 @pytest.mark.slow
 def test_simulated_day_agreement_and_steps():
     from studies.manifest import load_manifest
-    from studies.simulator import simulate_chest_day, study_participants
+    from validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
     p = study_participants(m, 1)[0]
     rec, _ = simulate_chest_day(m, p, 0)
@@ -279,7 +279,7 @@ def test_simulated_day_agreement_and_steps():
     t0 = int(imu.t_ns[0])
     r = classify_day(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone,
                      params=ActivityParams(thigh_length_m=float(rec.metadata["thigh_length_m"])))
-    from pipeline.bench.activity import reference_seconds
+    from validation.bench.activity import reference_seconds
     ref, steps_ref = reference_seconds(rec.events, t0, r.second_class.size)
     scored = ref >= 0                               # "transition" seconds are not scored
     assert (r.second_class[scored] == ref[scored]).mean() >= 0.95
@@ -363,7 +363,7 @@ def test_dy_from_norm_is_lag_free():
 def test_bench_reference_seconds_and_no_uci_shape():
     """Per-second reference of the simulated-day bench: whole seconds inside each labelled interval,
     transitions unscored, scripted steps summed; the UCI part can be skipped without breaking the JSON keys."""
-    from pipeline.bench.activity import reference_seconds, run_benchmark
+    from validation.bench.activity import reference_seconds, run_benchmark
     s = 1_000_000_000
     ev = [{"t_ns": 0, "end_ns": 3 * s, "label": "sitting"},
           {"t_ns": 3 * s, "end_ns": int(5.5 * s), "label": "transition"},

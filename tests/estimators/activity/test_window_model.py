@@ -78,7 +78,7 @@ def test_shipped_model_is_reproduced_by_refitting_its_design_on_its_participants
     """The shipped file is what the documented fit gives: the final design refitted on the same UCI
     participants (deterministic newton-cg) reproduces its coefficients."""
     from pipeline.activity_model import design_x, fit_model, load_model, raw_features
-    from pipeline.bench.activity import WINDOW_S, window_labels
+    from validation.bench.activity import WINDOW_S, window_labels
     from pipeline.formats.uci_chest import load_uci_participant
     d = shared_data("uci_chest")
     shipped = load_model()

@@ -89,7 +89,7 @@ def test_input_checks():
 
 @pytest.mark.realdata
 def test_learned_loso_on_two_uci_participants():
-    from pipeline.bench.activity import LEARNED, learned_loso
+    from validation.bench.activity import LEARNED, learned_loso
     from pipeline.formats.uci_chest import load_uci_participant
     d = shared_data("uci_chest")
     parts = [load_uci_participant(d / "1.csv"), load_uci_participant(d / "2.csv")]
@@ -116,7 +116,7 @@ def test_moving_fraction_separates_still_from_walking_seconds():
 def test_label_consistency_counts_windows_the_signal_contradicts():
     """Walking labelled over a still stretch and standing labelled over walking are counted; the ceiling is the
     mean consistent fraction per class, not a fitted figure."""
-    from pipeline.bench.activity import label_consistency
+    from validation.bench.activity import label_consistency
     from pipeline.formats.uci_chest import UciParticipant
     acc = np.vstack([_still(20.0, 200, 1), _still(3.0, 100, 2), _walk(200), _still(3.0, 100, 3)])
     lab = np.concatenate([np.full(200 * 52, 1), np.full(100 * 52, 3), np.full(200 * 52, 4), np.full(100 * 52, 3)])

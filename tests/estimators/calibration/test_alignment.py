@@ -4,7 +4,7 @@ import pytest
 
 from estimators.calibration import (body_rate_from_quat, constant_offset_rotation, helical_angle_deg,
                                     imu_to_cluster_rotation, sync_by_angular_rate)
-from estimators.calibration.synthetic import random_mounts, walking_trial
+from validation.simulator.lower_body import random_mounts, walking_trial
 from estimators.quaternion import quat_from_matrix, quat_mul
 
 FS = 100.0

@@ -3,7 +3,7 @@ import json
 
 from click.testing import CliRunner
 
-from pipeline.cli import main
+from stridelab.cli import main
 
 
 def test_bench_calibration_json():

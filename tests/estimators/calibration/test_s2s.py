@@ -4,7 +4,7 @@ import pytest
 
 from estimators.calibration import (CalibrationError, calibrate_imu, heading_calibration, helical_angle_deg,
                                     vertical_calibration)
-from estimators.calibration.synthetic import random_mounts
+from validation.simulator.lower_body import random_mounts
 
 G = 9.81
 

@@ -4,7 +4,7 @@ import pytest
 
 from estimators.calibration import (CalibrationParams, CalibrationWindows, calibrate_session,
                                     detect_calibration_windows, helical_angle_deg)
-from estimators.calibration.synthetic import calibration_trial, random_mounts
+from validation.simulator.lower_body import calibration_trial, random_mounts
 
 FS = 100.0
 

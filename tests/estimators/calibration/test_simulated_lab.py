@@ -21,7 +21,7 @@ def _manifest(**lab):
 
 
 def _calibration_trial(m, index):
-    from studies.simulator import simulate_lab_session, study_participants
+    from validation.simulator import simulate_lab_session, study_participants
     person = study_participants(m, index + 1)[index]
     rec, truth = next(simulate_lab_session(m, person, index))
     acc = {p: d.acc for p, d in rec.imu.items()}

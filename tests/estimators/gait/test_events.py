@@ -191,7 +191,7 @@ def test_foot_kinematics_toe_off_refinement_is_optional_and_only_moves_tcs_earli
     from dataclasses import replace
 
     from estimators.gait import FootParams, foot_kinematics
-    from estimators.gait._sim import simulate_yun_walk
+    from validation.simulator.foot_walk_yun import simulate_yun_walk
     sim = simulate_yun_walk(12, noise_scale=1.0, seed=3, sampling_rate_hz=100)
     plain = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100, params=replace(FootParams(), toe_off_refine=False))
     ref = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100)

@@ -9,7 +9,7 @@ from tests.conftest import shared_data
 
 @pytest.mark.realdata
 def test_bench_gait_on_gaitmap_example():
-    from pipeline.bench.gait import run_benchmark
+    from validation.bench.gait import run_benchmark
     res = run_benchmark(shared_data("gaitmap_example"), show_progress=False, speed=False)
     for k in ("stride_length_mae_m", "ic_timing_mae_ms", "tc_timing_mae_ms", "ic_sensitivity", "ic_precision",
               "tc_sensitivity", "tc_precision"):
@@ -35,7 +35,7 @@ def _foot(markers, strides):
 
 
 def test_unannotated_spans_only_where_the_foot_stands_still_in_a_reference_swing():
-    from pipeline.bench.gait import unannotated_spans
+    from validation.bench.gait import unannotated_spans
     fs, mfs = 200.0, 100.0
     t = np.arange(600) / mfs
     # heel and toe move forward at 1 m/s except a still period 2.0-2.5 s (inside the 2nd reference swing)

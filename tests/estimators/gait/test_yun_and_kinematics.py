@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from estimators.gait import foot_kinematics
-from estimators.gait._sim import simulate_yun_walk
+from validation.simulator.foot_walk_yun import simulate_yun_walk
 from estimators.gait._yun import yun_foot_trajectory, yun_stance_fsm, yun_zvu
 from estimators.trajectory import eskf_trajectory
 

@@ -179,7 +179,7 @@ def test_bench_orientation_json_format():
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
     from click.testing import CliRunner
-    from pipeline.bench.orientation import command
+    from validation.bench.orientation import command
     one = sorted(BROAD.glob("*.hdf5"))[0]
     r = CliRunner().invoke(command, ["--broad", str(one), "--estimator", "dcf", "--estimator", "vqf", "--json"])
     assert r.exit_code != 0 and "at least two groups" in r.output          # one trial: no fold to hold out
@@ -202,7 +202,7 @@ def test_bench_cross_validation_holds_each_group_out():
     is the error of the candidate chosen on the *other* trials, for ours and for the tuned baselines."""
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
-    from pipeline.bench.orientation import candidate_grids, run_cross_validation
+    from validation.bench.orientation import candidate_grids, run_cross_validation
     from pipeline.formats.broad import load_broad
     from estimators.orientation.tuning import trial_groups
     names = ("05_undisturbed_slow_rotation_with_breaks_B", "18_undisturbed_fast_translation_with_breaks_B",

@@ -6,7 +6,7 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
-from estimators.gait._sim import simulate_yun_walk
+from validation.simulator.foot_walk_yun import simulate_yun_walk
 from estimators.quaternion import quat_from_axis_angle, quat_rotate
 from pipeline.formats.loop_csv import COLUMNS, load_loop_csv
 
@@ -36,7 +36,7 @@ def test_loop_reader(tmp_path):
 
 
 def test_bench_trajectory_cli(tmp_path):
-    from pipeline.bench.trajectory import command
+    from validation.bench.trajectory import command
     paths = []
     for seed in (0, 1):
         p = tmp_path / f"loop{seed}.csv"
@@ -52,7 +52,7 @@ def test_bench_trajectory_cli(tmp_path):
 
 
 def test_bench_trajectory_bad_file(tmp_path):
-    from pipeline.bench.trajectory import command
+    from validation.bench.trajectory import command
     p = tmp_path / "bad.csv"
     p.write_text("a,b\n1,2\n")
     res = CliRunner().invoke(command, ["--loop", str(p), "--json"])

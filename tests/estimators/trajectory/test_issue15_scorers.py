@@ -8,7 +8,7 @@ from estimators.gait.evaluation import event_accuracy
 from estimators.trajectory import ZuptParams, detect_zupt
 from estimators.trajectory._saturation import repair_gyro_saturation
 from estimators.trajectory.evaluation import armse_2d_aligned
-from pipeline.bench._cv import logo_choose
+from validation.bench._cv import logo_choose
 
 
 def _path(n=1000):

@@ -69,9 +69,9 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
     import numpy as np
     from estimators.recording import ImuData, Recording
     from pipeline.formats.mcap_write import write_recording
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_chest_day, study_participants
+    from validation.simulator import simulate_chest_day, study_participants
     files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs)
              if "_free" not in f.name]
     for f in directory.glob("*_free*.mcap"):
@@ -121,7 +121,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, workd
       stridelab bench pipeline --days 7 --participants 1 --jobs 1 --json
       stridelab bench pipeline -n 4 --hours 2 --engine dask
     """
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     if days is not None:
         hours = 24.0 * days
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:

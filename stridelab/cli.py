@@ -7,18 +7,18 @@ import pkgutil
 
 import click
 
-from pipeline import bench as bench_pkg
+from validation import bench as bench_pkg
 
 
 class _BenchGroup(click.Group):
-    """``stridelab bench``: subcommands discovered from ``pipeline.bench.<module>.command``."""
+    """``stridelab bench``: subcommands discovered from ``validation.bench.<module>.command``."""
 
     def _commands(self) -> dict[str, click.Command]:
         found = {}
         for mod in pkgutil.iter_modules(bench_pkg.__path__):
             if mod.name.startswith("_"):
                 continue
-            m = importlib.import_module(f"pipeline.bench.{mod.name}")
+            m = importlib.import_module(f"validation.bench.{mod.name}")
             cmd = getattr(m, "command", None)
             if isinstance(cmd, click.Command):
                 found[cmd.name] = cmd
@@ -172,7 +172,7 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
     """
     import os
     from pipeline.console import UserError, emit_json, err_console
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     try:
         files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
                                 jobs=jobs or os.cpu_count() or 1, on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
@@ -356,7 +356,7 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
 def _report_builder(wh: Path):
     """The dashboard's report writer for the runner's report phase (the CLI wires the layers)."""
     def build(study: str, participant: str, out_dir: Path) -> dict:
-        from dashboard.report import build_report
+        from reports.participant import build_report
         return build_report(wh, participant, out_dir, study=study)
     return build
 
@@ -385,7 +385,7 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     """
     import os
     from pipeline.console import err_console
-    from pipeline.simulate import simulate_to_dir
+    from validation.simulate import simulate_to_dir
     h = Path(home) if home else None
     if h is not None:
         os.environ["STRIDELAB_HOME"] = str(h.resolve())
@@ -453,7 +453,7 @@ def warm_kernels(as_json) -> None:
       stridelab warm-kernels          # once after installing; later runs load the kernels
     """
     from pipeline.console import emit_json, err_console
-    from pipeline.warm import warm
+    from stridelab.warm import warm
     out = warm()
     if as_json:
         emit_json(out)
@@ -503,7 +503,7 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
     """
     from pipeline.config import default_reports
     from pipeline.console import UserError, emit_json, err_console
-    from dashboard.report import build_report   # the CLI is the one place that wires every layer
+    from reports.participant import build_report   # the CLI is the one place that wires every layer
     try:
         paths = build_report(_wh(warehouse_dir), participant, out_dir or default_reports(), study=study)
     except (LookupError, ValueError) as e:

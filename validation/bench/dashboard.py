@@ -8,7 +8,7 @@ participants, < 5 s per report (HTML + PDF).
 
 The synthetic warehouse has the catalog of a real study (participants, sessions, recordings,
 sensors, run ledger) plus results of the later stages in the tables the dashboard reads
-(``dashboard.queries.DATASETS``): strides, calibration QC, joint-angle cycles, activity bouts,
+(``warehouse.queries.DATASETS``): strides, calibration QC, joint-angle cycles, activity bouts,
 accuracy metrics and pairs, foot trajectories. It is written through :class:`Warehouse`, the
 pipeline's writer, and published as a snapshot like a nightly run.
 """
@@ -286,7 +286,7 @@ def time_pages(root: Path, repeats: int = 2, timeout: float = 60.0) -> dict[str,
 
 
 def time_report(root: Path, out_dir: Path) -> dict:
-    from dashboard.report import build_report
+    from reports.participant import build_report
     from warehouse.read import connect_snapshot
     con = connect_snapshot(root)
     try:

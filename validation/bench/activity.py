@@ -27,7 +27,7 @@ Speed: ``classify_recording`` (key ``seconds_24h_100hz``; rules only: ``seconds_
 ``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a warm-up call (numba JIT).
 
 Simulated free-living days (``--simulated N``, key ``simulated``): the demo study's first N participants, one
-24 h day each from ``studies.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
+24 h day each from ``validation.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
 classified with the pipeline's default (``classify_recording``) and the participant's thigh length. ``agreement`` = per-second agreement
 over the seconds whose reference is a class (``transition`` seconds are not scored; a labelled interval covers
 its whole seconds, same definition as docs/activity.md); ``steps_error_pct`` = 100 (detected − scripted) /
@@ -445,7 +445,7 @@ def simulated_days(n: int, *, preset: str = "default", window_model: str | None 
     from estimators.activity import CLASSES, PRESETS, daily_summaries
     from pipeline.activity_model import classify_recording
     from studies.manifest import load_manifest
-    from studies.simulator import simulate_chest_day, study_participants
+    from validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
     m = dataclasses.replace(m, free_living=dataclasses.replace(m.free_living, hours=24.0))
     per = {}

@@ -26,7 +26,7 @@ def kernel_stats() -> dict:
     names_compiled = []
     seen = set()
     for name, mod in list(sys.modules.items()):
-        if mod is None or not name.split(".")[0] in ("estimators", "pipeline", "warehouse", "studies"):
+        if mod is None or not name.split(".")[0] in ("estimators", "pipeline", "warehouse", "studies", "validation", "reports", "stridelab"):
             continue
         for obj in list(vars(mod).values()):
             if not isinstance(obj, CPUDispatcher) or id(obj) in seen:
@@ -50,7 +50,7 @@ def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_
     from pipeline import config, runner
     from pipeline.formats.mcap_write import write_recording
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_chest_day, simulate_lab_session, study_participants
+    from validation.simulator import simulate_chest_day, simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, name="warm-kernels", lab=replace(m.lab, walking_trials=1),
                 free_living=replace(m.free_living, hours=hours, start_local=start_local))

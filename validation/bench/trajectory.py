@@ -116,7 +116,7 @@ def pyshoe_benchmark(directory: Path, *, show_progress: bool = True, anchors: bo
 
     from estimators.trajectory import EskfParams, eskf_trajectory
     from estimators.trajectory.evaluation import armse_2d_aligned
-    from pipeline.bench._cv import logo_choose
+    from validation.bench._cv import logo_choose
     from pipeline.formats.pyshoe import load_pyshoe_dir
     try:
         trials = load_pyshoe_dir(directory)
@@ -198,12 +198,12 @@ DS_METHODS = ("zupt_only", "zupt_height", "ds21", "ds9_table1", "ds9_true")
 
 
 def duong_suh_benchmark(seeds: int = 10, *, pitch_deg: float = 0.0) -> dict:
-    """Spec B11/B12 on the synthetic walk of ``estimators.trajectory._sim_ds`` (B11 configuration; the filters start
+    """Spec B11/B12 on the synthetic walk of ``validation.simulator.duong_suh_walk`` (B11 configuration; the filters start
     from the Table 1 geometry, the truth is eq. (24)): mean over seeds of the per-run RMS error per axis (m), for
     ZUPT only, ZUPT + height update, the 21-state filter and the 9-state filter with the Table 1 and the true
     geometry; the 21-state calibration after one trial; and the B12 checks."""
     from estimators.trajectory import TABLE1_GEOMETRY, DuongSuhParams, duong_suh_trajectory
-    from estimators.trajectory._sim_ds import simulate_ds_walk
+    from validation.simulator.duong_suh_walk import simulate_ds_walk
     from estimators.trajectory.evaluation import rms_error_per_axis
     methods = {"zupt_only": (DuongSuhParams(use_ranges=False, estimate_calibration=False), False),
                "zupt_height": (DuongSuhParams(use_ranges=False, estimate_calibration=False,

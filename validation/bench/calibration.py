@@ -1,8 +1,8 @@
 """``stridelab bench calibration``: sensor-to-segment calibration and joint-angle accuracy and speed.
 
-Scenes with known mounting misalignment: the platform study simulator (``studies.simulator``, lab
+Scenes with known mounting misalignment: the platform study simulator (``validation.simulator``, lab
 sessions with a calibration trial and walking trials, when available) or the built-in kinematic
-fixture of :mod:`estimators.calibration.synthetic` (``--scene synthetic``). Figures:
+fixture of :mod:`validation.simulator.lower_body` (``--scene synthetic``). Figures:
 
 * calibration error = helical angle between estimated and true sensor-to-segment rotation (thesis
   Eq. 19), median per segment over participants, for hip flexion/extension and straight walking;
@@ -34,7 +34,7 @@ def _seg(p: str) -> str:
 
 
 def _synthetic_participant(rng, reps: int, posture_sd_deg: float, crosstalk: float):
-    from estimators.calibration.synthetic import calibration_trial, random_mounts, walking_trial
+    from validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
     mounts = random_mounts(rng)
     cal = calibration_trial(mounts=mounts, rng=rng, fe_reps=reps, standing_offsets=posture_sd_deg, crosstalk=crosstalk)
     walk = walking_trial(mounts=mounts, rng=rng, strides=20, noise=True, crosstalk=crosstalk)
@@ -80,7 +80,7 @@ def _reps_curve(tr, mounts, k_max: int) -> dict:
 
 def _speed(rng, minutes: float, repeats: int = 3) -> dict:
     from estimators.calibration import calibrate_session
-    from estimators.calibration.synthetic import calibration_trial, random_mounts, walking_trial
+    from validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
     from estimators.joints import compute_joint_angles, session_gait_curves
     mounts = random_mounts(rng)
     cal_tr = calibration_trial(mounts=mounts, rng=rng)
@@ -132,7 +132,7 @@ def _upright_r_sensor_af(truth, r_true: dict, standing: tuple[int, int]) -> dict
 def _sim_participant(manifest, participant, index: int, seed: int, estimate):
     """Calibration trial, walking trials and their truths of one simulated lab session, with the
     sensor orientations of the default orientation estimator beside the true ones."""
-    from studies.simulator import simulate_lab_session
+    from validation.simulator import simulate_lab_session
     trials = []
     for rec, truth in simulate_lab_session(manifest, participant, index, seed=seed):
         acc = {p: d.acc for p, d in rec.imu.items()}
@@ -189,7 +189,7 @@ def _sim_reps_curve(cal_tr, r_true: dict, reps: int) -> dict:
 
 def _simulator_available() -> bool:
     try:
-        import studies.simulator  # noqa: F401
+        import validation.simulator  # noqa: F401
     except ImportError:
         return False
     return True
@@ -204,7 +204,7 @@ def _median(xs):
 @click.option("--participants", "-n", type=click.IntRange(1, 200), default=6, show_default=True,
               help="Simulated participants (each with its own random mounting misalignment).")
 @click.option("--scene", type=click.Choice(["auto", "simulator", "synthetic"]), default="auto", show_default=True,
-              help="auto: the platform study simulator (studies.simulator, demo manifest) when installed, else the "
+              help="auto: the platform study simulator (validation.simulator, demo manifest) when installed, else the "
                    "built-in kinematic fixture.")
 @click.option("--reps", type=click.IntRange(10, 40), default=20, show_default=True,
               help="Hip flexion/extension repetitions per leg in the calibration trial (thesis protocol: 20).")
@@ -227,7 +227,7 @@ def command(participants, scene, reps, minutes, posture_sd_deg, crosstalk, seed,
     if scene == "auto":
         scene = "simulator" if _simulator_available() else "synthetic"
     if scene == "simulator" and not _simulator_available():
-        raise UserError("the platform simulator (studies.simulator) is not installed; use --scene synthetic")
+        raise UserError("the platform simulator (validation.simulator) is not installed; use --scene synthetic")
     rng = np.random.default_rng(seed)
     errs = {"hip_fe": [], "walking": []}
     errs_upright = {"hip_fe": [], "walking": []}
@@ -241,7 +241,7 @@ def command(participants, scene, reps, minutes, posture_sd_deg, crosstalk, seed,
             from estimators.calibration import first_quiet_standing, helical_angle_deg
             from estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
             from studies.manifest import DEFAULT_MANIFEST, load_manifest
-            from studies.simulator import study_participants
+            from validation.simulator import study_participants
             from dataclasses import replace
             m = load_manifest(DEFAULT_MANIFEST)
             m = replace(m, lab=replace(m.lab, hip_repetitions=reps, distance_sensors=False, optical_reference=False))

@@ -710,7 +710,7 @@ class Snapshot:
 
     def q(self, fn: Callable, *args, **kwargs):
         if fn.__name__ not in _QUERIES:
-            raise ValueError(f"{fn.__name__} is not a query of dashboard.queries")
+            raise ValueError(f"{fn.__name__} is not a query of warehouse.queries")
         return _cache()[1](str(self.root), self.name, fn.__name__, args, tuple(sorted(kwargs.items())))
 
 

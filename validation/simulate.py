@@ -21,7 +21,7 @@ def _load(manifest, hours):
 
 def _participant_files(manifest, participant, index: int, seed: int, directory: Path) -> list[Path]:
     """Simulate and write one participant's recordings (lab trials, then the free-living day)."""
-    from studies.simulator import simulate_chest_day, simulate_lab_session
+    from validation.simulator import simulate_chest_day, simulate_lab_session
     out = []
     for rec, _truth in simulate_lab_session(manifest, participant, index, seed=seed):
         out.append(write_recording(rec, directory / f"{rec.name}.mcap"))
@@ -32,7 +32,7 @@ def _participant_files(manifest, participant, index: int, seed: int, directory: 
 
 def _worker(manifest, hours, seed: int, participants, index: int, directory: Path) -> list[Path]:
     """In a worker process: the manifest is reloaded (it is not picklable), participant ``index`` simulated."""
-    from studies.simulator import study_participants
+    from validation.simulator import study_participants
     m = _load(manifest, hours)
     return _participant_files(m, study_participants(m, participants, seed)[index], index, seed, directory)
 
@@ -42,7 +42,7 @@ def simulate_to_dir(directory: Path, *, manifest=None, seed: int | None = None, 
                     on_file: Callable[[Path], None] = lambda p: None) -> list[Path]:
     """Simulate a study (default: the demo manifest) into ``directory``; returns the files written, in
     participant order. ``jobs`` worker processes simulate participants in parallel (same bytes as serial)."""
-    from studies.simulator import study_participants
+    from validation.simulator import study_participants
     m = _load(manifest, hours)
     seed = m.seed if seed is None else int(seed)
     people = study_participants(m, participants, seed)

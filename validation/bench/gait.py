@@ -274,7 +274,7 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
 
     from estimators.gait import foot_kinematics
     from estimators.gait.evaluation import event_accuracy
-    from pipeline.bench._cv import logo_choose
+    from validation.bench._cv import logo_choose
     from pipeline.formats.xsens_mt import load_voisard_dir
     try:
         trials = load_voisard_dir(directory)
@@ -367,7 +367,7 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
 
 
 def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) -> dict:
-    """Stride-length MAE of ``foot_kinematics`` on the platform simulator (``studies.simulator``, walking trials of
+    """Stride-length MAE of ``foot_kinematics`` on the platform simulator (``validation.simulator``, walking trials of
     ``participants`` participants) for several c_a (``EskfParams.acc_noise_rel``): parameters chosen on data that is not
     the evaluation walk. Truth = horizontal displacement of the simulated sensor between the detected mid-stances."""
     import warnings
@@ -377,7 +377,7 @@ def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) ->
     from estimators.gait.evaluation import paired_errors
     from estimators.trajectory import EskfParams
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from studies.simulator import simulate_lab_session, study_participants
+    from validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=2, distance_sensors=False, optical_reference=False))
     feet = []

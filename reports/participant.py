@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from dashboard import queries as Q
-from dashboard.normative import normative_band
+from warehouse import queries as Q
+from reports.normative import normative_band
 
 A4 = (8.27, 11.69)
 TITLES = {1: "Participant, sessions and data quality", 2: "Gait parameters", 3: "Joint angles",
@@ -270,7 +270,7 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
     else:
         fig, sid = fig_joints(j)
         pages[3].append(("figure", FIG_CAPTIONS[2] + f" ({sid})", fig))
-        pages[3].append(("note", "Grey: approximate adult normative mean ± SD, sagittal plane (dashboard/normative.py); "
+        pages[3].append(("note", "Grey: approximate adult normative mean ± SD, sagittal plane (reports/normative.py); "
                                  "coloured bands: ± SD over the session's cycles."))
         rom = j.groupby([c for c in ("session_id", "joint", "side", "plane") if c in j])["mean_deg"].agg(np.ptp)
         rom = rom.rename("range of motion deg").round(1).reset_index()
