@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from estimators.recording import ImuData, Recording
-from pipeline.cli import main
+from stridelab.cli import main
 from pipeline.formats.mcap_write import write_recording
 from tests.conftest import shared_data
 from tests.pipeline.test_import import read_mcap
