@@ -102,10 +102,19 @@ def _gaitmap(path: Path, placement: str | None) -> list[Converted]:
         q = np.full((len(R), 4), np.nan)
         q[ok] = quat_from_matrix(R[ok])
         poses[pl] = PoseData(_rel_ns(len(R), ex.mocap_rate_hz), foot.markers["FCC"], q)
+        at = lambda i, t=t: int(t[min(int(i), len(t) - 1)])           # noqa: E731 - IMU sample -> ns
         for col, typ in ((2, "IC"), (3, "TC")):
             for i in foot.strides[:, col]:
-                events.append({"t_ns": int(t[min(int(i), len(t) - 1)]), "type": typ, "side": foot.side,
+                events.append({"t_ns": at(i), "type": typ, "side": foot.side,
                                "source": "gaitmap stride_events_sample.csv (mocap)"})
+        # the labelled strides (borders = mid-stances, min_vel) and the span they cover: stride lengths are scored
+        # on the strides the reference labels, events inside the span (as stridelab bench gait does)
+        for a, b in foot.strides[:, :2]:
+            events.append({"t_ns": at(a), "end_ns": at(b), "type": "stride", "side": foot.side,
+                           "source": "gaitmap stride_events_sample.csv (mocap)"})
+        events.append({"t_ns": at(foot.strides[:, 0].min()), "end_ns": at(foot.strides[:, 1].max()),
+                       "type": "annotated", "placement": pl, "label": "labelled strides",
+                       "source": "gaitmap stride_events_sample.csv (first start, last end)"})
     rec = Recording(metadata={}, imu=imu, reference_poses=poses, events=events, name="gaitmap_example")
     return [Converted(rec, {"participant": "gaitmap01", "trial": "walk", "kind": "lab",
                             "protocol": "gaitmap example: 2x20 m straight walk",

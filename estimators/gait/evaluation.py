@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["EventMatch", "match_events", "StrideMatch", "match_strides", "EventAccuracy", "event_accuracy",
-           "EVENT_TOLERANCE_S", "reference_stride_lengths", "paired_errors"]
+           "EVENT_TOLERANCE_S", "STRIDE_TOLERANCE_S", "reference_stride_lengths", "stride_length_reference",
+           "paired_errors"]
 
 #: default event matching tolerance (±0.5 s, as the gaitmap bench; thesis §3.5 matches within a stride)
 EVENT_TOLERANCE_S = 0.5
@@ -177,6 +178,34 @@ def reference_stride_lengths(ref_t_s: np.ndarray, ref_pos: np.ndarray, start_s: 
         return xy
     a, b = at(np.asarray(start_s, float)), at(np.asarray(end_s, float))
     return np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1])
+
+
+#: stride matching tolerance on both borders (±0.3 s, as the gaitmap bench)
+STRIDE_TOLERANCE_S = 0.3
+
+
+def stride_length_reference(det_start_end_s: np.ndarray, ref_t_s: np.ndarray, ref_pos: np.ndarray,
+                            ref_start_end_s: np.ndarray | None = None, *,
+                            tolerance_s: float = STRIDE_TOLERANCE_S) -> np.ndarray:
+    """(S,) m: the reference length of each detected stride (``det_start_end_s`` (S, 2) borders in s), NaN where
+    there is none; the one definition the gait stage and ``stridelab bench gait`` share.
+
+    With annotated reference strides (``ref_start_end_s`` (R, 2), e.g. gaitmap's mocap strides): a detected stride
+    matched to one (:func:`match_strides`, both borders within ``tolerance_s``, on a 1 µs grid) gets the reference
+    point's displacement between the *reference* borders; unmatched strides get NaN (the reference does not label
+    them). Without (``None``: C3D markers, PyShoe's Vicon): the displacement between the detected borders (both
+    mid-stances, where the foot stands still). :func:`reference_stride_lengths` measures both.
+    """
+    det = np.asarray(det_start_end_s, float).reshape(-1, 2)
+    if ref_start_end_s is None:
+        return reference_stride_lengths(ref_t_s, ref_pos, det[:, 0], det[:, 1])
+    ref = np.asarray(ref_start_end_s, float).reshape(-1, 2)
+    us = 1e6
+    m = match_strides(np.rint(det * us).astype(np.int64), np.rint(ref * us).astype(np.int64),
+                      tolerance_samples=int(round(tolerance_s * us)))
+    out = np.full(len(det), np.nan)
+    out[m.det_rows] = reference_stride_lengths(ref_t_s, ref_pos, ref[m.ref_rows, 0], ref[m.ref_rows, 1])
+    return out
 
 
 def paired_errors(estimate: np.ndarray, reference: np.ndarray) -> dict:

@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 
 from estimators.timebase import contiguous_segments
-from pipeline.stages import SessionInput, Stage, StageOutput, params_hash, scored_mask
+from pipeline.stages import SessionInput, Stage, StageOutput, params_hash
 from warehouse.read import read_imu_files
 from warehouse.store import read_table, series_relpath, write_table
 
@@ -171,20 +171,29 @@ def _summary_rows(sid: str, sess, n_strides: dict, status: str, note: str) -> li
     return rows
 
 
-def _accuracy_rows(sid: str, det: dict, ref: dict, tol_s: float, origin_ns: int) -> tuple[list[dict], list[dict]]:
-    """det/ref: (side, type) -> list over trials of int64 ns arrays. Rows for accuracy_metrics/accuracy_pairs."""
+def _accuracy_rows(sid: str, det: dict, ref: dict, spans: dict, tol_s: float,
+                   origin_ns: int) -> tuple[list[dict], list[dict]]:
+    """det/ref: (side, type) -> list over trials of int64 ns arrays; spans: side -> list over trials of the span
+    the reference annotates ((lo, hi) ns, or None). Rows for accuracy_metrics/accuracy_pairs, scored by
+    :func:`estimators.gait.evaluation.event_accuracy` as ``stridelab bench gait`` scores them (``spans_s``)."""
     from estimators.gait.evaluation import event_accuracy
     metrics, pairs = [], []
     units = {"sensitivity": "fraction", "precision": "fraction", "timing_mae_ms": "ms", "timing_mean_ms": "ms"}
+    sec = lambda x: (np.asarray(x, np.int64) - origin_ns) / 1e9          # noqa: E731
     for typ in ("IC", "TC"):
         groups = {f"foot_{s}": [s] for s in SIDES}
         groups["both"] = list(SIDES)
         for placement, sides in groups.items():
-            d = [(np.asarray(x, np.int64) - origin_ns) / 1e9 for s in sides for x in det.get((s, typ), [])]
-            r = [(np.asarray(x, np.int64) - origin_ns) / 1e9 for s in sides for x in ref.get((s, typ), [])]
+            d = [sec(x) for s in sides for x in det.get((s, typ), [])]
+            r = [sec(x) for s in sides for x in ref.get((s, typ), [])]
             if not any(len(x) for x in r):
                 continue
-            acc = event_accuracy(d, r, tolerance_s=tol_s)
+            # a trial without an annotated span: event_accuracy's own default, [first - tol, last + tol] reference
+            trial_spans = [sp for s in sides for sp in spans.get(s, [])]
+            sp = [tuple(sec(np.array(span))) if span is not None else
+                  ((x.min() - tol_s, x.max() + tol_s) if len(x) else (0.0, 0.0))
+                  for span, x in zip(trial_spans, r)]
+            acc = event_accuracy(d, r, tolerance_s=tol_s, spans_s=sp)
             for name, unit in units.items():
                 v = _num(getattr(acc, name))
                 if v is not None:
@@ -200,7 +209,7 @@ def _accuracy_rows(sid: str, det: dict, ref: dict, tol_s: float, origin_ns: int)
 
 def compute(inp: SessionInput, params: dict) -> StageOutput:
     from estimators.gait import foot_kinematics, foot_params_from_dict, gait_session_pooled
-    from estimators.gait.evaluation import reference_stride_lengths
+    from estimators.gait.evaluation import stride_length_reference
     fp = foot_params_from_dict(params["foot"])
     s = inp.session
     sid = s["session_id"]
@@ -210,6 +219,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     pairs_for_session = []
     det_ev: dict = {}
     ref_ev: dict = {}
+    spans: dict = {}
     traj_rows: list[dict] = []
     recs = walking_recordings(inp.recordings)
     if not recs:
@@ -269,20 +279,19 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                 mine = [r for r in out["strides"] if r["content_hash"] == rec["content_hash"] and r["side"] == side]
                 if mine:
                     t0 = int(ref[0][0]) if len(ref[0]) else 0
-                    lens = reference_stride_lengths((ref[0] - t0) / 1e9, ref[1],
-                                                    (np.array([r["start_ns"] for r in mine]) - t0) / 1e9,
-                                                    (np.array([r["end_ns"] for r in mine]) - t0) / 1e9)
+                    labelled = [(e["t_ns"], e["end_ns"]) for e in _rec_events(inp.events, rec, ("stride",))
+                                if _event_side(e) == side and e.get("end_ns") is not None]
+                    lens = stride_length_reference(
+                        (np.array([[r["start_ns"], r["end_ns"]] for r in mine]) - t0) / 1e9, (ref[0] - t0) / 1e9,
+                        ref[1], (np.array(labelled, np.int64) - t0) / 1e9 if labelled else None)
                     for r, v in zip(mine, lens):
                         r["stride_length_ref_m"] = _num(v)
-            scored = scored_mask(inp.events, rec, placement, t_ns)      # the reference's annotated span, if any
-            lo, hi = (int(t_ns[scored][0]), int(t_ns[scored][-1])) if scored.any() else (0, -1)
+            spans.setdefault(side, []).append(_annotated_span(inp.events, rec, placement))
             for typ in ("IC", "TC"):      # one entry per recording and foot in both lists (scored per trial)
                 idx = [(t_ns[a:b][fk.events.ic_idx if typ == "IC" else fk.events.tc_idx]) for a, b, fk in fks]
-                det = np.concatenate(idx) if idx else np.zeros(0, np.int64)
-                det_ev.setdefault((side, typ), []).append(det[(det >= lo) & (det <= hi)])
+                det_ev.setdefault((side, typ), []).append(np.concatenate(idx) if idx else np.zeros(0, np.int64))
                 ref_ev.setdefault((side, typ), []).append(np.array(
-                    [e["t_ns"] for e in inp.events if e["type"] == typ and _event_side(e) == side
-                     and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]], np.int64))
+                    [e["t_ns"] for e in _rec_events(inp.events, rec, (typ,)) if _event_side(e) == side], np.int64))
         # both feet on one grid: pair their segments for double support; otherwise each foot alone
         if "left" in fk_by_side and "right" in fk_by_side and np.array_equal(fk_by_side["left"][0],
                                                                             fk_by_side["right"][0]):
@@ -299,7 +308,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     note = "; ".join(dict.fromkeys(notes))
     out["gait_summary"] = _summary_rows(sid, sess, n_strides, status, note)
     if any(len(x) for v in ref_ev.values() for x in v):
-        m, p = _accuracy_rows(sid, det_ev, ref_ev, float(params["event_tolerance_s"]),
+        m, p = _accuracy_rows(sid, det_ev, ref_ev, spans, float(params["event_tolerance_s"]),
                               int(s.get("start_ns") or 0))
         out["accuracy_metrics"], out["accuracy_pairs"] = m, p
     out["accuracy_metrics"] += _stride_accuracy_rows(sid, out["strides"]) + traj_rows
@@ -355,6 +364,19 @@ def _stride_accuracy_rows(sid: str, strides: list[dict]) -> list[dict]:
     return rows
 
 
+def _rec_events(events: list[dict], rec: dict, types: tuple[str, ...]) -> list[dict]:
+    """The session's reference annotations of these types that start inside the recording."""
+    return [e for e in events if e["type"] in types and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]]
+
+
+def _annotated_span(events: list[dict], rec: dict, placement: str) -> tuple[int, int] | None:
+    """(lo, hi) ns of the part of the recording the reference annotates for this foot: the hull of its ``score``
+    spans (Voisard's TrialBoundaries) and ``annotated`` spans (gaitmap's labelled strides); None when it marks none."""
+    sp = [(int(e["t_ns"]), int(e["end_ns"])) for e in _rec_events(events, rec, ("score", "annotated"))
+          if e.get("end_ns") is not None and e.get("placement") in (None, placement)]
+    return (min(a for a, _ in sp), max(b for _, b in sp)) if sp else None
+
+
 def _event_side(e: dict) -> str:
     return e.get("side") or (e.get("placement") or "").removeprefix("foot_")
 
@@ -374,5 +396,5 @@ def _session_status(statuses: dict, n_strides: dict) -> str:
     return "no_strides"
 
 
-STAGE = Stage(name="gait", version="3", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
+STAGE = Stage(name="gait", version="4", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
               default_params=default_params)

@@ -65,3 +65,48 @@ def test_foot_trajectory_stage_equals_bench_on_a_pyshoe_trial(tmp_path, monkeypa
     bench = pyshoe_benchmark(d, show_progress=False, anchors=False)["trials"][0]
     assert len(stage) == 1
     assert stage[0] == pytest.approx(bench["armse_2d_m_in_sample"], rel=0.01)     # the same default parameters
+
+
+def _gait_metrics(root, stage):
+    t = df(root, "SELECT metric, value FROM accuracy_metrics WHERE stage = ? AND placement = 'both'", [stage])
+    return t.set_index("metric")["value"]
+
+
+def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch):
+    """IC/TC vs Voisard's annotations inside TrialBoundaries at the bench's ±100 ms, the shipped FootParams (the
+    bench's ``in_sample_defaults``); trial 3-1: no dropped packet on the left foot, one on the right."""
+    from pipeline.bench.gait import VOISARD_TOL_S, voisard_benchmark
+    from pipeline.stages import gait
+    src = shared_data("voisard_gait")
+    d = tmp_path / "voisard"
+    d.mkdir()
+    for f in src.glob("3-1*"):
+        (d / f.name).symlink_to(f)
+    res = import_paths("voisard", [d], tmp_path / "inbox", study="public")
+    params = {**gait.default_params(), "event_tolerance_s": VOISARD_TOL_S}
+    run_with(monkeypatch, tmp_path / "wh", res.written, [dataclasses.replace(gait.STAGE, default_params=lambda: params)])
+    stage = _gait_metrics(tmp_path / "wh", "gait_events")
+    bench = voisard_benchmark(d, show_progress=False)["in_sample_defaults"]
+    for typ in ("ic", "tc"):
+        for m in ("sensitivity", "precision", "timing_mae_ms"):
+            assert stage[f"{typ}_{m}"] == pytest.approx(bench[f"{typ}_{m}"], rel=0.01), f"{typ}_{m}"
+    assert 0.5 < stage["ic_sensitivity"] <= 1.0
+
+
+def test_gait_events_and_stride_lengths_stage_equals_bench_on_the_gaitmap_walk(tmp_path, monkeypatch):
+    """IC/TC vs the mocap events inside the labelled strides (±0.5 s) and stride length vs the heel marker on the
+    labelled strides; the stage's precision counts every unmatched detection, as the bench's ``precision_strict``
+    (the bench's ``precision`` also forgives detections in marker-verified unlabelled steps)."""
+    from pipeline.bench.gait import run_benchmark
+    from pipeline.stages import gait
+    src = shared_data("gaitmap_example")
+    res = import_paths("gaitmap", [src], tmp_path / "inbox", study="public")
+    run_with(monkeypatch, tmp_path / "wh", res.written, [gait.STAGE])
+    ev = _gait_metrics(tmp_path / "wh", "gait_events")
+    st = _gait_metrics(tmp_path / "wh", "strides")
+    bench = run_benchmark(src, show_progress=False, speed=False)
+    for typ in ("ic", "tc"):
+        for m, b in (("sensitivity", "sensitivity"), ("precision", "precision_strict"), ("timing_mae_ms", "timing_mae_ms")):
+            assert ev[f"{typ}_{m}"] == pytest.approx(bench[f"{typ}_{b}"], rel=0.01), f"{typ}_{m}"
+    assert st["stride_length_mae_m"] == pytest.approx(bench["stride_length_mae_m"], rel=0.01)
+    assert 0.005 < st["stride_length_mae_m"] < 0.2

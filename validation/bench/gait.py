@@ -81,7 +81,6 @@ def _event_metrics(det_all, ref, fs, tol_s, lo, hi, spans) -> dict:
 
 
 def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
-    from estimators.gait.evaluation import match_strides
     ref = foot.strides
     lo, hi = int(ref[:, 0].min()), int(ref[:, 1].max())
     spans = unannotated_spans(foot, fs, mocap_fs)
@@ -101,11 +100,14 @@ def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
     if fk.events.tc_pitch_min_idx is not None:          # the thesis' plain TC (pitch minimum), before toe-off (T1)
         em = _event_metrics(fk.events.tc_pitch_min_idx, ref[:, 3], fs, EVENT_TOL_S, lo, hi, spans)
         out["tc_pitch_min_timing_mae_ms"], out["tc_pitch_min_timing_mean_ms"] = em["timing_mae_ms"], em["timing_mean_ms"]
-    from estimators.gait.evaluation import reference_stride_lengths
+    from estimators.gait.evaluation import stride_length_reference
     heel = foot.markers["FCC"]
-    ref_len = reference_stride_lengths(np.arange(len(heel)) / mocap_fs, heel, ref[:, 0] / fs, ref[:, 1] / fs)
-    sm = match_strides(fk.strides.idx[:, :2], ref[:, :2], tolerance_samples=int(round(STRIDE_TOL_S * fs)))
-    e = sm.errors(fk.strides.column("stride_length_m"), ref_len)
+    # the gait stage's definition: detected strides matched to the labelled ones, heel displacement between the
+    # labelled borders
+    ref_len = stride_length_reference(fk.strides.idx[:, :2] / fs, np.arange(len(heel)) / mocap_fs, heel,
+                                      ref[:, :2] / fs, tolerance_s=STRIDE_TOL_S)
+    e = fk.strides.column("stride_length_m") - ref_len
+    e = e[np.isfinite(e)]
     out["stride_length_mae_m"] = float(np.abs(e).mean()) if len(e) else None
     out["stride_length_mean_error_m"] = float(e.mean()) if len(e) else None
     out["strides_reference"], out["strides_detected"], out["strides_matched"] = len(ref), len(fk.strides), len(e)
