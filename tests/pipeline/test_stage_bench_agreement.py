@@ -75,7 +75,7 @@ def _gait_metrics(root, stage):
 def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch):
     """IC/TC vs Voisard's annotations inside TrialBoundaries at the bench's ±100 ms, the shipped FootParams (the
     bench's ``in_sample_defaults``); trial 3-1: no dropped packet on the left foot, one on the right."""
-    from pipeline.bench.gait import VOISARD_TOL_S, voisard_benchmark
+    from validation.bench.gait import VOISARD_TOL_S, voisard_benchmark
     from pipeline.stages import gait
     src = shared_data("voisard_gait")
     d = tmp_path / "voisard"
@@ -97,7 +97,7 @@ def test_gait_events_and_stride_lengths_stage_equals_bench_on_the_gaitmap_walk(t
     """IC/TC vs the mocap events inside the labelled strides (±0.5 s) and stride length vs the heel marker on the
     labelled strides; the stage's precision counts every unmatched detection, as the bench's ``precision_strict``
     (the bench's ``precision`` also forgives detections in marker-verified unlabelled steps)."""
-    from pipeline.bench.gait import run_benchmark
+    from validation.bench.gait import run_benchmark
     from pipeline.stages import gait
     src = shared_data("gaitmap_example")
     res = import_paths("gaitmap", [src], tmp_path / "inbox", study="public")
