@@ -240,7 +240,7 @@ def _why_stale(wh: Warehouse, session_id: str, stage: Stage, params: dict, input
     if last is None:
         return "first run"
     status, version, ph, ih = last
-    if status != "ok":
+    if status not in ("ok", "skipped"):
         return "retry after a failure"
     if not has_state:
         return "outputs missing"
@@ -313,10 +313,10 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                     wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
                                               "stage_version": stage.version, "params_hash": ph, "stamp": st,
                                               "input_hash": why[sid][0], "reason": why[sid][1],
-                                              "status": "ok", "started_at": started, "duration_s": secs,
+                                              "status": out.status, "started_at": started, "duration_s": secs,
                                               "note": out.note or None}])
                 summary.stage_runs += 1
-                on_progress(f"{stage.name} {sid}: ok in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
+                on_progress(f"{stage.name} {sid}: {out.status} in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
             wh.publish_snapshot()
 
         on_phase(stage.name, len(items))

@@ -276,9 +276,11 @@ def qc_flags(con) -> pd.DataFrame:
 
 
 def stage_coverage(con) -> pd.DataFrame:
-    """Per stage: sessions done (latest ok), failed, and the newest version."""
+    """Per stage: sessions done (latest ok), skipped (the session lacks what the stage needs), failed, and the
+    newest version."""
     return _df(con, """
         SELECT stage, count(*) FILTER (WHERE status = 'ok') AS sessions_ok,
+               count(*) FILTER (WHERE status = 'skipped') AS sessions_skipped,
                count(*) FILTER (WHERE status = 'failed') AS sessions_failed,
                max(stage_version) AS version
         FROM (SELECT *, row_number() OVER (PARTITION BY session_id, stage ORDER BY started_at DESC) AS k

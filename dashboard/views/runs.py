@@ -23,7 +23,8 @@ if snap is not None:
             st.dataframe(durs, hide_index=True)
             c1, c2, c3 = st.columns(3)
             run_id = c1.selectbox("Run", ["all"] + runs["run_id"].tolist(), key="runs_run")
-            status = c2.selectbox("Status", ["all", "ok", "failed"], key="runs_status")
+            status = c2.selectbox("Status", ["all", "ok", "skipped", "failed"], key="runs_status",
+                                  help="skipped: the session does not hold what the stage needs (the note says what)")
             stages = c3.multiselect("Stage", durs["stage"].tolist(), key="runs_stage")
             sr = snap.q(Q.stage_runs, None if run_id == "all" else run_id, None if status == "all" else status,
                         tuple(stages))

@@ -37,10 +37,22 @@ class SessionInput:
     events: list[dict] = field(default_factory=list)
 
 
+#: stage_runs.status of a stage that ran: ``ok``, or ``skipped`` when the session does not hold what the stage needs
+#: (feet only, chest only, a hand-held sensor, no gyroscope...; ``note`` says what is missing). Both are final:
+#: the runner reruns neither until an input, the parameters or the code change. ``failed`` = it raised.
+RUN_STATUSES = ("ok", "skipped", "failed")
+
+
 @dataclass
 class StageOutput:
     rows: dict[str, list[dict]] = field(default_factory=dict)
     note: str = ""
+    status: str = "ok"          # "ok" | "skipped" (RUN_STATUSES)
+
+    @classmethod
+    def skipped(cls, note: str) -> "StageOutput":
+        """Nothing to compute on this session: no rows, status ``skipped``, ``note`` = why."""
+        return cls(note=note, status="skipped")
 
 
 @dataclass(frozen=True)

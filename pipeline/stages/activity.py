@@ -94,6 +94,10 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                           "start_ns": int(sec_t[a]), "end_ns": int(sec_t[b - 1]) + 1_000_000_000,
                           "class": CLASSES[int(sec[a])], "steps": int(steps_per_sec[a:b].sum())})
         accuracy += accuracy_rows(s["session_id"], inp.events, rec, inp.root, path, fs, sec, sec_t, params)
+    if not bouts and not daily and all(params["placement"] not in r["sensors"] for r in inp.recordings):
+        have = sorted({p for r in inp.recordings for p in r["sensors"]})
+        return StageOutput.skipped(f"activity skipped: no {params['placement']} IMU (session has "
+                                   f"{', '.join(have) or 'no IMU'})")
     return StageOutput(rows={"activity_bouts": bouts, "activity_transitions": transitions, "activity_daily": daily,
                              "accuracy_metrics": accuracy}, note="; ".join(notes)[:500])
 

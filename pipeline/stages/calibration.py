@@ -204,11 +204,11 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     have = {p for r in inp.recordings for p, kinds in r["sensors"].items() if "imu" in kinds}
     if not have & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
         # sessions as they come (feet only, chest or lower back only, a hand-held sensor): nothing to calibrate
-        return StageOutput(note=f"calibration skipped: no pelvis/thigh/shank sensors (session has "
-                                f"{', '.join(sorted(have)) or 'no IMU'})")
+        return StageOutput.skipped(f"calibration skipped: no pelvis/thigh/shank sensors (session has "
+                                   f"{', '.join(sorted(have)) or 'no IMU'})")
     rec = find_calibration_recording(inp.recordings)
-    if rec is None:
-        cal = missing_calibration(DEFAULT_PLACEMENTS, params=cp)
+    if rec is None:       # QC rows for the sensors the session has, not for placements it never had
+        cal = missing_calibration(tuple(p for p in DEFAULT_PLACEMENTS if p in have), params=cp)
         return StageOutput(rows={"calibration": calibration_rows(sid, None, cal, None, params)},
                            note="calibration trial missing")
     data = read_recording(inp, rec, inp.upstream.get("orientation", []), DEFAULT_PLACEMENTS)

@@ -224,6 +224,10 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     recs = walking_recordings(inp.recordings)
     if not recs:
         notes.append("no walking trial in this session")
+    elif not any(f"foot_{side}" in r["sensors"] and "imu" in r["sensors"][f"foot_{side}"] for r in recs for side in SIDES):
+        have = sorted({p for r in recs for p, k in r["sensors"].items() if "imu" in k})
+        return StageOutput.skipped(f"gait skipped: no foot_left/foot_right IMU (session has "
+                                   f"{', '.join(have) or 'no IMU'})")
     for rec in recs:
         fk_by_side = {}
         for side in SIDES:

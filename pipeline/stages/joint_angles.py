@@ -91,9 +91,14 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     if cal is None:
         have = sorted({p for r in inp.recordings for p, k in r["sensors"].items() if "imu" in k})
         if not set(have) & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
-            return StageOutput(note=f"joint angles skipped: no pelvis/thigh/shank sensors (session has "
-                                    f"{', '.join(have) or 'no IMU'})")
+            return StageOutput.skipped(f"joint angles skipped: no pelvis/thigh/shank sensors (session has "
+                                       f"{', '.join(have) or 'no IMU'})")
         return StageOutput(note="no calibration rows for this session")
+    have = {p for r in inp.recordings for p, k in r["sensors"].items() if "imu" in k}
+    if not any({prox if prox == "pelvis" else f"{prox}_{side}", f"{dist}_{side}"} <= have
+               for prox, dist in JOINTS.values() for side in ("left", "right")):
+        return StageOutput.skipped(f"joint angles skipped: no joint has sensors on both its segments (session has "
+                                   f"{', '.join(sorted(have))})")
     cal_rec = find_calibration_recording(inp.recordings)
     trials = [r for r in inp.recordings if cal_rec is None or r["content_hash"] != cal_rec["content_hash"]]
     ics = ic_times_by_side(inp.upstream)

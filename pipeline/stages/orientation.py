@@ -85,6 +85,8 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                     errors.setdefault(placement, []).append(orientation_rmse_deg(quat, q_ref, ok))
             if np.isnan(quat[:, 0]).any():
                 notes.append(f"{placement}: {int(np.isnan(quat[:, 0]).sum())} samples without orientation")
+    if not rows:
+        return StageOutput.skipped("orientation skipped: " + ("; ".join(notes) or "no IMU with a gyroscope"))
     return StageOutput(rows={"orientation": rows, "accuracy_metrics": _accuracy_rows(s["session_id"], name, errors)},
                        note="; ".join(notes))
 
