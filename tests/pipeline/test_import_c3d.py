@@ -134,11 +134,11 @@ def test_damaged_c3d_or_recording_one_line(tmp_path):
 @pytest.mark.slow
 def test_gait_stage_scores_c3d_markers_as_it_scores_the_gaitmap_markers(tmp_path, monkeypatch):
     """The gaitmap walk twice: as ``import gaitmap`` writes it (markers from mocap_sample.csv), and as its IMUs alone
-    plus the same markers written to a C3D in mm and imported with ``import c3d``: the gait stage's stride-length
-    and trajectory accuracy are the same."""
+    plus the same markers written to a C3D in mm and imported with ``import c3d``: the orientation and gait stages'
+    accuracy (foot orientation, stride length, trajectory) is the same."""
     from pipeline.formats.gaitmap import load_gaitmap_example
     from pipeline.importers import import_paths
-    from pipeline.stages import gait
+    from pipeline.stages import gait, orientation
     from tests.pipeline._lab import df, run_with
     src = shared_data("gaitmap_example")
     ex = load_gaitmap_example(src)
@@ -161,9 +161,14 @@ def test_gait_stage_scores_c3d_markers_as_it_scores_the_gaitmap_markers(tmp_path
     via_c3d = json.loads(r.stdout)["written"]
     got = {}
     for name, files in (("direct", direct), ("c3d", via_c3d)):
-        run_with(monkeypatch, tmp_path / f"wh-{name}", files, [gait.STAGE])
+        run_with(monkeypatch, tmp_path / f"wh-{name}", files, [orientation.STAGE, gait.STAGE])
         got[name] = df(tmp_path / f"wh-{name}", "SELECT stage, placement, metric, value FROM accuracy_metrics "
-                                                "WHERE stage IN ('strides', 'foot_trajectory') ORDER BY ALL")
+                                                "WHERE stage IN ('strides', 'foot_trajectory', 'orientation') "
+                                                "ORDER BY ALL")
     assert len(got["direct"]) >= 4 and got["direct"][["stage", "placement", "metric"]].equals(
         got["c3d"][["stage", "placement", "metric"]])
     np.testing.assert_allclose(got["c3d"]["value"], got["direct"]["value"], rtol=1e-4)
+    # the foot orientation vs the FCC/TOE/FM5 cluster after mounting + lab heading alignment: a few degrees (38°
+    # before the alignment's multi-start: lab x is ≈150° from the IMUs' heading)
+    ori = got["c3d"][(got["c3d"]["stage"] == "orientation") & (got["c3d"]["metric"] == "total_rmse_deg")]
+    assert len(ori) == 2 and (ori["value"] < 8.0).all(), ori
