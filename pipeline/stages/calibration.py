@@ -256,5 +256,5 @@ def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
     return rows
 
 
-STAGE = Stage(name="calibration", version="3", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
+STAGE = Stage(name="calibration", version="4", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
               session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)
