@@ -70,7 +70,9 @@ class TopicSeries:
         self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
         self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
         self.gaps: list[tuple[int, float]] = []
-        self.n_nan = 0
+        self.n_nan = 0              # reference poses without a position
+        self.n_no_quat = 0          # ... with a position but no orientation
+        self.n_pose = 0
         self.n_zero = 0
         self.n_exact = 0
         self.n_conflict = 0
@@ -91,7 +93,10 @@ class TopicSeries:
         if self.kind == "range":
             pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
         elif self.kind == "reference_pose" and not np.isinf(v).any():
-            self.n_nan += int(np.isnan(v).any(axis=1).sum())      # occluded markers: kept as NaN
+            pos_nan = np.isnan(v[:, :3]).any(axis=1)               # occluded markers: kept as NaN
+            self.n_nan += int(pos_nan.sum())
+            self.n_no_quat += int((np.isnan(v[:, 3:7]).any(axis=1) & ~pos_nan).sum())
+            self.n_pose += len(v)
         elif not np.isfinite(v).all():
             bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
             raise SeriesRejected(f"{self.topic}: {len(bad)} samples with NaN/inf values (first at sample "
@@ -275,7 +280,12 @@ class TopicSeries:
         if self.unsorted:
             out.append("messages were not in header.stamp order: sorted")
         if self.n_nan:
-            out.append(f"{self.n_nan} reference samples without a pose (occlusion), kept as NaN")
+            out.append(f"{self.n_nan} reference samples without a position (occlusion), kept as NaN")
+        if self.n_no_quat and self.n_no_quat == self.n_pose - self.n_nan:
+            out.append("the reference gives positions only (no orientation): orientation is not scored against it")
+        elif self.n_no_quat:
+            out.append(f"{self.n_no_quat} reference samples with a position but no orientation (a cluster marker "
+                       f"occluded), kept as NaN")
         for t_gap, dur in self.gaps:
             when = datetime.fromtimestamp(t_gap / 1e9, tz=timezone.utc).isoformat(timespec="seconds")
             out.append(f"gap of {dur:.1f} s after {when} (data kept; estimators treat the two sides as "
