@@ -39,3 +39,33 @@ def normative_band(joint: str, n: int = 101):
 def is_sagittal(plane: str | None) -> bool:
     p = (plane or "").lower()
     return p == "" or any(s in p for s in ("sag", "flex", "x", "dorsi"))
+
+
+#: Orientation bands for the clinical measures (docs/clinical_measures.md, with the references). Each entry:
+#: (low, high, what the band means, source); None = open end. Not validated cut-offs for this device.
+CLINICAL_BANDS = {
+    "gait_speed_m_s": [(None, 0.4, "household walker after stroke", "Perry et al. 1995"),
+                       (0.4, 0.8, "limited community walker after stroke", "Perry et al. 1995"),
+                       (0.8, None, "community walker after stroke", "Perry et al. 1995")],
+    "gait_speed_healthy_m_s": [(1.13, 1.34, "healthy adults 60-79 y, comfortable speed",
+                                "Bohannon & Williams Andrews 2011")],
+    "swing_time_s_symmetry": [(1.0, 1.06, "healthy range of the swing-time symmetry ratio", "Patterson et al. 2010")],
+    "stance_time_s_symmetry": [(1.0, 1.05, "healthy range of the stance-time symmetry ratio", "Patterson et al. 2010")],
+    "step_length_m_symmetry": [(1.0, 1.08, "healthy range of the step-length symmetry ratio", "Patterson et al. 2010")],
+    "double_support_pct": [(None, 20.0, "about 20 % of the stride in healthy walking", "Perry & Burnfield 2010")],
+    "stride_time_cv_pct": [(1.0, 3.0, "healthy adults", "Hausdorff 2005")],
+    "steps_per_day": [(None, 5000, "sedentary", "Tudor-Locke & Bassett 2004"),
+                      (5000, 7500, "low active", "Tudor-Locke & Bassett 2004"),
+                      (7500, 10000, "somewhat active", "Tudor-Locke & Bassett 2004"),
+                      (10000, None, "active", "Tudor-Locke & Bassett 2004")],
+}
+
+
+def band_label(key: str, value: float | None) -> str:
+    """The band ``value`` falls in ('' when none or no value), e.g. 'limited community walker after stroke'."""
+    if value is None or value != value:
+        return ""
+    for lo, hi, what, _src in CLINICAL_BANDS.get(key, []):
+        if (lo is None or value >= lo) and (hi is None or value < hi):
+            return what
+    return ""

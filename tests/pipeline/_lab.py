@@ -8,17 +8,18 @@ from pipeline import runner, stages
 from warehouse.read import connect_snapshot
 
 
-def write_lab_session(directory, *, distance_sensors: bool, optical_reference: bool):
-    """The demo manifest's first participant: calibration trial + one 30-s walking trial, written as MCAP
-    files into ``directory``. Returns (files, truths) in recording order."""
+def write_lab_session(directory, *, distance_sensors: bool, optical_reference: bool, participant: int = 0,
+                      walking_trials: int = 1):
+    """A demo-manifest participant (default the first; 2 = the hemiparetic P003): calibration trial + walking
+    trials of 30 s, written as MCAP files into ``directory``. Returns (files, truths) in recording order."""
     from pipeline.formats.mcap_write import write_recording
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
     from validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
-    m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=distance_sensors,
+    m = replace(m, lab=replace(m.lab, walking_trials=walking_trials, distance_sensors=distance_sensors,
                                optical_reference=optical_reference))
     files, truths = [], []
-    for rec, truth in simulate_lab_session(m, study_participants(m, 1)[0], 0):
+    for rec, truth in simulate_lab_session(m, study_participants(m, participant + 1)[participant], 0):
         files.append(write_recording(rec, directory / f"{rec.name}.mcap"))
         truths.append(truth)
     return files, truths
