@@ -22,8 +22,10 @@ Per stride of foot X (previous IC ``a`` → TC_X → IC ``b``; the other foot Y)
         trajectory is scaled to the mean straight-stride length of both feet (:func:`equal_stride_scale`) and step
         lengths are taken on the first straight stretch of a walk only (up to the first turning stride), where the
         start anchor (feet side by side) holds; after a turn the two frames no longer agree well enough.
-    C7  a stride is *used* when its turning angle is at most ``max_turn_deg`` (turns are not steady walking)
-        and its measure is finite. Per side: mean, SD (ddof 1), n, CV = 100 SD / mean.
+    C7  a stride is *used* when its turning angle is at most ``max_turn_deg`` (turns are not steady walking),
+        it is not among the first or last ``walk_end_strides`` strides of a walk (gait initiation and
+        termination: a walk = strides whose consecutive ICs are less than 3 median stride times apart) and its
+        measure is finite. Per side: mean, SD (ddof 1), n, CV = 100 SD / mean.
 Session:
     C8  gait speed = Σ stride length / Σ stride time over the used strides of both feet (m/s);
         cadence = 120 / mean stride time of both feet (steps/min).
@@ -57,10 +59,12 @@ class ClinicalParams:
     """max_turn_deg: strides turning more are not used (C7); 20° keeps the straight parts of a lab walkway and
         drops the 180° turn (chosen a priori, not tuned). max_step_time_s: a contralateral mid-stance further
         than this after IC_Y is not that step's (C6). min_strides: fewer used strides on a side flag the
-        measure ``few_strides``."""
+        measure ``few_strides``. walk_end_strides: strides not used at each end of a walk (C7; the first stride
+        from standing is a half stride, the last one stops), a priori."""
     max_turn_deg: float = 20.0
     max_step_time_s: float = 2.0
     min_strides: int = 6
+    walk_end_strides: int = 1
 
 
 @dataclass(frozen=True)
@@ -175,6 +179,7 @@ def step_phases(own: FootStrides, other: FootEvents, *, params: ClinicalParams =
                             "single_support_s", "ds_initial_s", "ds_terminal_s", "double_support_pct",
                             "contra_ic_s", "contra_tc_s")}
     reason = np.full(n, "ok", dtype=object)
+    ends = _walk_ends(np.asarray(own.ic_s, float), params.walk_end_strides)
     oic, otc = np.sort(np.asarray(other.ic_s, float)), np.sort(np.asarray(other.tc_s, float))
     mid_s = np.asarray(other.mid_s, float)
     mid_xy = np.asarray(other.mid_xy, float).reshape(-1, 2)
@@ -210,9 +215,25 @@ def step_phases(own: FootStrides, other: FootEvents, *, params: ClinicalParams =
                     out["step_length_m"][k] = float((np.asarray(own.end_xy[k], float) - mid_xy[j]) @ (d / L))
     turn = np.abs(np.asarray(own.turning_deg, float)) > params.max_turn_deg
     reason[turn & (reason == "ok")] = "turn"
-    used = (~turn) & np.isfinite(out["stride_time_s"])
+    reason[ends & (reason == "ok")] = "walk_end"
+    used = (~turn) & (~ends) & np.isfinite(out["stride_time_s"])
     return StepPhases(**out, stride_length_m=np.asarray(own.stride_length_m, float), used=used,
                       reason=reason.astype(str))
+
+
+def _walk_ends(ic_s: np.ndarray, k: int) -> np.ndarray:
+    """(S,) bool: the first and last ``k`` strides of each walk (C7) in a foot's strides sorted by IC."""
+    n = len(ic_s)
+    out = np.zeros(n, bool)
+    if k <= 0 or n == 0:
+        return out
+    d = np.diff(ic_s)
+    med = float(np.median(d)) if len(d) else np.inf
+    cut = np.flatnonzero(d > 3.0 * med) + 1
+    for a, b in zip(np.r_[0, cut], np.r_[cut, n]):
+        out[a:min(b, a + k)] = True
+        out[max(a, b - k):b] = True
+    return out
 
 
 def _stats(v: np.ndarray) -> tuple[float, float, int]:
@@ -279,12 +300,16 @@ def clinical_summary(left: StepPhases, right: StepPhases, *, paretic_side: str |
     measures["cadence_steps_min"] = Measure("cadence_steps_min", "steps/min", cad, sem=sem_cad, flag=flag,
                                             n_left=n_lr["left"], n_right=n_lr["right"])
     for side, ph in sides.items():
-        bad = {r: int(c) for r, c in zip(*np.unique(ph.reason, return_counts=True)) if r not in ("ok", "turn")}
+        bad = {r: int(c) for r, c in zip(*np.unique(ph.reason, return_counts=True))
+               if r not in ("ok", "turn", "walk_end")}
         if bad:
             notes.append(f"{side}: " + ", ".join(f"{c} stride(s) {r.replace('_', ' ')}" for r, c in bad.items()))
         nt = int(np.sum(ph.reason == "turn"))
         if nt:
             notes.append(f"{side}: {nt} turning stride(s) not used")
+        ne = int(np.sum(ph.reason == "walk_end"))
+        if ne:
+            notes.append(f"{side}: {ne} stride(s) at the start or end of a walk not used")
     if paretic_side is None:
         notes.append("paretic side unknown (study manifest or session metadata 'paretic_side'): no paretic ratios")
     return ClinicalSummary(measures=measures, paretic_side=paretic_side, notes=tuple(notes))

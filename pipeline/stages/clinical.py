@@ -132,6 +132,8 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
     cp = ClinicalParams(**params)
     sid = inp.session["session_id"]
     up = inp.upstream
+    if not up.get("strides"):
+        return StageOutput.skipped("clinical skipped: the gait stage found no strides in this session")
     side_p, source = paretic_side(inp)
     notes: list[str] = [] if side_p or not source else [source]
     rows, phases = [], {s: [] for s in SIDES}

@@ -46,7 +46,7 @@ def test_one_row_per_stride_and_measures_recomputable(warehouse):
             assert m.loc[name, f"n_{side}"] == len(v)
             assert m.loc[name, f"sd_{side}"] == pytest.approx(v.std(ddof=1))
     assert m.loc["step_time_s", "mdc95"] == pytest.approx(1.96 * np.sqrt(2) * m.loc["step_time_s", "sem"])
-    assert set(steps.loc[~steps["used"], "reason"]) <= {"turn", "no_previous_ic"}
+    assert set(steps.loc[~steps["used"], "reason"]) <= {"turn", "no_previous_ic", "walk_end"}
 
 
 def test_paretic_side_and_the_simulated_asymmetry(warehouse):

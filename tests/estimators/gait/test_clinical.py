@@ -53,7 +53,10 @@ def walk(n=12, step_l=0.70, step_r=0.50, stance_l=0.70, stance_r=0.90, len_l=0.4
     return out
 
 
-def phases(w, params=ClinicalParams()):
+KEEP_ENDS = ClinicalParams(walk_end_strides=0)      # hand-made walks: every stride counts unless a test says
+
+
+def phases(w, params=KEEP_ENDS):
     return (step_phases(w["left"][0], w["right"][1], params=params),
             step_phases(w["right"][0], w["left"][1], params=params))
 
@@ -75,7 +78,7 @@ def test_asymmetric_steps_give_the_constructed_values():
     np.testing.assert_allclose(left.ds_initial_s, 0.90 - 0.70)         # right stance − left step
     np.testing.assert_allclose(left.ds_terminal_s, 0.70 - 0.50)        # left stance − right step
     np.testing.assert_allclose(left.double_support_pct, 100 * 0.40 / T)
-    s = clinical_summary(left, right, paretic_side="left")
+    s = clinical_summary(left, right, paretic_side="left", params=KEEP_ENDS)
     m = s.measures
     assert m["step_time_s"].paretic_ratio == pytest.approx(0.70 / 0.50)
     assert m["step_time_s"].symmetry_ratio == pytest.approx(0.70 / 0.50)
@@ -184,3 +187,27 @@ def test_common_walking_frame_recovers_step_lengths_from_rotated_feet():
     np.testing.assert_allclose(left.step_length_m[1:], 0.45)
     np.testing.assert_allclose(right.step_length_m, 0.55)
     assert common_walking_frame(np.zeros((1, 2)), np.zeros((1, 2)), np.zeros(1)) is None
+
+
+def test_first_and_last_strides_of_a_walk_are_not_used():
+    """Gait initiation and termination (C7): with the default one stride at each end of each walk dropped, two
+    walks separated by a pause lose two strides each per foot; a short first stride no longer enters the means."""
+    w1, w2 = walk(n=8), walk(n=8, t0=30.0)
+    both = {}
+    for side in ("left", "right"):
+        s1, e1 = w1[side]
+        s2, e2 = w2[side]
+        cat = lambda a, b: np.concatenate([a, b])                      # noqa: E731
+        st = FootStrides(cat(s1.pre_ic_s, s2.pre_ic_s), cat(s1.tc_s, s2.tc_s), cat(s1.ic_s, s2.ic_s),
+                         cat(s1.stride_length_m, s2.stride_length_m), cat(s1.turning_deg, s2.turning_deg),
+                         np.vstack([s1.start_xy, s2.start_xy]), np.vstack([s1.end_xy, s2.end_xy]))
+        st.stride_length_m[0] = 0.3                                    # a half stride from standing
+        ev = FootEvents(cat(e1.ic_s, e2.ic_s), cat(e1.tc_s, e2.tc_s), cat(e1.mid_s, e2.mid_s),
+                        np.vstack([e1.mid_xy, e2.mid_xy]))
+        both[side] = (st, ev)
+    left, right = phases(both, ClinicalParams())
+    assert list(left.reason).count("walk_end") + list(left.reason).count("no_contralateral_tc") == 4
+    assert not left.used[0] and not left.used[7] and not left.used[8] and not left.used[-1]
+    assert list(right.reason).count("walk_end") == 4 and right.used.sum() == len(right) - 4
+    m = clinical_summary(left, right).measures
+    assert m["stride_length_m"].left == pytest.approx(1.0)             # the half stride is not in the mean
