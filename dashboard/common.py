@@ -24,7 +24,7 @@ def warehouse_root() -> Path:
         return Path(args.warehouse).expanduser().resolve()
     if os.environ.get(ENV):
         return Path(os.environ[ENV]).expanduser().resolve()
-    from pipeline.config import default_warehouse
+    from warehouse.location import default_warehouse
     return default_warehouse()
 
 

@@ -13,19 +13,13 @@ import tomllib
 from functools import lru_cache
 from pathlib import Path
 
+from warehouse.location import default_warehouse, home  # noqa: F401  (one definition, shared with the dashboard)
+
 PACKAGE_STUDIES = Path(__file__).resolve().parent.parent / "studies"
-
-
-def home() -> Path:
-    return Path(os.environ.get("STRIDELAB_HOME", "stridelab-home")).resolve()
 
 
 def default_inbox() -> Path:
     return home() / "inbox"
-
-
-def default_warehouse() -> Path:
-    return home() / "warehouse"
 
 
 def default_reports() -> Path:

@@ -202,7 +202,7 @@ def duong_suh_benchmark(seeds: int = 10, *, pitch_deg: float = 0.0) -> dict:
     from the Table 1 geometry, the truth is eq. (24)): mean over seeds of the per-run RMS error per axis (m), for
     ZUPT only, ZUPT + height update, the 21-state filter and the 9-state filter with the Table 1 and the true
     geometry; the 21-state calibration after one trial; and the B12 checks."""
-    from estimators.trajectory import TABLE1_GEOMETRY, DuongSuhParams, duong_suh_trajectory
+    from estimators.trajectory import TABLE1_GEOMETRY, DuongSuhParams, RangeGeometry, duong_suh_trajectory
     from validation.simulator.duong_suh_walk import simulate_ds_walk
     from estimators.trajectory.evaluation import rms_error_per_axis
     methods = {"zupt_only": (DuongSuhParams(use_ranges=False, estimate_calibration=False), False),
@@ -217,13 +217,13 @@ def duong_suh_benchmark(seeds: int = 10, *, pitch_deg: float = 0.0) -> dict:
         w = simulate_ds_walk(seed, pitch_deg=pitch_deg)
         for m, (p, true_geo) in methods.items():
             r = duong_suh_trajectory(w.gyr, w.acc, w.ranges, sampling_rate_hz=w.sampling_rate_hz,
-                                     geometry=w.geometry if true_geo else TABLE1_GEOMETRY, params=p,
+                                     geometry=RangeGeometry.from_array(w.geometry) if true_geo else TABLE1_GEOMETRY, params=p,
                                      initial_quat=w.quat0, initial_height_m=None if p.use_ranges else float(w.pos[0, 2]))
             errs[m].append(rms_error_per_axis(r.pos, w.pos))
             if m == "ds21":
                 cal.append(r.geometry.as_array())
     mean = {m: np.mean(v, axis=0) for m, v in errs.items()}
-    g_true, g0, g_est = w.geometry.as_array(), TABLE1_GEOMETRY.as_array(), np.mean(cal, axis=0)
+    g_true, g0, g_est = np.asarray(w.geometry), TABLE1_GEOMETRY.as_array(), np.mean(cal, axis=0)
     ez = {m: float(v[2]) for m, v in mean.items()}
     out = {"seeds": seeds, "pitch_deg": pitch_deg,
            "rms_error_m": {m: {"x": float(v[0]), "y": float(v[1]), "z": float(v[2])} for m, v in mean.items()},

@@ -3,7 +3,7 @@
 Public API
 ----------
 ``simulate_study(manifest, *, seed=None, participants=None)``
-    Iterator of ``estimators.recording.Recording``, one at a time (never more than one 24 h day in
+    Iterator of ``validation.simulator.Recording`` (field for field the recording layout the format writers read), one at a time (never more than one 24 h day in
     memory): per participant the lab session (calibration trial, then the walking trials), then the
     free-living chest day.
 ``simulate_lab_session(manifest, participant, index, *, seed=None, sensor_model=None)``
@@ -32,7 +32,7 @@ from typing import Iterator
 
 import numpy as np
 
-from estimators.recording import Recording
+from ._records import Recording
 from studies.manifest import ParticipantSpec, StudyManifest, load_manifest
 
 from ._chest_day import ChestDayTruth, simulate_chest_day

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.recording import ImuData, Recording
+from ._records import ImuData, Recording
 from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._kinematics import bump, heading_frame, rot_x, rot_y, rot_z, smoothstep
@@ -412,7 +412,7 @@ def _merge_labels(bouts):
 
 def _fill_nonwear(acc, gyr, i0, i1, tau, dur, R_on0, R_table, R_on1, h):
     """Sensor taken off (4 s), lying still on a table, put back on (4 s) with a new mounting."""
-    from estimators.quaternion import quat_from_matrix, quat_mul, quat_conj, quat_to_rotvec, quat_from_rotvec, quat_to_matrix
+    from ._rotations import quat_conj, quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix, quat_to_rotvec
     q0, qt, q1 = quat_from_matrix(R_on0), quat_from_matrix(R_table), quat_from_matrix(R_on1)
     d_off = quat_to_rotvec(quat_mul(quat_conj(q0), qt))
     d_on = quat_to_rotvec(quat_mul(quat_conj(qt), q1))

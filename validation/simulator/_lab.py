@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.quaternion import quat_from_matrix
-from estimators.recording import ImuData, PoseData, RangeData, Recording
+from ._jcs_truth import jcs_angles_deg
+from ._records import ImuData, PoseData, RangeData, Recording
+from ._rotations import quat_from_matrix
 from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._gait_patterns import BodyGeometry, GaitParams, body_geometry, gait_params
@@ -84,16 +85,9 @@ def range_geometry(geo: BodyGeometry) -> dict[str, tuple[np.ndarray, np.ndarray]
 
 
 def joint_angles_deg(R_prox, R_dist, side: str, joint: str) -> np.ndarray:
-    """ISB/Grood & Suntay angles (FE, AA, IE) in degrees with the clinical signs of spec §5.3."""
-    Rr = np.swapaxes(R_prox, 1, 2) @ R_dist
-    alpha = np.arctan2(-Rr[:, 0, 1], Rr[:, 1, 1])
-    beta = np.arcsin(np.clip(Rr[:, 2, 1], -1.0, 1.0))
-    gamma = np.arctan2(-Rr[:, 2, 0], Rr[:, 2, 2])
-    if joint == "knee":
-        alpha = -alpha
-    if side == "left":
-        beta, gamma = -beta, -gamma
-    return np.degrees(np.stack([alpha, beta, gamma], 1))
+    """ISB/Grood & Suntay angles (FE, AA, IE) in degrees with the clinical signs of spec §5.3
+    (:func:`validation.simulator._jcs_truth.jcs_angles_deg`, the simulator's own JCS)."""
+    return jcs_angles_deg(R_prox, R_dist, joint=joint, side=side)
 
 
 def local_to_utc_ns(day: _dt.date, hhmm: str, tz: str, offset_s: float = 0.0) -> int:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.quaternion import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix
+from ._rotations import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix
 from studies.manifest import SensorModelSpec
 
 G = 9.81

@@ -17,9 +17,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.trajectory._duong_suh import EQ24_GEOMETRY, GRAVITY, RangeGeometry
+from ._rotations import quat_from_matrix
 
-__all__ = ["DsWalk", "simulate_ds_walk"]
+__all__ = ["DsWalk", "simulate_ds_walk", "SHOE_GEOMETRY_EQ24"]
+
+GRAVITY = 9.81
+#: the simulated shoe: lever arms r_A, r_B (m) from the IMU to the two distance sensors and their unit beam
+#: directions n_A, n_B, in IMU body coordinates (x toward the floor), rows (r_A, r_B, n_A, n_B). Values: the
+#: calibration Duong & Suh 2015 report for their own shoe after a walking trial, eq. (24) (spec B11 takes it as
+#: the truth of the closed-loop test), transcribed here from the paper.
+SHOE_GEOMETRY_EQ24 = np.array([[-0.0124, 0.0806, 0.0], [-0.0033, -0.0611, -0.0006],
+                               [1.0, 0.0001, 0.0], [1.0, 0.0002, -0.0001]])
 
 R_FLAT = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]])
 
@@ -27,14 +35,15 @@ R_FLAT = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]])
 @dataclass(frozen=True)
 class DsWalk:
     """gyr, acc (N, 3); ranges (N, 2) (NaN = no reading); pos (N, 3) and rot (N, 3, 3) truth; quat0 (4,) true
-    initial attitude; geometry: the true sensor mounting; sampling_rate_hz; stance (N,) bool truth."""
+    initial attitude; geometry: the true sensor mounting, (4, 3) rows r_A, r_B, n_A, n_B (a filter takes it as
+    ``RangeGeometry.from_array``); sampling_rate_hz; stance (N,) bool truth."""
     gyr: np.ndarray
     acc: np.ndarray
     ranges: np.ndarray
     pos: np.ndarray
     rot: np.ndarray
     quat0: np.ndarray
-    geometry: RangeGeometry
+    geometry: np.ndarray
     sampling_rate_hz: float
     stance: np.ndarray
 
@@ -66,7 +75,7 @@ def _rot(th):
 def simulate_ds_walk(seed: int = 0, *, sampling_rate_hz: float = 100.0, stand_s: float = 2.0, n_strides: int = 8,
                      stance_s: float = 0.6, swing_s: float = 0.4, end_s: float = 1.0, stride_length_m: float = 1.2,
                      stance_height_m: float = 0.04, clearance_m: float = 0.12, pitch_deg: float = 0.0,
-                     geometry: RangeGeometry = EQ24_GEOMETRY, acc_noise: float = 0.05, gyr_noise: float = 0.01,
+                     geometry=SHOE_GEOMETRY_EQ24, acc_noise: float = 0.05, gyr_noise: float = 0.01,
                      acc_bias=(0.05, -0.04, 0.03), gyr_bias=(0.004, -0.003, 0.005), range_noise_m: float = 0.003,
                      range_divider: int = 3, max_range_m: float = 0.20) -> DsWalk:
     """The B11 configuration by default (10 seeds in the acceptance test)."""
@@ -88,7 +97,7 @@ def simulate_ds_walk(seed: int = 0, *, sampling_rate_hz: float = 100.0, stand_s:
     f_w = a_w + np.array([0.0, 0.0, GRAVITY])
     acc = np.einsum("nji,nj->ni", R, f_w) + np.asarray(acc_bias) + rng.normal(0, acc_noise, (n, 3))
     gyr = np.einsum("nji,nj->ni", R, w_world) + np.asarray(gyr_bias) + rng.normal(0, gyr_noise, (n, 3))
-    g = geometry.as_array()
+    g = np.array(geometry, float).reshape(4, 3)
     ranges = np.full((n, 2), np.nan)
     idx = np.arange(0, n, range_divider)
     for s in range(2):
@@ -98,10 +107,9 @@ def simulate_ds_walk(seed: int = 0, *, sampling_rate_hz: float = 100.0, stand_s:
             d = np.where(beam[:, 2] < -0.1, -pnt[:, 2] / beam[:, 2], np.nan)
         d = d + rng.normal(0, range_noise_m, len(idx))
         ranges[idx, s] = np.where((d > max_range_m) | (d <= 0), np.nan, d)
-    from estimators.quaternion import quat_from_matrix
     period = stance_s + swing_s
     stance = np.ones(n, bool)
     for k in range(n_strides):
         to = stand_s + k * period + stance_s
         stance &= ~((t > to) & (t < to + swing_s))
-    return DsWalk(gyr, acc, ranges, p, R, quat_from_matrix(R[0]), geometry, fs, stance)
+    return DsWalk(gyr, acc, ranges, p, R, quat_from_matrix(R[0]), g, fs, stance)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import erf
 
-from estimators.quaternion import quat_from_axis_angle, quat_mul, quat_to_matrix
+from ._rotations import quat_from_axis_angle, quat_mul, quat_to_matrix
 
 __all__ = ["SimWalk", "simulate_yun_walk"]
 

@@ -1,7 +1,7 @@
 """Known-answer kinematic fixtures for calibration and joint-angle tests (spec §9.4 recipes).
 
 A seven-segment lower body (pelvis, thighs, shanks, feet; ISB frames, ENU earth, walking toward
-east) is driven by known clinical joint angles through :func:`estimators.joints.clinical_to_matrix`;
+east) is driven by known clinical joint angles through the simulator's own JCS (``_jcs_truth``);
 IMUs sit on the segments with known mounting rotations ``R_sensor_af``; angular velocity is the body
 rate of the sensor orientation and specific force the rotated second derivative of the sensor
 position plus gravity. Used by the unit tests and as a fallback scene of ``stridelab bench
@@ -13,10 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.calibration._types import CalibrationWindows
-from estimators.calibration.alignment import body_rate_from_quat
-from estimators.joints._jcs import clinical_to_matrix, zxy_matrix
-from estimators.quaternion import quat_from_matrix
+from ._jcs_truth import cardan_zxy, jcs_relative_matrix
+from ._rotations import body_rate_from_quat, quat_from_matrix
 
 PLACEMENTS7 = ("pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right")
 G = 9.81
@@ -28,7 +26,8 @@ R_G_AF0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 class SyntheticTrial:
     """acc / gyr: placement -> (N, 3) in the sensor frame; quat_sensor / quat_segment: (N, 4) truth
     sensor→ENU and anatomical→ENU; angles_deg: "<joint>_<side>" -> (N, 3) true clinical angles;
-    R_sensor_af: true mounting; windows: true calibration windows; ic: side -> IC sample indices;
+    R_sensor_af: true mounting; windows: true calibration windows (:class:`TrueWindows`, sample indices);
+    ic: side -> IC sample indices;
     standing: ``[start, end)`` of the initial quiet standing."""
     sampling_rate_hz: float
     acc: dict
@@ -37,9 +36,22 @@ class SyntheticTrial:
     quat_segment: dict
     angles_deg: dict
     R_sensor_af: dict
-    windows: CalibrationWindows
+    windows: "TrueWindows"
     ic: dict = field(default_factory=dict)
     standing: tuple[int, int] = (0, 0)
+
+
+@dataclass(frozen=True)
+class TrueWindows:
+    """Half-open ``[start, end)`` sample windows of what the fixture did: quiet ``standing``, ``hip_fe`` side ->
+    window of that leg's hip flexion/extension, ``walking`` (None = not in the trial). The calibration's own
+    window type is built from these by the caller (``CalibrationWindows(**trial.windows.as_kwargs())``)."""
+    standing: tuple[int, int] | None = None
+    hip_fe: dict = field(default_factory=dict)
+    walking: tuple[int, int] | None = None
+
+    def as_kwargs(self) -> dict:
+        return {"standing": self.standing, "hip_fe": dict(self.hip_fe), "walking": self.walking, "source": "manual"}
 
 
 def _rot_axis(axis, ang):
@@ -169,7 +181,7 @@ def _simulate(prog: _Program, mounts: dict, rng, noise: bool, placements=PLACEME
     vel = np.concatenate(prog.vel)
     N = vel.size
     x = np.cumsum(vel) / fs
-    R_pel = R_G_AF0 @ zxy_matrix(pel[:, 0], pel[:, 1], pel[:, 2])
+    R_pel = R_G_AF0 @ cardan_zxy(pel[:, 0], pel[:, 1], pel[:, 2])
     ph = 2 * np.pi * np.nan_to_num(np.concatenate(prog.phase_r))
     walking = vel / max(vel.max(), 1e-9)
     # centre of mass: vertical bounce at the step frequency, medio-lateral sway toward the stance leg
@@ -179,9 +191,9 @@ def _simulate(prog: _Program, mounts: dict, rng, noise: bool, placements=PLACEME
     pos = {}
     for side, zs in (("left", -1.0), ("right", 1.0)):
         hipc = pos_pel + np.einsum("nij,j->ni", R_pel, [0.0, -0.05, 0.09 * zs])
-        Rt = R_pel @ clinical_to_matrix(ang[f"hip_{side}"], joint="hip", side=side)
-        Rs = Rt @ clinical_to_matrix(ang[f"knee_{side}"], joint="knee", side=side)
-        Rf = Rs @ clinical_to_matrix(ang[f"ankle_{side}"], joint="ankle", side=side)
+        Rt = R_pel @ jcs_relative_matrix(ang[f"hip_{side}"], joint="hip", side=side)
+        Rs = Rt @ jcs_relative_matrix(ang[f"knee_{side}"], joint="knee", side=side)
+        Rf = Rs @ jcs_relative_matrix(ang[f"ankle_{side}"], joint="ankle", side=side)
         knee = hipc + Rt @ np.array([0.0, -0.42, 0.0])
         ankle = knee + Rs @ np.array([0.0, -0.42, 0.0])
         R[f"thigh_{side}"], R[f"shank_{side}"], R[f"foot_{side}"] = Rt, Rs, Rf
@@ -195,7 +207,7 @@ def _simulate(prog: _Program, mounts: dict, rng, noise: bool, placements=PLACEME
         q_s = quat_from_matrix(R_G_S)
         a_G = np.gradient(np.gradient(pos[p], axis=0), axis=0) * fs * fs + np.array([0.0, 0.0, G])
         a = np.einsum("nji,nj->ni", R_G_S, a_G)
-        w = body_rate_from_quat(q_s, sampling_rate_hz=fs)
+        w = body_rate_from_quat(q_s, fs)
         if noise:
             a = a + rng.normal(0, 0.05, a.shape)
             w = w + rng.normal(0, 0.02, w.shape)
@@ -243,7 +255,7 @@ def calibration_trial(*, mounts: dict, rng: np.random.Generator, sampling_rate_h
     prog.stand(1.5, rng)
     acc, gyr, qs, qa, ang = _simulate(prog, mounts, rng, noise)
     return SyntheticTrial(sampling_rate_hz, acc, gyr, qs, qa, ang, dict(mounts),
-                          CalibrationWindows(standing=st, hip_fe=fe, walking=wk, source="manual"),
+                          TrueWindows(standing=st, hip_fe=fe, walking=wk),
                           _ic_from_phase(np.concatenate(prog.phase_r)), st)
 
 
@@ -259,5 +271,5 @@ def walking_trial(*, mounts: dict, rng: np.random.Generator, sampling_rate_hz: f
     prog.stand(1.0, rng)
     acc, gyr, qs, qa, ang = _simulate(prog, mounts, rng, noise)
     return SyntheticTrial(sampling_rate_hz, acc, gyr, qs, qa, ang, dict(mounts),
-                          CalibrationWindows(standing=st, walking=wk, source="manual"),
+                          TrueWindows(standing=st, walking=wk),
                           _ic_from_phase(np.concatenate(prog.phase_r)), st)

@@ -41,14 +41,14 @@ def _window(truth, label):
     return [(a, b, s) for lab, a, b, s in truth.windows if lab == label]
 
 
-def test_simulated_quiet_standing_is_upright_with_sway(trials):
+def test_simulated_quiet_standing_sways(trials):
+    """The simulated quiet standing is never perfectly still (postural sway). How upright it is, is the
+    simulator's own draw, not pinned to the calibration's assumption (issue 16: the test that bounded the segment
+    tilt by 1.6° is gone; bench violations scores calibration on standing with knee flexion)."""
     for person, acc, gyr, truth, _ in trials.values():
         (a, b, _), = _window(truth, "quiet_standing")
         sl = slice(int(a * FS) + 10, int(b * FS) - 10)
         for p in LEGS:
-            R = quat_to_matrix(truth.segment_quat[p][sl])
-            tilt = np.degrees(np.arccos(np.clip(R[:, 2, 1], -1, 1)))          # segment y vs vertical
-            assert tilt.max() < 1.6, (person.id, p, tilt.max())
             w = np.linalg.norm(truth.gyr_true[p][sl], axis=1)
             assert 1e-4 < w.max() < 0.05, (person.id, p, w.max())                # postural sway, still quiet
 
