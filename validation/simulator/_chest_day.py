@@ -53,19 +53,46 @@ class Bout:
     steps: int = 0
 
 
+#: Published ranges the day is drawn from (issue 16: not from the activity rules' thresholds, which sit at
+#: stairs cadence / level cadence < 0.88 and a chest drop > 0.35 thigh lengths).
+#: - Segment heights as fractions of stature H (Winter, Biomechanics and Motor Control of Human Movement, 4th ed.
+#:   2009, Fig. 4.1, after Drillis & Contini 1966): greater trochanter (hip) 0.530 H, knee 0.285 H.
+#: - Sitting: the seat is at about knee height (popliteal height ≈ knee height) scaled by U(0.85, 1.15) per sit
+#:   (chairs are not fitted to the person: low sofa … high stool); the hip sits half a thigh depth, 0.08 m, above
+#:   the seat. Chest drop stand -> sit = hip drop (upright trunk) = 0.530 H − seat − 0.08 m
+#:   (H = 1.75 m: 0.27-0.42 m = 0.63-0.98 thigh lengths).
+#: - Stair descent: gait cycle 0.97 ± 0.18 s (mean ± SD of 101 unimpaired adults aged 18-35 descending an
+#:   unconstrained 13-step staircase outside the laboratory, wearable sensors; abstract at
+#:   https://www.safetylit.org/citations/index.php?fuseaction=citations.viewdetails&citationIds%5B%5D=citjournalarticle_703263_26),
+#:   i.e. about 124 steps/min, faster than most level walking.
+#: - Stair ascent: gait cycle N(1.15, 0.15) s is an ASSUMPTION (no cited figure at hand; slower than the descent);
+#:   replace it when a source is cited.
+#: Hemiparetic participants take stairs 1.4× slower (assumption, as their level walking in ``speed``).
+HIP_HEIGHT_FRAC, KNEE_HEIGHT_FRAC, SEATED_HIP_ABOVE_SEAT_M = 0.530, 0.285, 0.08
+SEAT_SCALE_RANGE = (0.85, 1.15)
+STAIRS_CYCLE_S = {"stairs_down": (0.97, 0.18), "stairs_up": (1.15, 0.15)}
+STAIRS_CYCLE_CLIP_S = (0.65, 1.8)
+
+
 class _Script:
     """Builds the day's bouts sequentially, tracking the posture."""
 
     def __init__(self, rng: np.random.Generator, p: ParticipantSpec):
         self.rng, self.p = rng, p
         s = p.height_m / 1.75
-        self.z_stand, self.z_sit, self.z_lie = 1.30 * s, 1.30 * s - 0.9 * p.thigh_m, 0.62
+        self.z_stand, self.z_lie = 1.30 * s, 0.62
         self.floor = 0.0     # height of the storey the person is on (stairs move it); postures are relative to it
         self.t = 0.0
         self.bouts: list[Bout] = []
         self.pos = Posture(lean=D(-90.0), bend=0.0, roll=0.0, psi=0.3, z=self.z_lie)
         self.slow = p.hemiparetic
         self.step_hz = p.cadence_steps_min / 60.0
+
+    def _z_sit(self) -> float:
+        """Chest height when seated on a seat drawn for this sit (module constants: published anthropometry)."""
+        h = self.p.height_m
+        seat = KNEE_HEIGHT_FRAC * h * self.rng.uniform(*SEAT_SCALE_RANGE)
+        return self.z_stand - (HIP_HEIGHT_FRAC * h - seat - SEATED_HIP_ABOVE_SEAT_M)
 
     def _add(self, label, dur, kind, end: Posture, **params):
         b = Bout(label, self.t, self.t + dur, kind, self.pos, end, params)
@@ -82,7 +109,7 @@ class _Script:
         self._add("lying", 4.0, "transition", e, bump_lean=0.0, shift=0.0)
 
     def lie_to_sit(self):
-        e = Posture(D(8.0), 0.0, 0.0, self.pos.psi + D(90.0), self.floor + self.z_sit)
+        e = Posture(D(8.0), 0.0, 0.0, self.pos.psi + D(90.0), self.floor + self._z_sit())
         self._add("transition", self.rng.uniform(3.0, 4.5), "transition", e, bump_lean=0.0, shift=0.25)
 
     def sit_to_lie(self):
@@ -96,11 +123,16 @@ class _Script:
 
     def stand_to_sit(self):
         dur = self.rng.uniform(2.0, 3.0) * (1.5 if self.slow else 1.0)
-        e = Posture(D(self.rng.uniform(-5.0, 15.0)), 0.0, 0.0, self.pos.psi, self.floor + self.z_sit)
+        e = Posture(D(self.rng.uniform(-5.0, 15.0)), 0.0, 0.0, self.pos.psi, self.floor + self._z_sit())
         self._add("transition", dur, "transition", e, bump_lean=D(30.0), shift=-0.2)
 
     def walk(self, label, dur, turns=0):
-        f = self.step_hz * (0.8 if label != "level_walking" else 1.0) * self.rng.uniform(0.93, 1.05)
+        if label == "level_walking":
+            f = self.step_hz * self.rng.uniform(0.93, 1.05)
+        else:                                   # stairs: published cycle times, not a ratio to level cadence
+            mu, sd = STAIRS_CYCLE_S[label]
+            cycle = float(np.clip(self.rng.normal(mu, sd), *STAIRS_CYCLE_CLIP_S)) * (1.4 if self.slow else 1.0)
+            f = 2.0 / cycle
         rise = {"level_walking": 0.0, "stairs_up": 0.17, "stairs_down": -0.17}[label]
         n_turn = turns
         turn_t = np.sort(self.rng.uniform(2.0, max(2.5, dur - 3.0), n_turn)) if n_turn else np.zeros(0)
