@@ -8,6 +8,7 @@ from pathlib import Path
 
 import streamlit as st
 
+from dashboard.snapshot import Snapshot, open_snapshot
 from warehouse import queries as Q
 
 ENV = "STRIDELAB_WAREHOUSE"
@@ -28,17 +29,17 @@ def warehouse_root() -> Path:
     return default_warehouse()
 
 
-def snapshot() -> Q.Snapshot | None:
+def snapshot() -> Snapshot | None:
     """The newest published snapshot, or None after telling the user what to run."""
     root = warehouse_root()
-    snap = Q.open_snapshot(root)
+    snap = open_snapshot(root)
     if snap is None:
         st.info(f"The warehouse at `{root}` has no published data yet. To fill it, "
                 f"{Q.RUN_HINT.replace('WAREHOUSE', str(root))}.", icon=":material/info:")
     return snap
 
 
-def empty_warehouse_note(snap: Q.Snapshot) -> bool:
+def empty_warehouse_note(snap: Snapshot) -> bool:
     """True (and a hint shown) when the snapshot holds no session at all."""
     if snap.q(Q.counts)["sessions"] == 0:
         st.info(f"No sessions in the warehouse yet: {Q.RUN_HINT}.", icon=":material/info:")
@@ -50,7 +51,7 @@ def hint(dataset: str) -> None:
     st.caption(":material/hourglass_empty: " + Q.missing_hint(dataset))
 
 
-def footer(snap: Q.Snapshot | None) -> None:
+def footer(snap: Snapshot | None) -> None:
     if snap is not None:
         st.caption(f"Snapshot `{snap.name}` of `{snap.root}` (read-only).")
 
@@ -58,7 +59,7 @@ def footer(snap: Q.Snapshot | None) -> None:
 def study_selector() -> str | None:
     """The study selector every page shares (sidebar, above the page's own filters; ``?study=`` in the URL):
     the selected study id, or None for all studies side by side."""
-    snap = Q.open_snapshot(warehouse_root())
+    snap = open_snapshot(warehouse_root())
     if snap is None:
         return None
     studies = sorted(snap.q(Q.studies)["study"].dropna().astype(str).unique())
@@ -86,7 +87,7 @@ def current_study() -> str | None:
     return None if v in (None, ALL_STUDIES) else v
 
 
-def participant_picker(snap: Q.Snapshot, key: str = "participant") -> tuple[str | None, str | None]:
+def participant_picker(snap: Snapshot, key: str = "participant") -> tuple[str | None, str | None]:
     """Participant selector in the sidebar, within the study of the shared selector (or a per-page study
     selector when all studies are shown); returns (study, participant_id)."""
     parts = snap.q(Q.participants)

@@ -35,9 +35,8 @@ def gait_trend(summary: pd.DataFrame, params: list[str]) -> go.Figure:
     fig = make_subplots(rows=1, cols=max(1, len(params)), subplot_titles=[GAIT_PARAMS.get(p, p) for p in params])
     for i, p in enumerate(params, start=1):
         fig.add_trace(go.Scatter(x=summary["date"], y=summary[p], mode="lines+markers", name=GAIT_PARAMS.get(p, p),
-                                 error_y=dict(type="data", array=summary.get(f"{p}_sd"), visible=True),
                                  hovertext=summary["session_id"], showlegend=False), row=1, col=i)
-    return _layout(fig, 300, title="Gait parameters across sessions (mean ± SD per session)")
+    return _layout(fig, 300, title="Gait parameters across sessions (the gait stage's summary, both feet)")
 
 
 def joint_cycles(df: pd.DataFrame, joint: str, plane: str | None) -> go.Figure:

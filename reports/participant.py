@@ -31,7 +31,7 @@ from reports.normative import normative_band
 A4 = (8.27, 11.69)
 TITLES = {1: "Participant, sessions and data quality", 2: "Gait parameters", 3: "Joint angles",
           4: "Daily activity", 5: "Accuracy against reference"}
-FIG_CAPTIONS = {1: "Figure 1: Gait parameters across sessions (mean ± SD per session)",
+FIG_CAPTIONS = {1: "Figure 1: Gait parameters across sessions (the gait stage's summary per session)",
                 2: "Figure 2: Joint angles over the gait cycle, newest lab session, against a normative band",
                 3: "Figure 3: Time per activity class and day",
                 4: "Figure 4: Bland-Altman plot of stride length (IMU vs reference)"}
@@ -67,7 +67,7 @@ def collect(con, root: Path, participant_id: str, study: str | None) -> dict:
         "participant_id": participant_id, "study": study, "sessions": ses,
         "recordings": Q.recordings(con, participant_id, study),
         "issues": Q.participant_issues(con, participant_id, study),
-        "strides": strides, "gait": Q.gait_summary(strides) if strides is not None else None,
+        "strides": strides, "gait": Q.gait_summary(con, participant_id, study),
         "joints": Q.joint_cycles(con, participant_id, study), "calibration": Q.calibration_qc(con, participant_id, study),
         "daily": Q.activity_daily(con, participant_id, study), "accuracy": acc, "stride_pairs": pairs,
         "orientation": Q.orientation_coverage(con, participant_id, study),
@@ -88,11 +88,11 @@ def _plt():
 
 def fig_gait(gait: pd.DataFrame):
     plt = _plt()
-    params = [p for p in ("speed_m_s", "cadence_spm", "stride_length_m", "stance_pct") if p in gait]
+    params = [p for p in ("speed_m_s", "cadence_steps_min", "stride_length_m", "stance_pct") if p in gait]
     fig, axes = plt.subplots(1, len(params), figsize=(7.4, 2.3), squeeze=False)
     x = np.arange(len(gait))
     for ax, p in zip(axes[0], params):
-        ax.errorbar(x, gait[p], yerr=gait.get(f"{p}_sd"), marker="o", capsize=3, lw=1.2, color="#4c78a8")
+        ax.plot(x, gait[p], marker="o", lw=1.2, color="#4c78a8")
         ax.set_title(Q.GAIT_PARAMS[p])
         ax.set_xticks(x, [d.strftime("%d %b") for d in gait["date"]], rotation=45, ha="right")
     fig.tight_layout()
@@ -195,9 +195,9 @@ def sessions_table(d) -> pd.DataFrame:
 
 
 def gait_table(gait: pd.DataFrame) -> pd.DataFrame:
-    cols = {"session_id": "session", "strides": "strides", "speed_m_s": "speed m/s", "cadence_spm": "cadence /min",
-            "stride_length_m": "stride length m", "stance_pct": "stance %", "symmetry_stride_time_s": "SI stride time %",
-            "symmetry_stride_length_m": "SI stride length %"}
+    cols = {"session_id": "session", "strides": "strides", "speed_m_s": "speed m/s",
+            "cadence_steps_min": "cadence /min", "stride_length_m": "stride length m", "stance_pct": "stance %",
+            "si_stride_time_pct": "SI stride time %", "si_stride_length_pct": "SI stride length %"}
     return gait[[c for c in cols if c in gait]].rename(columns=cols)
 
 
@@ -260,7 +260,8 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[2].append(("note", "No strides were detected in this participant's lab sessions."))
     else:
         pages[2].append(("figure", FIG_CAPTIONS[1], fig_gait(g)))
-        pages[2].append(("table", "Per session (SI: symmetry index, 100·|L−R|/mean; 0 = symmetric)", gait_table(g)))
+        pages[2].append(("table", "Per session, the gait stage's summary (SI: symmetry index, 200·|L−R|/(L+R) %; "
+                                  "0 = symmetric)", gait_table(g)))
 
     j = d["joints"]
     if j is None:

@@ -4,18 +4,17 @@ Two layers:
 
 * plain functions ``name(con, ...) -> pandas.DataFrame`` (no Streamlit): the reports and the
   benchmark call them with their own connection;
-* :class:`Snapshot` used by the pages: one cached read-only connection per published snapshot
-  (``st.cache_resource``; a newer snapshot gives a new connection, the old one is closed when it
-  leaves the cache) and ``st.cache_data`` on every query, keyed by the snapshot name, so a nightly
-  run that publishes a snapshot invalidates the cache without ever being blocked by a reader.
+* :data:`QUERIES`, the registry the dashboard's cached access (``dashboard/snapshot.py``: one cached read-only
+  connection per published snapshot, ``st.cache_data`` on every query keyed by the snapshot name) runs by name;
+  this module never imports Streamlit.
 
 Filter values reach SQL **only as parameters** (``?``). Identifiers (table and column names) come
 from ``information_schema`` of the snapshot itself, never from user input, and are quoted.
 
-Tables written by later stages are optional. Their expected names and columns are declared once in
-:data:`DATASETS` (with accepted aliases), resolved against ``information_schema`` at query time: a
-page shows a dataset when it is present and a hint of what to run when it is not. Adapting to the
-final schema of a stage is an edit of that table.
+The stage outputs are the tables the migrations create (``warehouse/migrations``), declared once in
+:data:`DATASETS` with their real column names (no aliases); a snapshot made before a migration may lack a
+table, and a page then shows a hint of what to run. The gait parameters shown are the gait stage's own
+``gait_summary`` rows (cadence, symmetry), never recomputed here.
 """
 from __future__ import annotations
 
@@ -23,11 +22,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-import duckdb
 import numpy as np
 import pandas as pd
 
-from warehouse.read import latest_snapshot
 
 RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridelab demo --no-serve`)"
 
@@ -46,66 +43,54 @@ def _c(*names: str) -> tuple[str, ...]:
     return names
 
 
-#: stage outputs that are optional (added by later stages); first matching table name wins
+#: stage outputs, by the tables and columns the migrations (warehouse/migrations/*.sql) define: one table per
+#: dataset, logical column -> the real column (the same name except ``cycle_pct`` = ``joint_angle_curves.pct``)
 DATASETS: dict[str, Dataset] = {
     "strides": Dataset(
-        tables=("strides", "gait_strides", "stride_parameters"),
-        columns={"session_id": _c("session_id"), "side": _c("side", "placement", "foot"),
-                 "ic_ns": _c("ic_ns", "start_ns", "t_ns"), "tc_ns": _c("tc_ns"),
-                 "stride_time_s": _c("stride_time_s", "duration_s"),
-                 "stance_pct": _c("stance_pct", "stance_percent", "stance_time_pct"),
-                 "swing_pct": _c("swing_pct", "swing_percent"),
-                 "double_support_pct": _c("double_support_pct"),
-                 "cadence_spm": _c("cadence_spm", "cadence_steps_min", "cadence"),
-                 "stride_length_m": _c("stride_length_m", "length_m"),
-                 "speed_m_s": _c("speed_m_s", "gait_speed_m_s", "velocity_m_s"),
-                 "clearance_m": _c("clearance_m", "max_clearance_m", "foot_clearance_m"),
-                 "turning_deg": _c("turning_deg", "turning_angle_deg"),
-                 "stride_length_ref_m": _c("stride_length_ref_m", "ref_stride_length_m",
-                                           "reference_stride_length_m")},
+        tables=("strides",),
+        columns={c: _c(c) for c in ("session_id", "trial", "side", "ic_ns", "tc_ns", "stride_time_s", "stance_pct",
+                                    "swing_pct", "stride_length_m", "speed_m_s", "clearance_m", "turning_deg",
+                                    "stride_length_ref_m", "status")},
         required=("session_id", "stride_time_s"),
         produced_by="the gait stage (gait events and strides)"),
+    "gait_summary": Dataset(
+        tables=("gait_summary",),
+        columns={c: _c(c) for c in ("session_id", "side", "cadence_steps_min", "speed_m_s", "stride_length_m",
+                                    "stride_time_s", "stance_pct", "swing_pct", "double_support_pct", "clearance_m",
+                                    "si_stride_length_pct", "si_stride_time_pct", "si_stance_pct",
+                                    "si_swing_time_pct", "si_clearance_pct", "n_strides", "status", "note")},
+        required=("session_id", "side"),
+        produced_by="the gait stage (per-session gait summary)"),
     "calibration": Dataset(
-        tables=("calibration_qc", "calibrations", "calibration"),
-        columns={"session_id": _c("session_id"), "placement": _c("placement", "segment"),
-                 "status": _c("status", "qc_status", "qc"), "reasons": _c("reasons", "reason", "qc_reasons",
-                                                                          "message", "flags")},
-        required=("session_id", "placement"),
+        tables=("calibration",),
+        columns={c: _c(c) for c in ("session_id", "placement", "status", "reasons", "method", "n_reps")},
+        required=("session_id", "placement", "status"),
         produced_by="the calibration stage"),
     "joint_cycles": Dataset(
-        tables=("joint_angle_cycles", "joint_angle_curves", "joint_cycles"),
-        columns={"session_id": _c("session_id"), "joint": _c("joint"), "side": _c("side"),
-                 "plane": _c("plane", "axis", "component"),
-                 "cycle_pct": _c("cycle_pct", "pct", "gait_cycle_pct", "percent"),
-                 "mean_deg": _c("mean_deg", "mean", "angle_deg"), "sd_deg": _c("sd_deg", "std_deg", "sd")},
+        tables=("joint_angle_curves",),
+        columns={"session_id": _c("session_id"), "joint": _c("joint"), "side": _c("side"), "plane": _c("plane"),
+                 "cycle_pct": _c("pct"), "mean_deg": _c("mean_deg"), "sd_deg": _c("sd_deg")},
         required=("session_id", "joint", "cycle_pct", "mean_deg"),
         produced_by="the joint-angle stage"),
     "activity_bouts": Dataset(
-        tables=("activity_bouts", "activity_timeline", "activity"),
-        columns={"session_id": _c("session_id"), "start_ns": _c("start_ns", "t_ns"), "end_ns": _c("end_ns"),
-                 "class": _c("class", "activity", "label", "posture"),
-                 "steps": _c("steps", "n_steps", "step_count")},
+        tables=("activity_bouts",),
+        columns={c: _c(c) for c in ("session_id", "start_ns", "end_ns", "class", "steps")},
         required=("session_id", "start_ns", "end_ns", "class"),
         produced_by="the daily-activity stage (chest sensor)"),
     "accuracy": Dataset(
-        tables=("accuracy_metrics", "accuracy"),
-        columns={"session_id": _c("session_id"), "stage": _c("stage"),
-                 "estimator": _c("estimator", "algorithm", "method"), "placement": _c("placement", "joint", "side"),
-                 "metric": _c("metric"), "value": _c("value"), "unit": _c("unit"), "trial": _c("trial", "protocol")},
+        tables=("accuracy_metrics",),
+        columns={c: _c(c) for c in ("session_id", "stage", "estimator", "placement", "metric", "value", "unit")},
         required=("stage", "metric", "value"),
         produced_by="the accuracy stage (where a reference exists)"),
     "accuracy_pairs": Dataset(
-        tables=("accuracy_pairs", "accuracy_samples"),
-        columns={"session_id": _c("session_id"), "stage": _c("stage"),
-                 "estimator": _c("estimator", "algorithm", "method"), "placement": _c("placement", "joint", "side"),
-                 "quantity": _c("quantity", "metric"), "estimate": _c("estimate", "value", "imu"),
-                 "reference": _c("reference", "ref"), "unit": _c("unit")},
+        tables=("accuracy_pairs",),
+        columns={c: _c(c) for c in ("session_id", "stage", "estimator", "placement", "quantity", "estimate",
+                                    "reference", "unit")},
         required=("quantity", "estimate", "reference"),
         produced_by="the accuracy stage (paired estimate/reference values)"),
     "foot_trajectory": Dataset(
-        tables=("foot_trajectories", "trajectories", "foot_trajectory"),
-        columns={"session_id": _c("session_id"), "placement": _c("placement", "side"),
-                 "series_path": _c("series_path")},
+        tables=("foot_trajectories",),
+        columns={c: _c(c) for c in ("session_id", "placement", "series_path")},
         required=("session_id", "series_path"),
         produced_by="the foot-trajectory stage"),
 }
@@ -271,7 +256,7 @@ def qc_flags(con) -> pd.DataFrame:
                'warning' AS severity, CAST(c.{cal.q('placement')} AS VARCHAR) AS what,
                concat_ws(': ', CAST(c.{cal.q('status')} AS VARCHAR), {reasons}) AS message
         FROM {cal.qtable} c LEFT JOIN sessions s ON s.session_id = c.{cal.q('session_id')}
-        WHERE lower(CAST(c.{cal.q('status')} AS VARCHAR)) NOT IN ('ok', 'pass', 'passed', 'good', 'true')""")
+        WHERE CAST(c.{cal.q('status')} AS VARCHAR) <> 'pass'""")   # status: pass | warn | fail (migration 003)
     return _df(con, " UNION ALL ".join(parts) + " ORDER BY source, study, participant_id, session_id")
 
 
@@ -351,37 +336,30 @@ def strides(con, participant_id: str, study: str | None = None) -> pd.DataFrame 
         ORDER BY s.start_ns""", [participant_id, study, study]).rename(columns={"session": "session_id"})
 
 
-GAIT_PARAMS = {"speed_m_s": "gait speed (m/s)", "cadence_spm": "cadence (steps/min)",
+GAIT_PARAMS = {"speed_m_s": "gait speed (m/s)", "cadence_steps_min": "cadence (steps/min)",
                "stride_length_m": "stride length (m)", "stride_time_s": "stride time (s)",
                "stance_pct": "stance (% of stride)", "clearance_m": "foot clearance (m)"}
+#: symmetry indices of the gait stage (200·|L−R|/(L+R) %, on its 'both' row)
+GAIT_SYMMETRY = {"si_stride_time_pct": "SI stride time (%)", "si_stride_length_pct": "SI stride length (%)",
+                 "si_stance_pct": "SI stance (%)", "si_swing_time_pct": "SI swing time (%)",
+                 "si_clearance_pct": "SI clearance (%)"}
 
 
-def gait_summary(strides_df: pd.DataFrame | None) -> pd.DataFrame:
-    """Per session: mean and SD of each gait parameter, cadence and symmetry (pure pandas, no SQL)."""
-    if strides_df is None or strides_df.empty:
-        return pd.DataFrame()
-    df = strides_df.copy()
-    if "cadence_spm" not in df and "stride_time_s" in df:
-        df["cadence_spm"] = 120.0 / df["stride_time_s"]          # two steps per stride
-    out = []
-    for (sid, start), g in df.groupby(["session_id", "session_start_ns"], sort=False):
-        row = {"session_id": sid, "session_start_ns": start, "protocol": g["protocol"].iloc[0], "strides": len(g)}
-        for col in GAIT_PARAMS:
-            if col in g:
-                v = pd.to_numeric(g[col], errors="coerce")
-                row[col] = v.mean()
-                row[f"{col}_sd"] = v.std()
-        if "side" in g:
-            side = g["side"].astype(str).str.lower()
-            left, right = g[side.str.contains("left")], g[side.str.contains("right")]
-            for col in ("stride_time_s", "stride_length_m", "stance_pct"):
-                if col in g and len(left) and len(right):
-                    a, b = left[col].mean(), right[col].mean()
-                    row[f"symmetry_{col}"] = 100.0 * abs(a - b) / (0.5 * (a + b)) if (a + b) else np.nan
-        out.append(row)
-    res = pd.DataFrame(out).sort_values("session_start_ns")
-    res["date"] = pd.to_datetime(res["session_start_ns"], unit="ns", utc=True)
-    return res.reset_index(drop=True)
+def gait_summary(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Per session, the gait stage's ``gait_summary`` row for both feet (``side = 'both'``): cadence, speed, stride
+    length and time, stance, clearance, symmetry indices and stride count as the stage computed them, with the
+    session's start, protocol and date. None when the table is absent."""
+    r = resolve(con, "gait_summary")
+    if r is None:
+        return None
+    df = _df(con, f"""
+        SELECT s.session_id, s.start_ns AS session_start_ns, s.protocol, {r.select('g', tuple(k for k in r.cols if k not in ('session_id', 'side')))}
+        FROM {r.qtable} g JOIN sessions s ON s.session_id = g.{r.q('session_id')}
+        WHERE g.{r.q('side')} = 'both' AND s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns""", [participant_id, study, study])
+    df = df.rename(columns={"n_strides": "strides"})
+    df["date"] = pd.to_datetime(df["session_start_ns"], unit="ns", utc=True)
+    return df
 
 
 def joint_cycles(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
@@ -428,13 +406,8 @@ def foot_trajectories(con, root: str | Path, participant_id: str, study: str | N
         path = (root / rel).resolve()
         if root not in path.parents or not path.is_file():
             continue
-        cols = {c.lower(): c for c in con.execute("SELECT name FROM parquet_schema(?)", [str(path)]).df()["name"]}
-        names = [next((cols[k] for k in cands if k in cols), None)
-                 for cands in (("x", "x_m", "pos_x", "px"), ("y", "y_m", "pos_y", "py"), ("z", "z_m", "pos_z", "pz"))]
-        if None in names:
-            continue
-        sel = ", ".join(f'"{n}" AS {a}' for n, a in zip(names, "xyz"))
-        df = con.execute(f"SELECT {sel} FROM read_parquet(?)", [str(path)]).df()
+        # the series layout of the migration (foot_trajectories.series_path): t_ns, px, py, pz (m), ...
+        df = con.execute("SELECT px AS x, py AS y, pz AS z FROM read_parquet(?)", [str(path)]).df()
         step = max(1, len(df) // max_points)
         df = df.iloc[::step].reset_index(drop=True)
         df["session_id"], df["placement"] = sid, placement
@@ -698,78 +671,19 @@ def stage_durations(con) -> pd.DataFrame:
         FROM stage_runs GROUP BY stage ORDER BY stage""")
 
 
-# ---- cached access for the Streamlit pages -------------------------------------------------
-
-class Snapshot:
-    """The pages' handle on the newest snapshot: ``snap.q(queries.sessions, pid)`` runs a cached query.
-
-    ``None`` from :func:`open_snapshot` means the warehouse has published nothing yet.
-    """
-
-    def __init__(self, root: Path, name: str):
-        self.root = root
-        self.name = name
-
-    def q(self, fn: Callable, *args, **kwargs):
-        if fn.__name__ not in _QUERIES:
-            raise ValueError(f"{fn.__name__} is not a query of warehouse.queries")
-        return _cache()[1](str(self.root), self.name, fn.__name__, args, tuple(sorted(kwargs.items())))
-
-
-def open_snapshot(root: str | Path) -> Snapshot | None:
-    snap = latest_snapshot(root)
-    if snap is None:
-        return None
-    return Snapshot(Path(root), snap.name)
-
-
-def _close(con) -> None:
-    try:
-        con.close()
-    except Exception:  # noqa: BLE001 - already closed
-        pass
-
-
-def _st():
-    import streamlit as st
-    return st
-
-
-def _make_cached():
-    st = _st()
-
-    @st.cache_resource(max_entries=2, show_spinner=False, on_release=_close)
-    def connection(root: str, snapshot: str):
-        return duckdb.connect(str(Path(root) / "snapshots" / snapshot), read_only=True)
-
-    @st.cache_data(max_entries=512, show_spinner=False, ttl=3600)
-    def cached(root: str, snapshot: str, fn_name: str, args: tuple, kwargs: tuple):
-        fn = _QUERIES[fn_name]
-        cur = connection(root, snapshot).cursor()     # a cursor per query: safe across script threads
-        try:
-            return fn(cur, *args, **dict(kwargs))
-        finally:
-            cur.close()
-
-    return connection, cached
-
+# ---- registry of the queries (the dashboard's cached access: dashboard/snapshot.py) ---------
 
 _QUERIES: dict[str, Callable] = {}
-_CACHE: list = []
 
-
-def _cache():
-    """(connection, cached query) functions, created on first use (the reports never need Streamlit)."""
-    if not _CACHE:
-        _CACHE.extend(_make_cached())
-    return _CACHE
 
 def _register() -> None:
     for name, obj in list(globals().items()):
         if callable(obj) and getattr(obj, "__module__", None) == __name__ and not name.startswith("_") \
-                and name not in {"resolve", "table_columns", "missing_hint", "open_snapshot", "gait_summary",
-                                 "Snapshot", "Dataset", "Resolved"}:
+                and name not in {"resolve", "table_columns", "missing_hint", "open_snapshot",
+                                 "Dataset", "Resolved"}:
             _QUERIES[name] = obj
 
 
 _register()
+
+QUERIES = _QUERIES

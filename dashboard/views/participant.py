@@ -32,15 +32,19 @@ if snap is not None and not empty_warehouse_note(snap):
             elif strides.empty:
                 st.caption("No strides detected in this participant's sessions.")
             else:
-                summ = Q.gait_summary(strides)
-                avail = [p for p in ("speed_m_s", "cadence_spm", "stride_length_m", "stance_pct") if p in summ]
-                st.plotly_chart(F.gait_trend(summ, avail), key="gait_trend")
-                sym = [c for c in summ.columns if c.startswith("symmetry_")]
-                show = ["session_id", "protocol", "strides"] + [c for c in Q.GAIT_PARAMS if c in summ] + sym
-                st.dataframe(summ[show], hide_index=True,
-                             column_config={c: st.column_config.NumberColumn(format="%.3f") for c in show[3:]})
-                if sym:
-                    st.caption("Symmetry index = 100·|left − right| / mean(left, right) (0 = symmetric).")
+                summ = snap.q(Q.gait_summary, pid, study)
+                if summ is None or summ.empty:
+                    st.caption("No gait summary for this participant's sessions yet (the gait stage writes it).")
+                else:
+                    avail = [p for p in ("speed_m_s", "cadence_steps_min", "stride_length_m", "stance_pct")
+                             if p in summ]
+                    st.plotly_chart(F.gait_trend(summ, avail), key="gait_trend")
+                    sym = [c for c in Q.GAIT_SYMMETRY if c in summ]
+                    show = ["session_id", "protocol", "strides"] + [c for c in Q.GAIT_PARAMS if c in summ] + sym
+                    st.dataframe(summ[show], hide_index=True,
+                                 column_config={c: st.column_config.NumberColumn(format="%.3f") for c in show[3:]})
+                    st.caption("The gait stage's own summary per session (both feet). Symmetry index = "
+                               "200·|left − right| / (left + right) % (0 = symmetric).")
         with tab_joint:
             jc = snap.q(Q.joint_cycles, pid, study)
             if jc is None:

@@ -58,13 +58,35 @@ def test_datasets_absent_then_resolved(ingested_wh, full_wh):
         c.close()
 
 
-def test_column_aliases_are_resolved():
+def test_datasets_are_the_tables_the_migrations_create(empty_wh):
+    """Every dataset the pages read is one table of the migrated schema, with its real column names."""
+    c = connect_snapshot(empty_wh)
+    try:
+        schema = Q.table_columns(c)
+        for name, ds in Q.DATASETS.items():
+            assert len(ds.tables) == 1 and ds.tables[0] in schema, name
+            for logical, cands in ds.columns.items():
+                assert len(cands) == 1 and cands[0] in schema[ds.tables[0]], (name, logical, cands)
+            assert Q.resolve(c, name) is not None
+    finally:
+        c.close()
+
+
+def test_tables_the_migrations_never_create_are_not_read():
     c = duckdb.connect()
     c.execute("CREATE TABLE gait_strides (session_id VARCHAR, foot VARCHAR, duration_s DOUBLE, gait_speed_m_s DOUBLE)")
-    r = Q.resolve(c, "strides")
-    assert r.table == "gait_strides" and r.cols["side"] == "foot" and r.cols["speed_m_s"] == "gait_speed_m_s"
-    c.execute("CREATE TABLE calibration_qc (placement VARCHAR)")          # lacks session_id: not usable
-    assert Q.resolve(c, "calibration") is None
+    c.execute("CREATE TABLE calibration_qc (session_id VARCHAR, placement VARCHAR, status VARCHAR)")
+    assert Q.resolve(c, "strides") is None and Q.resolve(c, "calibration") is None
+
+
+def test_gait_summary_is_the_stage_table(con):
+    """The dashboard shows the gait stage's gait_summary rows as they are (cadence not recomputed from strides)."""
+    g = Q.gait_summary(con, "P001")
+    raw = con.execute("SELECT g.cadence_steps_min, g.n_strides FROM gait_summary g JOIN sessions s USING (session_id) "
+                      "WHERE s.participant_id = 'P001' AND g.side = 'both' ORDER BY s.start_ns").fetchall()
+    assert len(g) == len(raw) > 0
+    np.testing.assert_allclose(g["cadence_steps_min"], [r[0] for r in raw])
+    assert list(g["strides"]) == [r[1] for r in raw]
 
 
 def test_activity_days_are_local_days(con):

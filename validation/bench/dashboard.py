@@ -33,23 +33,9 @@ T0 = datetime(2026, 3, 2, 7, 0, tzinfo=timezone.utc)
 PAGES = ("overview", "accuracy", "participant", "activity", "runs")
 
 #: the result tables a stage would create (only where the warehouse has none yet)
-RESULT_DDL = {
-    "strides": """CREATE TABLE IF NOT EXISTS strides (session_id VARCHAR, placement VARCHAR, side VARCHAR,
-        ic_ns BIGINT, tc_ns BIGINT, stride_time_s DOUBLE, stance_pct DOUBLE, stride_length_m DOUBLE, speed_m_s DOUBLE,
-        clearance_m DOUBLE, turning_deg DOUBLE, stride_length_ref_m DOUBLE)""",
-    "calibration_qc": """CREATE TABLE IF NOT EXISTS calibration_qc (session_id VARCHAR, placement VARCHAR,
-        status VARCHAR, reasons VARCHAR, explained_variance DOUBLE, n_repetitions INTEGER)""",
-    "joint_angle_cycles": """CREATE TABLE IF NOT EXISTS joint_angle_cycles (session_id VARCHAR, joint VARCHAR,
-        side VARCHAR, plane VARCHAR, cycle_pct DOUBLE, mean_deg DOUBLE, sd_deg DOUBLE)""",
-    "activity_bouts": """CREATE TABLE IF NOT EXISTS activity_bouts (session_id VARCHAR, start_ns BIGINT, end_ns BIGINT,
-        class VARCHAR, steps INTEGER)""",
-    "accuracy_metrics": """CREATE TABLE IF NOT EXISTS accuracy_metrics (session_id VARCHAR, stage VARCHAR,
-        estimator VARCHAR, placement VARCHAR, metric VARCHAR, value DOUBLE, unit VARCHAR)""",
-    "accuracy_pairs": """CREATE TABLE IF NOT EXISTS accuracy_pairs (session_id VARCHAR, stage VARCHAR,
-        estimator VARCHAR, placement VARCHAR, quantity VARCHAR, estimate DOUBLE, reference DOUBLE, unit VARCHAR)""",
-    "foot_trajectories": """CREATE TABLE IF NOT EXISTS foot_trajectories (session_id VARCHAR, placement VARCHAR,
-        series_path VARCHAR)""",
-}
+#: stage output tables written by :func:`add_synthetic_results`: the migrations' own tables (warehouse/migrations)
+RESULT_TABLES = ("strides", "gait_summary", "calibration", "joint_angle_curves", "activity_bouts", "accuracy_metrics",
+                 "accuracy_pairs", "foot_trajectories")
 
 
 def _ns(dt: datetime) -> int:
@@ -57,17 +43,39 @@ def _ns(dt: datetime) -> int:
 
 
 def _insert(wh, table: str, rows: list[dict]) -> None:
-    """Insert by column name, keeping only the columns the table has (a stage's real schema may differ)."""
+    """Insert by column name into a table the migrations define; a column the table lacks is an error."""
     if not rows:
         return
     have = {r[0] for r in wh.con.execute("SELECT column_name FROM information_schema.columns WHERE table_name = ?",
                                          [table]).fetchall()}
-    rows = [{k: v for k, v in r.items() if k in have} for r in rows]
+    extra = sorted({k for r in rows for k in r} - have)
+    if extra:
+        raise ValueError(f"{table} has no column(s) {extra} (warehouse/migrations)")
     wh.insert(table, pa.Table.from_pylist(rows))
 
 
 def _knee_curve(pct: np.ndarray, amp: float) -> np.ndarray:
     return 5 + 12 * np.exp(-((pct - 15) / 8) ** 2) + amp * np.exp(-((pct - 72) / 11) ** 2)
+
+
+def _gait_summary_rows(sid: str, per_side: dict) -> list[dict]:
+    """``gait_summary`` rows (left, right, both) of synthetic strides, as the gait stage's table holds them."""
+    out, means = [], {}
+    for side, st in list(per_side.items()) + [("both", [r for v in per_side.values() for r in v])]:
+        m = {k: float(np.mean([r[k] for r in st])) for k in ("stride_time_s", "stride_length_m", "stance_pct",
+                                                           "speed_m_s", "clearance_m")}
+        means[side] = m
+        row = {"session_id": sid, "side": side, "cadence_steps_min": 120.0 / m["stride_time_s"],
+               "speed_m_s": m["speed_m_s"], "stride_length_m": m["stride_length_m"],
+               "stride_time_s": m["stride_time_s"], "stance_pct": m["stance_pct"], "swing_pct": 100 - m["stance_pct"],
+               "clearance_m": m["clearance_m"], "n_strides": len(st), "status": "ok"}
+        if side == "both":
+            l, r = means["left"], means["right"]
+            for k, col in (("stride_length_m", "si_stride_length_pct"), ("stride_time_s", "si_stride_time_pct"),
+                           ("stance_pct", "si_stance_pct"), ("clearance_m", "si_clearance_pct")):
+                row[col] = 200.0 * abs(l[k] - r[k]) / (l[k] + r[k])
+        out.append(row)
+    return out
 
 
 def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajectories: bool = True) -> None:
@@ -78,19 +86,19 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
     """
     from warehouse.store import series_relpath, write_table
     rng = np.random.default_rng(seed)
-    for ddl in RESULT_DDL.values():
-        wh.con.execute(ddl)
-    rows: dict[str, list[dict]] = {t: [] for t in RESULT_DDL}
+    rows: dict[str, list[dict]] = {t: [] for t in RESULT_TABLES}
     ref_events: list[dict] = []
-    pct = np.arange(0, 101, 2.0)
+    pct = np.arange(0, 101, 2)
     for s in sessions:
         sid, t0 = s["session_id"], s["start_ns"]
         paretic = str(s["participant_id"]).endswith(("2", "6"))     # some participants walk asymmetrically
         if s["kind"] == "lab":
             speed = rng.normal(1.2, 0.1) * (0.7 if paretic else 1.0)
+            per_side = {}
             for side in ("left", "right"):
                 t = t0 + int(5e9)
                 asym = 1.12 if (paretic and side == "left") else 1.0
+                first = len(rows["strides"])
                 for k in range(40):
                     st_s = rng.normal(1.1, 0.03) * (1.0 if not paretic else 1.15)
                     sl = speed * st_s / asym + rng.normal(0, 0.02)
@@ -103,20 +111,21 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
                                                    "placement": f"foot_{side}", "quantity": "IC", "unit": "s",
                                                    "estimate": t / 1e9 + rng.normal(0.005, 0.012), "reference": t / 1e9})
                     t += int(st_s * 1e9)
+                per_side[side] = rows["strides"][first:]
+            rows["gait_summary"] += _gait_summary_rows(sid, per_side)
             for pl in ("pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right"):
-                bad = rng.random() < 0.05
-                rows["calibration_qc"].append({"session_id": sid, "placement": pl, "status": "flagged" if bad else "ok",
-                                               "reasons": "explained variance 0.71 < 0.85" if bad else "",
-                                               "explained_variance": 0.71 if bad else rng.uniform(0.9, 0.99),
-                                               "n_repetitions": 10})
+                bad = rng.random() < 0.05 or (paretic and pl == "shank_left")    # a paretic leg's FE is less planar
+                rows["calibration"].append({"session_id": sid, "placement": pl, "status": "warn" if bad else "pass",
+                                            "reasons": json.dumps(["planarity 0.71 < 0.85"] if bad else []),
+                                            "method": "hip_fe", "n_reps": 10})
             for joint, amp in (("hip", 40), ("knee", 58), ("ankle", 25)):
                 for side in ("left", "right"):
                     a = amp * (0.75 if paretic and side == "left" else 1.0)
                     for plane, scale in (("sagittal", 1.0), ("frontal", 0.15), ("transverse", 0.1)):
                         mean = _knee_curve(pct, a) * scale if joint == "knee" else \
                             scale * (a / 2 * np.cos(2 * np.pi * (pct - (0 if joint == "hip" else 60)) / 100))
-                        rows["joint_angle_cycles"] += [{"session_id": sid, "joint": joint, "side": side, "plane": plane,
-                                                        "cycle_pct": float(p), "mean_deg": float(m),
+                        rows["joint_angle_curves"] += [{"session_id": sid, "joint": joint, "side": side, "plane": plane,
+                                                        "pct": int(p), "mean_deg": float(m), "n_cycles": 10,
                                                         "sd_deg": 2.5 + 2 * scale} for p, m in zip(pct, mean)]
                     rom = float(np.ptp(_knee_curve(pct, a))) if joint == "knee" else a
                     rows["accuracy_pairs"].append({"session_id": sid, "stage": "joint_angles", "estimator": "jcs",
@@ -143,7 +152,7 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
                     rel = series_relpath(s["study"], s["participant_id"], sid, f"foot_{side}",
                                          f"trajectory-{uuid.uuid5(uuid.NAMESPACE_URL, sid).hex[:12]}")
                     write_table(wh.root, rel, pa.table({"t_ns": t0 + np.arange(n, dtype=np.int64) * 10**7,
-                                                        "x": x, "y": y, "z": z}))
+                                                        "px": x, "py": y, "pz": z}))
                     rows["foot_trajectories"].append({"session_id": sid, "placement": f"foot_{side}", "series_path": rel})
         elif s["kind"] == "free_living":
             tz = ZoneInfo(s.get("timezone") or "UTC")
@@ -166,7 +175,9 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
                 ref_events.append({"content_hash": s.get("content_hash", sid), "session_id": sid, "t_ns": t,
                                    "end_ns": b_end, "type": "activity", "label": str(ref)})
                 t = b_end
-    for t, r in rows.items():
+    sids = [s["session_id"] for s in sessions]
+    for t, r in rows.items():             # the synthetic results replace what real stages wrote for these sessions
+        wh.con.execute(f"DELETE FROM {t} WHERE list_contains(?::VARCHAR[], session_id)", [sids])
         _insert(wh, t, r)
     _insert(wh, "reference_events", ref_events)
 
