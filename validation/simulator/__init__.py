@@ -37,6 +37,7 @@ from studies.manifest import ParticipantSpec, StudyManifest, load_manifest
 
 from ._chest_day import ChestDayTruth, simulate_chest_day
 from ._lab import LabTrialTruth, simulate_lab_session
+from .violations import SCENARIOS, Violations
 
 __all__ = ["simulate_study", "simulate_lab_session", "simulate_chest_day", "study_participants",
            "LabTrialTruth", "ChestDayTruth"]

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import zoneinfo
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -14,6 +14,7 @@ from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._gait_patterns import BodyGeometry, GaitParams, body_geometry, gait_params
 from ._kinematics import SEGMENTS, SIDES, HipWindow, LowerBodyModel, TrialPlan, WalkPath, rot_z, smoothstep
+from .violations import Violations
 from ._sensor_model import (FD_STEP_S, MagneticEnvironment, SensorErrors, TrueImu, apply_errors, noisy_pose,
                             random_rotation, rotmat_from_rotvec, true_imu)
 
@@ -347,7 +348,8 @@ def draw_devices(rng: np.random.Generator, spec: SensorModelSpec, geo: BodyGeome
 def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices: SessionDevices,
                    spec: SensorModelSpec, mag_env: MagneticEnvironment | None, rng: np.random.Generator,
                    distance_sensors: bool, optical_reference: bool, windows: list,
-                   metadata: dict, name: str) -> tuple[Recording, LabTrialTruth]:
+                   metadata: dict, name: str, violations: Violations | None = None) -> tuple[Recording, LabTrialTruth]:
+    vio = violations or Violations()
     n = int(round(model.plan.duration_s * rate_hz))
     t_s = np.arange(n) / rate_hz
     t_ns = t0_ns + np.round(t_s * 1e9).astype(np.int64)
@@ -367,10 +369,31 @@ def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices
                           windows=list(windows), geometry=geo, gait=model.gait)
     wobble_on = spec.wobble_deg_per_g > 0 or spec.wobble_mm_per_g > 0
     for p in SEGMENTS:
-        sig: TrueImu = true_imu(poses5[p], devices.offsets[p], devices.mounts[p],
+        mount = devices.mounts[p]
+        if vio.sta_deg_per_knee_deg and p.startswith(("thigh_", "shank_")):
+            # soft-tissue artefact: the sensor turns about the segment long axis with the knee flexion
+            side = p.split("_")[1]
+            Rt, Rsh = poses5[f"thigh_{side}"][1], poses5[f"shank_{side}"][1]
+            flex = np.stack([jcs_angles_deg(Rt[j], Rsh[j], joint="knee", side=side)[:, 0] for j in range(5)])
+            ang = np.deg2rad(vio.sta_deg_per_knee_deg * flex)
+            mount = rotmat_from_rotvec(ang[..., None] * np.array([0.0, 1.0, 0.0]))[1:4] @ mount
+        sig: TrueImu = true_imu(poses5[p], devices.offsets[p], mount,
                                 devices.errors[p] if wobble_on else None, mag_env)
         acc, gyr, mag, end_bias = apply_errors(sig, devices.errors[p], spec, rng, rate_hz, devices.gyr_bias[p])
         devices.gyr_bias[p] = end_bias
+        if vio.heel_strike_g and p.startswith(("foot_", "shank_")):
+            side = p.split("_")[1]
+            amp = vio.heel_strike_g * 9.81 * (1.0 if p.startswith("foot_") else 0.5)
+            axis = devices.mounts[p].T @ np.array([0.0, 1.0, 0.0])        # segment long axis, sensor frame
+            pulse = np.zeros(n)
+            for tic in model.schedules[side].ic:
+                dt = t_s - tic
+                on = (dt >= 0) & (dt < 0.1)
+                pulse[on] += np.exp(-dt[on] / 0.015) * np.cos(2 * np.pi * 30.0 * dt[on])
+            acc = acc + amp * pulse[:, None] * axis
+        if vio.gyro_range_dps is not None:
+            lim = np.deg2rad(vio.gyro_range_dps)
+            gyr = np.clip(gyr, -lim, lim)
         rec.imu[p] = ImuData(t_ns=t_ns, acc=acc, gyr=gyr, mag=mag)
         truth.sensor_quat[p], truth.sensor_pos[p] = sig.quat, sig.pos
         truth.acc_true[p], truth.gyr_true[p], truth.mag_true[p] = sig.acc, sig.gyr, sig.mag
@@ -422,11 +445,13 @@ def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices
 
 def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, index: int, *,
                          seed: int | None = None, sensor_model: SensorModelSpec | None = None,
-                         session: int = 1):
+                         session: int = 1, violations: Violations | None = None):
     """Yield ``(Recording, LabTrialTruth)`` for the calibration trial and each walking trial of one lab
     session of ``participant`` (0-based ``index`` in the study, which fixes the date: first_lab_date +
     index days, trials from lab_start_local on). ``sensor_model`` overrides the manifest's (e.g.
-    ``SensorModelSpec.ideal()`` for noise-free signals)."""
+    ``SensorModelSpec.ideal()`` for noise-free signals); ``violations`` puts the session beyond the methods'
+    assumptions (:mod:`validation.simulator.violations`; None = none)."""
+    vio = violations or Violations()
     spec = sensor_model or manifest.sensor_model
     seed = manifest.seed if seed is None else int(seed)
     rate = manifest.sampling_rate_hz
@@ -452,17 +477,27 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
     # noise (the ideal model keeps quiet standing exactly still, the rest contract of its tests).
     motion = LabMotion.draw(np.random.default_rng(np.random.SeedSequence([seed, index, 2, session])),
                             manifest.lab.hip_repetitions, sway_scale=spec.noise_scale)
+    if vio.standing_knee_deg is not None:
+        motion = replace(motion, standing_knee_deg=float(vio.standing_knee_deg))
+    if vio.hip_axis_tilt_deg:
+        motion = replace(motion, hip_plane_deg={s: np.asarray(a) + vio.hip_axis_tilt_deg
+                                                for s, a in motion.hip_plane_deg.items()})
     trials = [("calibration", "lab", plan, windows)]   # one lab session; the trial name marks calibration
     for k in range(1, manifest.lab.walking_trials + 1):
         trials.append((f"walk-{k}", "lab", walking_plan(manifest, gait, k), []))
     t_off = 0.0
-    for (trial, kind, plan, windows), ss in zip(trials, trial_ss):
+    for k, ((trial, kind, plan, windows), ss) in enumerate(zip(trials, trial_ss)):
+        if k == 1 and vio.strap_slip_deg:              # the straps slipped after the calibration trial
+            turn = rotmat_from_rotvec(np.array([0.0, np.deg2rad(vio.strap_slip_deg), 0.0]))
+            for p in SEGMENTS:
+                if p.startswith(("thigh_", "shank_")):
+                    devices.mounts[p] = turn @ devices.mounts[p]
         model = LabBodyModel(geo, gait, plan, motion)
         md = dict(base, kind=kind, trial=trial)
         rec, truth = simulate_trial(model, t0_ns=t_start + int(round(t_off * 1e9)), rate_hz=rate, devices=devices,
                                     spec=spec, mag_env=mag_env, rng=np.random.default_rng(ss),
                                     distance_sensors=manifest.lab.distance_sensors,
                                     optical_reference=manifest.lab.optical_reference, windows=windows,
-                                    metadata=md, name=f"{pid}_lab{session}_{trial}")
+                                    metadata=md, name=f"{pid}_lab{session}_{trial}", violations=vio)
         t_off += plan.duration_s + 60.0
         yield rec, truth
