@@ -3,13 +3,17 @@
 Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.trajectory) → stance runs and their
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
-→ IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → TCs refined from the pitch
+→ IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → events completed on the swings
+of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → TCs refined from the pitch
 minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → strides.
 
     K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
         (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
     K2  a stride = two consecutive mid-stances m_i < m_{i+1} with exactly one TC then one IC between them
-        (gaitmap's min_vel stride); any other pattern is not a stride (no invented strides).
+        (gaitmap's min_vel stride); any other pattern is not a stride (no invented strides). K2b: a stride whose
+        stride time IC − previous IC exceeds ``max_stride_time_s`` is discarded (spec §3.8); without a previous IC
+        (out of quiet standing) the time from the end of its first stance run to m_{i+1} is used (the mid-stance
+        of a long standing period is anywhere in it).
     K3  stride length = |p_xy(m_{i+1}) − p_xy(m_i)|; stride time = IC − previous IC (NaN without one);
         swing = IC − TC; stance = TC − previous IC; gait speed = length / stride time;
         clearance = max p_z over [TC, IC] − p_z(m_i) (height of the sensor point above its stance level);
@@ -29,6 +33,7 @@ import numpy as np
 from dataclasses import replace
 
 from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_toe_off
+from estimators.gait._swing import complete_swing_events
 from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
@@ -51,6 +56,8 @@ class FootParams:
     toe_off_refine: move each Algorithm-1 TC (pitch minimum, thesis) back to the toe-off (T1 in ``_events``:
         onset of the plantarflexion deceleration); False = the thesis' plain TC. Flat-lift TCs (R4) are kept.
     toe_off_onset_fraction, toe_off_window_s: f and W of (T1) (0.2 of the peak deceleration; 0.15 s), a priori.
+    swing_events: complete the events on the swings of the zero-velocity mask (W0–W3 in ``_swing``: flat lift,
+        drop foot, flat-foot and forefoot contact); False = Algorithm 1 (+ R4) only.
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams(threshold=-0.1)
@@ -59,6 +66,7 @@ class FootParams:
     toe_off_refine: bool = True
     toe_off_onset_fraction: float = 0.2
     toe_off_window_s: float = 0.15
+    swing_events: bool = True
 
 
 @dataclass(frozen=True)
@@ -145,6 +153,22 @@ def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float,
     return replace(ev, tc_idx=tc, tc_pitch_min_idx=ev.tc_idx.copy())
 
 
+def _anterior_axis(traj: TrajectoryResult, runs, w, fs: float, params: FootParams):
+    """K1 over the mid-stances of ``runs``; (u_S, found) with u_S = sensor x when no stride is long enough."""
+    mids = [a + int(np.argmin(w[a:b])) for a, b in runs]
+    us = []
+    for a, b in zip(mids[:-1], mids[1:]):
+        d = traj.pos[b] - traj.pos[a]
+        d[2] = 0.0
+        L = np.linalg.norm(d)
+        if np.isfinite(L) and L >= params.min_stride_length_m and (b - a) <= params.max_stride_time_s * fs:
+            us.append(_rot_T(traj.quat[a], d / L))
+    if not us:
+        return np.array([1.0, 0.0, 0.0]), False
+    u = np.sum(us, axis=0)
+    return u / np.linalg.norm(u), True
+
+
 def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
                     params: FootParams = FootParams()) -> FootKinematics:
     """All kinematics of one foot IMU (module docstring K1–K3). gyr rad/s, acc m/s², any mounting."""
@@ -160,31 +184,42 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         return FootKinematics(traj, np.full(n, np.nan), np.array([1.0, 0, 0]), np.zeros(0, np.int64), empty_ev,
                               _empty_strides(), fs, "no_stance", tuple(notes))
     w = np.linalg.norm(np.asarray(gyr, float), axis=1)
-    mids = np.array([a + int(np.argmin(w[a:b])) for a, b in _runs(traj.zupt)], dtype=np.int64)
-    # K1: anterior axis from stride displacements
-    us = []
-    for a, b in zip(mids[:-1], mids[1:]):
-        d = traj.pos[b] - traj.pos[a]
-        d[2] = 0.0
-        L = np.linalg.norm(d)
-        if np.isfinite(L) and L >= params.min_stride_length_m and (b - a) <= params.max_stride_time_s * fs:
-            us.append(_rot_T(traj.quat[a], d / L))
-    if us:
-        u = np.sum(us, axis=0)
-        u /= np.linalg.norm(u)
-    else:
-        u = np.array([1.0, 0.0, 0.0])
+    stance = traj.zupt
+    u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
+    if params.swing_events:
+        # K0: a still run with the foot tilted (its pitch more than M from the level of the runs >= n_ref) is no
+        # stance: a slow swing can pause in the air (after the lift, before a toes-down landing). Stances, their
+        # mid-stances, the anterior axis and the trajectory (ESKF rerun with that mask) then come from the other runs.
+        n_ref = max(1, int(round(params.events.refractory_s * fs)))
+        runs = _runs(stance)
+        s0 = pitch_signal(traj.quat, u)
+        long_runs = [(a, b) for a, b in runs if b - a >= n_ref]
+        if long_runs:
+            level = float(np.nanmedian(np.concatenate([s0[a:b] for a, b in long_runs])))
+            stance = np.zeros(n, bool)
+            for a, b in runs:
+                if b - a >= n_ref or abs(float(np.nanmedian(s0[a:b])) - level) <= params.events.flat_lift_margin:
+                    stance[a:b] = True
+            if not np.array_equal(stance, traj.zupt):          # no zero-velocity update in those pauses either
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    traj = eskf_trajectory(gyr, acc, sampling_rate_hz=fs, params=params.trajectory, zupt=stance)
+            u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
+    if not ok:
         notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
+    mids = np.array([a + int(np.argmin(w[a:b])) for a, b in _runs(stance)], dtype=np.int64)
     s = pitch_signal(traj.quat, u)
     ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt)
+    if params.swing_events:
+        ev = complete_swing_events(ev, s, stance, sampling_rate_hz=fs, max_swing_s=params.max_stride_time_s,
+                                   gyr_norm=w, onset_fraction=params.toe_off_onset_fraction)
     if params.toe_off_refine and len(ev.tc_idx):
         ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None
+    run_end = {a + int(np.argmin(w[a:b])): b for a, b in _runs(stance)}    # mid-stance -> end of its stance
     for a, b in zip(mids[:-1], mids[1:]):
-        if (b - a) > params.max_stride_time_s * fs:
-            continue
         tcs = ev.tc_idx[(ev.tc_idx > a) & (ev.tc_idx < b)]
         ics = ev.ic_idx[(ev.ic_idx > a) & (ev.ic_idx < b)]
         if len(tcs) != 1 or len(ics) != 1 or not tcs[0] < ics[0]:
@@ -192,6 +227,10 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         tc, ic = int(tcs[0]), int(ics[0])
         prev = ev.ic_idx[ev.ic_idx <= a]
         pre_ic = int(prev[-1]) if len(prev) and (ic - prev[-1]) <= params.max_stride_time_s * fs else -1
+        # K2b (spec §3.8): discard strides longer than max_stride_time_s, stride time = IC − previous IC; a stride
+        # without a previous IC in time (the first step out of quiet standing) is timed from leaving its stance
+        if pre_ic < 0 and (b - run_end.get(int(a), a)) > params.max_stride_time_s * fs:
+            continue
         d = traj.pos[b] - traj.pos[a]
         length = float(np.hypot(d[0], d[1]))
         stride_t = (ic - pre_ic) / fs if pre_ic >= 0 else np.nan
