@@ -33,7 +33,7 @@ import numpy as np
 from dataclasses import replace
 
 from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_toe_off
-from estimators.gait._swing import complete_swing_events
+from estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
 from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
@@ -186,31 +186,35 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     w = np.linalg.norm(np.asarray(gyr, float), axis=1)
     stance = traj.zupt
     u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
-    if params.swing_events:
-        # K0: a still run with the foot tilted (its pitch more than M from the level of the runs >= n_ref) is no
-        # stance: a slow swing can pause in the air (after the lift, before a toes-down landing). Stances, their
-        # mid-stances, the anterior axis and the trajectory (ESKF rerun with that mask) then come from the other runs.
+    s0 = pitch_signal(traj.quat, u)
+    ev0 = detect_ic_tc(s0, sampling_rate_hz=fs, params=params.events, stance=traj.zupt)
+    swing_rules = params.swing_events and not (heel_strike_fraction(
+        ev0, s0, traj.zupt, sampling_rate_hz=fs, max_swing_s=params.max_stride_time_s) >= HEEL_STRIKER_FRACTION)
+    if swing_rules:
+        # K0: a still run shorter than n_ref with the toes down (its pitch more than M below the level of the runs
+        # >= n_ref) is no stance: a slow swing can pause in the air (after the lift, before a toes-down landing).
+        # Stances, mid-stances, the anterior axis and the trajectory (ESKF rerun with that mask) then come from the
+        # other runs.
         n_ref = max(1, int(round(params.events.refractory_s * fs)))
         runs = _runs(stance)
-        s0 = pitch_signal(traj.quat, u)
         long_runs = [(a, b) for a, b in runs if b - a >= n_ref]
         if long_runs:
             level = float(np.nanmedian(np.concatenate([s0[a:b] for a, b in long_runs])))
             stance = np.zeros(n, bool)
             for a, b in runs:
-                if b - a >= n_ref or abs(float(np.nanmedian(s0[a:b])) - level) <= params.events.flat_lift_margin:
+                if b - a >= n_ref or float(np.nanmedian(s0[a:b])) >= level - params.events.flat_lift_margin:
                     stance[a:b] = True
             if not np.array_equal(stance, traj.zupt):          # no zero-velocity update in those pauses either
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     traj = eskf_trajectory(gyr, acc, sampling_rate_hz=fs, params=params.trajectory, zupt=stance)
-            u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
+                u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
     if not ok:
         notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
     mids = np.array([a + int(np.argmin(w[a:b])) for a, b in _runs(stance)], dtype=np.int64)
-    s = pitch_signal(traj.quat, u)
-    ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt)
-    if params.swing_events:
+    s = pitch_signal(traj.quat, u) if swing_rules else s0
+    ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt) if swing_rules else ev0
+    if swing_rules:
         ev = complete_swing_events(ev, s, stance, sampling_rate_hz=fs, max_swing_s=params.max_stride_time_s,
                                    gyr_norm=w, onset_fraction=params.toe_off_onset_fraction)
     if params.toe_off_refine and len(ev.tc_idx):

@@ -5,26 +5,27 @@ foot may lift almost flat (no push-off), swing with the toes down (drop foot) an
 then missed, strict alternation drops the next IC, or the IC is put on the swing's pitch maximum (mid-swing, too
 early) or in the following stance (too late). With the stance mask of the batch kinematics every swing is known:
 
-    swing = a moving run [e, f) of the zero-velocity mask between two still runs, n_ref ≤ f − e ≤ 3 s; one swing
-    is one step: one TC (the first Algorithm-1 TC; later pitch minima are the swing's, dropped) and one IC
-    (below); a swing with two toes-up heel-strike ICs (s ≥ s_f + M) holds two steps (the mask missed a stance)
-    and is left as Algorithm 1 found it                                                                  (W0)
-    (W1) no TC in [e, f): TC = argmin s over [e, e + ⌈(f − e)/2⌉) (the lift's pitch minimum, refined to the
-         toe-off by T1 like Algorithm 1's TCs).
-    (W2) the swing's IC: Algorithm 1's last toes-up IC (s_IC ≥ s_f + M, a heel strike) after the TC and before
-         f + n_ref; otherwise the start j of the last
-         monotone run of s before f (the loading rotation about the heel or the ball ends at foot flat, its start
-         is the contact) when f − j ≤ MAX_LOADING_S; otherwise (flat contact: no loading rotation) Algorithm 1's IC,
-         or argmax s over (TC + n_ref, f] without one.
-    (W3) after a heel-strike peak, if s falls to a minimum s_m ≤ s_IC − M and rises again by ≥ M before
-         f + n_ref, the foot landed toes-down at that minimum (the heel drops after it): IC = argmin.
-    (W4) with the gyroscope norm |ω|: if between the lift e and the TC (pitch minimum) |ω| falls below f_T1 = 0.2
-         of its maximum since e after the foot has plantarflexed by ≥ M, and s later in the swing falls by ≥ M
-         more, the push-off ended there and the further plantarflexion is the swing (drop foot): TC = that sample (then refined by T1). A normal push-off
-         accelerates the rotation up to the toe-off, so |ω| never nearly stops before the pitch minimum.
+    swing = a moving run [e, f) of the zero-velocity mask between two still runs, n_ref ≤ f − e ≤ 3 s     (W0)
+    A swing where Algorithm 1 found a TC and then a heel strike (an IC with s_IC ≥ s_f + M, toes up above the
+    stance that follows, at most MAX_LOADING_S before it) is left exactly as Algorithm 1 found it. Otherwise the swing is one step: one TC, one IC.
+    (W1) TC = the first pitch minimum after the lift, s_k ≤ s_e − M with s rising for the next two samples (the
+         end of the push-off's plantarflexion; Algorithm 1's TC when it is that sample, later minima are the
+         swing's: a drop-foot swing can fall again toward a toes-down landing), else argmin s over
+         [e, e + ⌈(f − e)/2⌉) (a flat lift); refined to the toe-off by T1 like Algorithm 1's TCs.
+    (W4) with the gyroscope norm |ω|: if between the lift e and that TC |ω| falls below f_T1 = 0.2 of its maximum
+         since e after the foot has plantarflexed by ≥ M, and s later in the swing falls by ≥ M more, the push-off
+         ended there and the further plantarflexion is the swing (drop foot): TC = that sample (refined by T1).
+    (W2) IC (when no heel strike follows the TC): the start j of the last monotone run of s before f (the loading
+         rotation about the heel or the ball ends at foot flat; its start is the contact) when
+         f − j ≤ MAX_LOADING_S; otherwise (flat contact: no loading rotation) Algorithm 1's first IC after the TC,
+         or argmax s over (TC + n_ref, f] without one. Other ICs between the TC and the next swing are dropped.
+Only for feet that do not heel-strike: ``foot_kinematics`` applies W1–W4 (and K0) when fewer than
+HEEL_STRIKER_FRACTION = 0.5 of the foot's swings end in an Algorithm-1 heel strike (a priori: the majority); a
+heel-striking foot keeps Algorithm 1 everywhere (its other swings are turns, shuffles, first and last steps).
 M = ``IcTcParams.flat_lift_margin`` (0.05 ≈ 3°, R4's margin: a few times the stance pitch noise) and n_ref = the
 refractory period: both a priori, none fitted. Strides keep needing one TC then one IC between mid-stances (K2).
-Algorithm 1's events are kept unless W2–W4 say otherwise; f_T1 is T1's onset fraction (``FootParams``).
+f_T1 is T1's onset fraction (``FootParams``). A normal push-off accelerates the rotation up to the toe-off, so |ω|
+never nearly stops before its pitch minimum (W4 does not fire on heel-strike steps anyway).
 """
 from __future__ import annotations
 
@@ -34,11 +35,13 @@ import numpy as np
 
 from estimators.gait._events import GaitEvents
 
-__all__ = ["complete_swing_events", "swing_runs", "MAX_LOADING_S"]
+__all__ = ["complete_swing_events", "swing_runs", "heel_strike_fraction", "MAX_LOADING_S", "HEEL_STRIKER_FRACTION"]
 
 #: longest loading rotation (contact -> foot flat): loading response ≈ 10-12 % of the gait cycle (Perry & Burnfield
 #: 2010) of the slowest strides walked (≈ 2.5 s); a priori
 MAX_LOADING_S = 0.3
+#: a foot whose swings end in an Algorithm-1 heel strike at least this often keeps Algorithm 1 everywhere (majority)
+HEEL_STRIKER_FRACTION = 0.5
 
 
 def swing_runs(still: np.ndarray, *, min_samples: int, max_samples: int) -> np.ndarray:
@@ -75,6 +78,15 @@ def _landing(s: np.ndarray, lo: int, f: int) -> int:
     return int(lo + i + 1 + (np.argmin(part) if d > 0 else np.argmax(part)))
 
 
+def _first_minimum(s: np.ndarray, e: int, f: int, margin: float):
+    """(W1) the first sample k in [e, f) with s_k ≤ s_e − margin after which s rises for two samples (the end of
+    the push-off's plantarflexion); None if the foot never plantarflexes that much."""
+    for k in range(e, f - 2):
+        if s[k] <= s[e] - margin and s[k + 1] > s[k] and s[k + 2] > s[k + 1]:
+            return k
+    return None
+
+
 def _rotation_stop(w: np.ndarray, s: np.ndarray, e: int, j: int, f: int, frac: float, margin: float):
     """(W4) first sample in (e, j) where |ω| falls below ``frac`` of its running maximum since the lift e, after the
     foot has plantarflexed by ≥ ``margin`` (s fell by that much) and before the TC j, when s later in the swing
@@ -90,10 +102,31 @@ def _rotation_stop(w: np.ndarray, s: np.ndarray, e: int, j: int, f: int, frac: f
     return None
 
 
+def heel_strike_fraction(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sampling_rate_hz: float,
+                         max_swing_s: float = 3.0) -> float:
+    """Share of the swings (W0) in which Algorithm 1 found a TC and then a heel strike (s_IC ≥ s_f + M within
+    MAX_LOADING_S before the stance: a toes-up peak in mid-swing is no heel strike); NaN without swings."""
+    fs = float(sampling_rate_hz)
+    n_ref = max(1, int(round(ev.params.refractory_s * fs)))
+    max_load = int(round(MAX_LOADING_S * fs))
+    s = np.asarray(s, float)
+    sw = [(e, f) for e, f in swing_runs(still, min_samples=n_ref, max_samples=int(max_swing_s * fs)) if f < len(s)]
+    if not sw:
+        return float("nan")
+    hit = 0
+    for e, f in sw:
+        tcs = ev.tc_idx[(ev.tc_idx >= e - n_ref) & (ev.tc_idx < f)]
+        if not len(tcs):
+            continue
+        ics = ev.ic_idx[(ev.ic_idx > max(tcs[0], f - max_load)) & (ev.ic_idx < f + n_ref)]
+        hit += bool(np.any(s[ics] >= s[f] + ev.params.flat_lift_margin))
+    return hit / len(sw)
+
+
 def complete_swing_events(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sampling_rate_hz: float,
                           max_swing_s: float = 3.0, gyr_norm: np.ndarray | None = None,
                           onset_fraction: float = 0.2) -> GaitEvents:
-    """(W0)–(W3) on the events ``ev`` of pitch signal ``s`` with the stance mask ``still`` (module docstring).
+    """(W0)–(W4) on the events ``ev`` of pitch signal ``s`` with the stance mask ``still`` (module docstring).
     Added / moved events get a detection index = event + 1 (a pitch extremum, refined by T1 like Algorithm 1's)."""
     fs = float(sampling_rate_hz)
     p = ev.params
@@ -109,21 +142,22 @@ def complete_swing_events(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, s
     finite = np.isfinite(s)
     for k, (e, f) in enumerate(sw):
         nxt = sw[k + 1, 0] if k + 1 < len(sw) else n
-        if not finite[e:f].all():
+        if not finite[e:f].all() or f >= n:
             continue
         in_sw = [t for t in tc if e - n_ref <= t[0] < f]
-        if f < n and len([t for t in ic if e < t[0] < f and s[t[0]] >= s[f] + margin]) > 1:
-            continue                                       # two heel strikes: more than one step, a missed stance
-        for t in in_sw[1:]:                                # one step has one TC: later pitch minima are the swing's
+        first_tc = in_sw[0][0] if in_sw else e
+        heel = [t for t in ic if max(first_tc, f - max_load) < t[0] < f + n_ref and s[t[0]] >= s[f] + margin]
+        if in_sw and heel:
+            continue                                       # Algorithm 1 found this step: a TC, then a heel strike
+        for t in in_sw:                                    # one step has one TC (W1)
             tc.remove(t)
-        in_sw = in_sw[:1]
-        if in_sw:
-            t_tc = in_sw[0][0]
-        else:                                                         # (W1)
+        t_tc = _first_minimum(s, e, f, margin)
+        if t_tc is None:
             half = e + int(np.ceil((f - e) / 2))
             t_tc = int(e + np.argmin(s[e:half]))
-            in_sw = [(t_tc, t_tc + 1)]
-            tc.append(in_sw[0])
+        keep = [t for t in in_sw if t[0] == t_tc]
+        in_sw = keep[:1] or [(t_tc, t_tc + 1)]
+        tc.append(in_sw[0])
         if gyr_norm is not None and t_tc > e + 2:                      # (W4) push-off ended before a drop-foot swing
             stop = _rotation_stop(gyr_norm, s, e, t_tc, f, onset, margin)
             if stop is not None:
@@ -133,27 +167,19 @@ def complete_swing_events(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, s
         lo = t_tc + n_ref
         if lo >= f:
             continue
+        if heel:                                                       # a heel strike after a W1 / W4 TC
+            continue
         cand = [t for t in ic if t_tc < t[0] < nxt]
-        heel = [t for t in cand if t[0] < f + n_ref and s[t[0]] >= s[min(f, n - 1)] + margin]
-        alg1 = heel[-1] if heel else (cand[0] if cand and cand[0][0] < f + n_ref else None)
+        alg1 = cand[0] if cand and cand[0][0] < f + n_ref else None
         for c in cand:                                     # one step has one IC: the others go
             ic.remove(c)
-        if alg1 is not None and s[alg1[0]] >= s[f] + margin:         # a toes-up peak above the stance: heel strike
+        j = _landing(s, lo, f)                                         # (W2)
+        if f - j <= max_load:
+            t_ic = j
+        elif alg1 is not None:
             t_ic = alg1[0]
-            hi = min(f + n_ref, n)
-            seg = s[t_ic + 1:hi]                                       # (W3) forefoot landing after that peak
-            if len(seg) > 1:
-                j = int(np.argmin(seg))
-                if seg[j] <= s[t_ic] - margin and j + 1 < len(seg) and np.max(seg[j + 1:]) >= seg[j] + margin:
-                    t_ic = t_ic + 1 + j
-        else:                                                          # (W2)
-            j = _landing(s, lo, f)
-            if f - j <= max_load:
-                t_ic = j
-            elif alg1 is not None:
-                t_ic = alg1[0]
-            else:
-                t_ic = int(lo + np.argmax(s[lo:f + 1]))
+        else:
+            t_ic = int(lo + np.argmax(s[lo:f + 1]))
         ic.append((t_ic, t_ic + 1) if alg1 is None or t_ic != alg1[0] else alg1)
     tc.sort()
     ic.sort()

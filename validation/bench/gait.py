@@ -410,8 +410,13 @@ def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) ->
 @click.option("--no-speed", is_flag=True, help="skip the 2 feet x 10 min speed measurement")
 @click.option("--simulator-scan", is_flag=True,
               help="also scan c_a (acceleration-proportional noise) on the platform simulator (not the evaluation walk)")
+@click.option("--no-hemiparetic", is_flag=True,
+              help="skip the simulated hemiparetic walks (validation.simulator.hemiparetic_gait, issue 18)")
+@click.option("--hemiparetic-before", is_flag=True,
+              help="also score the hemiparetic walks with the swing rules off (FootParams(swing_events=False))")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
-def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan: bool, as_json: bool) -> None:
+def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan: bool, no_hemiparetic: bool,
+            hemiparetic_before: bool, as_json: bool) -> None:
     """Gait events (IC/TC sensitivity, precision, timing) and stride length vs the gaitmap mocap reference, and
     with --voisard the IC/TC against the Voisard et al. annotations (±100 ms, inside the trial boundaries).
 
@@ -421,6 +426,11 @@ def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan:
       stridelab bench gait --gaitmap ../shared/data/gaitmap_example --json
       stridelab bench gait --voisard ../shared/data/voisard_gait --json
       stridelab bench gait --no-speed --simulator-scan --json
+      stridelab bench gait --no-speed --hemiparetic-before --json   # key 'hemiparetic': per severity and side
+
+    Key ``hemiparetic`` (issue 18): strides and events of the simulated stroke walks per severity (mild, moderate,
+    severe) and side (paretic / other), ``summary`` over all severities of the bench subjects, ``heldout`` the same
+    on subjects never used to change the detector (``validation/bench/hemiparetic.py``).
     """
     if not gaitmap.is_dir():
         raise UserError(f"gaitmap example not found at {gaitmap}; pass --gaitmap DIR (see DESIGN.md 'Real data')")
@@ -432,6 +442,9 @@ def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan:
         result["voisard"] = voisard_benchmark(voisard, show_progress=show, gaitmap_dir=gaitmap)
     if simulator_scan:
         result["simulator_scan"] = globals()["simulator_scan"]()
+    if not no_hemiparetic:
+        from validation.bench.hemiparetic import hemiparetic_report
+        result["hemiparetic"] = hemiparetic_report(before=hemiparetic_before)
     if as_json:
         emit_json(result)
         return
@@ -450,3 +463,7 @@ def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan:
                        f"{s['ic_timing_mae_ms']:.1f} ms (bias {s['ic_timing_bias_ms']:+.1f}); TC Se "
                        f"{s['tc_sensitivity']:.3f} Pr {s['tc_precision']:.3f} MAE {s['tc_timing_mae_ms']:.1f} ms "
                        f"(bias {s['tc_timing_bias_ms']:+.1f})")
+    if "hemiparetic" in result:
+        h = result["hemiparetic"]
+        for label, d in (("hemiparetic (bench subjects)", h), ("hemiparetic (held out)", h["heldout"])):
+            click.echo(f"{label}: " + ", ".join(f"{k} {v:.3f}" for k, v in d["summary"].items()))

@@ -11,8 +11,8 @@ matched reference stride.
 
 ``TOL_S`` = 0.2 s, chosen a priori: less than half the shortest simulated swing (0.4 s), so a detection can never
 match the neighbouring event of the same type, and wider than any timing error a clinician could still use.
-Subjects: ``hemiparetic_subjects("bench")`` (reported per severity) and ``"heldout"`` (other seeds, never used while
-changing the detector; reported separately as ``heldout``).
+Subjects: ``hemiparetic_subjects("bench")`` (reported per severity; looked at while changing the detector) and
+``"heldout"`` (other subjects, scored only for the report, ``heldout``); ``"dev"`` subjects were used to diagnose.
 """
 from __future__ import annotations
 
@@ -97,4 +97,19 @@ def hemiparetic_benchmark(*, split: str = "bench", params=None, strides: int = S
         allp += d["paretic"]
         allo += d["other"]
     out["summary"] = _summary(_score(allp, None), _score(allo, None), allp + allo)
+    return out
+
+
+def hemiparetic_report(*, before: bool = False) -> dict:
+    """The ``hemiparetic`` key of ``stridelab bench gait``: bench subjects per severity and pooled (``summary``),
+    ``heldout`` (subjects 200–203 of each severity) and, with ``before``, both with the swing rules off."""
+    from dataclasses import replace
+
+    from estimators.gait import FootParams
+    out = hemiparetic_benchmark(split="bench")
+    out["heldout"] = hemiparetic_benchmark(split="heldout")
+    if before:
+        off = replace(FootParams(), swing_events=False)
+        out["before_swing_events_off"] = {"bench": hemiparetic_benchmark(split="bench", params=off),
+                                          "heldout": hemiparetic_benchmark(split="heldout", params=off)}
     return out
