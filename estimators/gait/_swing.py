@@ -7,7 +7,7 @@ early) or in the following stance (too late). With the stance mask of the batch 
 
     swing = a moving run [e, f) of the zero-velocity mask between two still runs, n_ref ≤ f − e ≤ 3 s     (W0)
     A swing where Algorithm 1 found a TC and then a heel strike (an IC with s_IC ≥ s_f + M, toes up above the
-    stance that follows, at most MAX_LOADING_S before it) is left exactly as Algorithm 1 found it. Otherwise the swing is one step: one TC, one IC.
+    stance that follows) is left exactly as Algorithm 1 found it. Otherwise the swing is one step: one TC, one IC.
     (W1) TC = the first pitch minimum after the lift, s_k ≤ s_e − M with s rising for the next two samples (the
          end of the push-off's plantarflexion; Algorithm 1's TC when it is that sample, later minima are the
          swing's: a drop-foot swing can fall again toward a toes-down landing), else argmin s over
@@ -104,11 +104,10 @@ def _rotation_stop(w: np.ndarray, s: np.ndarray, e: int, j: int, f: int, frac: f
 
 def heel_strike_fraction(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sampling_rate_hz: float,
                          max_swing_s: float = 3.0) -> float:
-    """Share of the swings (W0) in which Algorithm 1 found a TC and then a heel strike (s_IC ≥ s_f + M within
-    MAX_LOADING_S before the stance: a toes-up peak in mid-swing is no heel strike); NaN without swings."""
+    """Share of the swings (W0) in which Algorithm 1 found a TC and then a heel strike (s_IC ≥ s_f + M); NaN
+    without swings."""
     fs = float(sampling_rate_hz)
     n_ref = max(1, int(round(ev.params.refractory_s * fs)))
-    max_load = int(round(MAX_LOADING_S * fs))
     s = np.asarray(s, float)
     sw = [(e, f) for e, f in swing_runs(still, min_samples=n_ref, max_samples=int(max_swing_s * fs)) if f < len(s)]
     if not sw:
@@ -118,7 +117,7 @@ def heel_strike_fraction(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sa
         tcs = ev.tc_idx[(ev.tc_idx >= e - n_ref) & (ev.tc_idx < f)]
         if not len(tcs):
             continue
-        ics = ev.ic_idx[(ev.ic_idx > max(tcs[0], f - max_load)) & (ev.ic_idx < f + n_ref)]
+        ics = ev.ic_idx[(ev.ic_idx > tcs[0]) & (ev.ic_idx < f + n_ref)]
         hit += bool(np.any(s[ics] >= s[f] + ev.params.flat_lift_margin))
     return hit / len(sw)
 
@@ -146,7 +145,7 @@ def complete_swing_events(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, s
             continue
         in_sw = [t for t in tc if e - n_ref <= t[0] < f]
         first_tc = in_sw[0][0] if in_sw else e
-        heel = [t for t in ic if max(first_tc, f - max_load) < t[0] < f + n_ref and s[t[0]] >= s[f] + margin]
+        heel = [t for t in ic if first_tc < t[0] < f + n_ref and s[t[0]] >= s[f] + margin]
         if in_sw and heel:
             continue                                       # Algorithm 1 found this step: a TC, then a heel strike
         for t in in_sw:                                    # one step has one TC (W1)
