@@ -71,6 +71,17 @@ def _score(records, _unused=None) -> dict:
     return out
 
 
+def _finite(x):
+    """JSON-safe: NaN / inf (a class without matched strides or events) -> None, recursively."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return x
+
+
 def _summary(par: dict, oth: dict, recs_all) -> dict:
     both = _score(recs_all, None)
     return {"paretic_stride_sensitivity": par["stride_sensitivity"], "paretic_stride_precision": par["stride_precision"],
@@ -97,7 +108,7 @@ def hemiparetic_benchmark(*, split: str = "bench", params=None, strides: int = S
         allp += d["paretic"]
         allo += d["other"]
     out["summary"] = _summary(_score(allp, None), _score(allo, None), allp + allo)
-    return out
+    return _finite(out)
 
 
 def hemiparetic_report(*, before: bool = False) -> dict:
