@@ -117,10 +117,11 @@ class EventAccuracy:
     fp: int
     fn: int
     pairs_s: np.ndarray
+    unscored: int = 0
 
 
 def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERANCE_S,
-                   spans_s=None) -> EventAccuracy:
+                   spans_s=None, unscored_spans_s=None) -> EventAccuracy:
     """Match detected to reference events per trial (:func:`match_events` on a 1 µs grid) and pool the counts.
 
     ``detected_s`` / ``reference_s``: sequences (one entry per trial) of 1-D arrays of event times in seconds
@@ -128,13 +129,17 @@ def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERA
     (e.g. Voisard's ``TrialBoundaries``); None = [first − tol, last + tol] of the trial's reference events.
     Only reference events inside the span count; detections within ``tolerance_s`` of the span may match them,
     and unmatched detections outside the span are not counted (the reference says nothing there). A trial
-    without reference events contributes nothing.
+    without reference events contributes nothing. ``unscored_spans_s``: optional, per trial, a list of open
+    intervals (a, b) where the reference is known to leave events out (e.g. an unlabelled foot placement); an
+    unmatched detection strictly inside one is counted in ``unscored``, not as a false positive.
     """
     if tolerance_s < 0:
         raise ValueError(f"tolerance_s must be >= 0, got {tolerance_s}")
     if len(detected_s) != len(reference_s) or (spans_s is not None and len(spans_s) != len(reference_s)):
         raise ValueError("detected_s, reference_s (and spans_s) need one entry per trial")
-    tp = fp = fn = 0
+    if unscored_spans_s is not None and len(unscored_spans_s) != len(reference_s):
+        raise ValueError("unscored_spans_s needs one entry per trial")
+    tp = fp = fn = unscored = 0
     pairs = []
     us = 1e6
     for i, (det, ref) in enumerate(zip(detected_s, reference_s)):
@@ -150,15 +155,23 @@ def event_accuracy(detected_s, reference_s, *, tolerance_s: float = EVENT_TOLERA
         det = det[(det >= lo - tolerance_s) & (det <= hi + tolerance_s)]
         m = match_events(np.rint(det * us).astype(np.int64), np.rint(ref * us).astype(np.int64),
                          tolerance_samples=int(round(tolerance_s * us)))
-        n_fp = int(np.sum((m.fp / us >= lo) & (m.fp / us <= hi)))
-        tp, fp, fn = tp + m.tp, fp + n_fp, fn + len(m.fn)
+        fp_s = m.fp / us
+        fp_s = fp_s[(fp_s >= lo) & (fp_s <= hi)]
+        if unscored_spans_s is not None and len(fp_s):
+            inside = np.zeros(len(fp_s), bool)
+            for a, b in unscored_spans_s[i]:
+                inside |= (fp_s > a) & (fp_s < b)
+            unscored += int(inside.sum())
+            fp_s = fp_s[~inside]
+        tp, fp, fn = tp + m.tp, fp + len(fp_s), fn + len(m.fn)
         pairs.append(m.pairs / us)
     p = np.vstack(pairs) if pairs else np.zeros((0, 2))
     err_ms = (p[:, 0] - p[:, 1]) * 1000.0
     nan = float("nan")
     return EventAccuracy(sensitivity=tp / (tp + fn) if tp + fn else nan, precision=tp / (tp + fp) if tp + fp else nan,
                          timing_mae_ms=float(np.abs(err_ms).mean()) if len(err_ms) else nan,
-                         timing_mean_ms=float(err_ms.mean()) if len(err_ms) else nan, tp=tp, fp=fp, fn=fn, pairs_s=p)
+                         timing_mean_ms=float(err_ms.mean()) if len(err_ms) else nan, tp=tp, fp=fp, fn=fn, pairs_s=p,
+                         unscored=unscored)
 
 
 def reference_stride_lengths(ref_t_s: np.ndarray, ref_pos: np.ndarray, start_s: np.ndarray,

@@ -62,54 +62,67 @@ def unannotated_spans(foot, fs: float, mocap_fs: float) -> np.ndarray:
     return np.array(out, np.int64).reshape(-1, 2)
 
 
-def _event_metrics(det_all, ref, fs, tol_s, lo, hi, spans) -> dict:
-    from estimators.gait.evaluation import match_events
-    det = det_all[(det_all >= lo) & (det_all <= hi)]
-    m = match_events(det, ref, tolerance_samples=int(round(tol_s * fs)))
-    fp = m.fp
-    unann = np.array([d for d in fp if any(a < d < b for a, b in spans)], np.int64)
-    fp = np.array([d for d in fp if d not in set(unann.tolist())], np.int64)
-    err_ms = m.error_samples / fs * 1000.0
-    tp, nfp, nfn = m.tp, len(fp), len(m.fn)
-    nun = len(unann)
-    return {"sensitivity": tp / (tp + nfn) if tp + nfn else None, "precision": tp / (tp + nfp) if tp + nfp else None,
-            # precision if every unannotated detection were counted as a false positive (the reference's own reading)
-            "precision_strict": tp / (tp + nfp + nun) if tp + nfp + nun else None,
-            "timing_mae_ms": float(np.abs(err_ms).mean()) if len(err_ms) else None,
-            "timing_mean_ms": float(err_ms.mean()) if len(err_ms) else None,
-            "tp": tp, "fp": nfp, "fn": nfn, "unannotated": int(len(unann)), "_err": err_ms}
+def _none(x):
+    return None if x is None or (isinstance(x, float) and not np.isfinite(x)) else x
+
+
+def _event_figures(dets_s, refs_s, spans_s, unannotated_s, tol_s) -> dict:
+    """IC or TC figures pooled over feet, all from ``estimators.gait.evaluation.event_accuracy`` (the gait stage's
+    scorer): ``precision`` with the unannotated foot placements unscored, ``precision_strict`` counting them as false
+    positives (the reference's own reading)."""
+    from estimators.gait.evaluation import event_accuracy
+    a = event_accuracy(dets_s, refs_s, tolerance_s=tol_s, spans_s=spans_s, unscored_spans_s=unannotated_s)
+    strict = event_accuracy(dets_s, refs_s, tolerance_s=tol_s, spans_s=spans_s)
+    return {"sensitivity": _none(a.sensitivity), "precision": _none(a.precision),
+            "precision_strict": _none(strict.precision), "timing_mae_ms": _none(a.timing_mae_ms),
+            "timing_mean_ms": _none(a.timing_mean_ms), "tp": a.tp, "fp": a.fp, "fn": a.fn, "unannotated": a.unscored}
+
+
+def _event_inputs(foot, fk, fs, mocap_fs) -> dict:
+    """Per foot, in seconds: annotated span, unannotated spans, (detections, reference) per event type."""
+    ref = foot.strides
+    spans = unannotated_spans(foot, fs, mocap_fs)
+    out = {"span": (ref[:, 0].min() / fs, ref[:, 1].max() / fs), "unannotated": [(a / fs, b / fs) for a, b in spans],
+           "unannotated_spans": spans.tolist(),
+           "ic": (np.asarray(fk.events.ic_idx) / fs, ref[:, 2] / fs), "tc": (np.asarray(fk.events.tc_idx) / fs, ref[:, 3] / fs)}
+    if fk.events.tc_pitch_min_idx is not None:          # the thesis' plain TC (pitch minimum), before toe-off (T1)
+        out["tc_pitch_min"] = (np.asarray(fk.events.tc_pitch_min_idx) / fs, ref[:, 3] / fs)
+    return out
+
+
+def _events_of(inputs: list, tol_s: float, names=("ic", "tc")) -> dict:
+    out = {}
+    for name in names:
+        fig = _event_figures([x[name][0] for x in inputs], [x[name][1] for x in inputs], [x["span"] for x in inputs],
+                             [x["unannotated"] for x in inputs], tol_s)
+        out.update({f"{name}_{k}": v for k, v in fig.items()})
+    return out
 
 
 def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
     ref = foot.strides
-    lo, hi = int(ref[:, 0].min()), int(ref[:, 1].max())
-    spans = unannotated_spans(foot, fs, mocap_fs)
-    out = {"unannotated_spans": spans.tolist()}
-    by_tol = {}
-    for tol in EVENT_TOLERANCES_S:
-        by_tol[str(tol)] = {}
-        for name, det, col in (("ic", fk.events.ic_idx, 2), ("tc", fk.events.tc_idx, 3)):
-            em = _event_metrics(det, ref[:, col], fs, tol, lo, hi, spans)
-            for k, v in em.items():
-                by_tol[str(tol)][f"{name}_{k}"] = v
-    for k, v in by_tol[str(EVENT_TOL_S)].items():
-        out[k if not k.endswith("__err") else k] = v
-    for name in ("ic", "tc"):
-        out[f"_{name}_err"] = out.pop(f"{name}__err")
+    inp = _event_inputs(foot, fk, fs, mocap_fs)
+    out = {"unannotated_spans": inp["unannotated_spans"]}
+    by_tol = {str(tol): _events_of([inp], tol) for tol in EVENT_TOLERANCES_S}
+    out.update(by_tol[str(EVENT_TOL_S)])
     out["_by_tolerance"] = by_tol
-    if fk.events.tc_pitch_min_idx is not None:          # the thesis' plain TC (pitch minimum), before toe-off (T1)
-        em = _event_metrics(fk.events.tc_pitch_min_idx, ref[:, 3], fs, EVENT_TOL_S, lo, hi, spans)
-        out["tc_pitch_min_timing_mae_ms"], out["tc_pitch_min_timing_mean_ms"] = em["timing_mae_ms"], em["timing_mean_ms"]
+    out["_inputs"] = inp
+    if "tc_pitch_min" in inp:
+        em = _events_of([inp], EVENT_TOL_S, names=("tc_pitch_min",))
+        out["tc_pitch_min_timing_mae_ms"] = em["tc_pitch_min_timing_mae_ms"]
+        out["tc_pitch_min_timing_mean_ms"] = em["tc_pitch_min_timing_mean_ms"]
     from estimators.gait.evaluation import stride_length_reference
     heel = foot.markers["FCC"]
     # the gait stage's definition: detected strides matched to the labelled ones, heel displacement between the
     # labelled borders
     ref_len = stride_length_reference(fk.strides.idx[:, :2] / fs, np.arange(len(heel)) / mocap_fs, heel,
                                       ref[:, :2] / fs, tolerance_s=STRIDE_TOL_S)
+    from estimators.gait.evaluation import paired_errors
     e = fk.strides.column("stride_length_m") - ref_len
     e = e[np.isfinite(e)]
-    out["stride_length_mae_m"] = float(np.abs(e).mean()) if len(e) else None
-    out["stride_length_mean_error_m"] = float(e.mean()) if len(e) else None
+    pe = paired_errors(e, 0.0)
+    out["stride_length_mae_m"] = _none(pe["mae"])
+    out["stride_length_mean_error_m"] = _none(pe["mean"])
     out["strides_reference"], out["strides_detected"], out["strides_matched"] = len(ref), len(fk.strides), len(e)
     out["_sl_err"] = e
     out["status"] = fk.status
@@ -156,28 +169,16 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
             p.advance(task)
         overall = {}
         by_tolerance = {}
+        inputs = [res[side]["_inputs"] for side in res]
         for tol in EVENT_TOLERANCES_S:
-            bt = {side: res[side]["_by_tolerance"][str(tol)] for side in res}
-            ov = {}
-            for name in ("ic", "tc"):
-                tp = sum(bt[s][f"{name}_tp"] for s in bt)
-                fp = sum(bt[s][f"{name}_fp"] for s in bt)
-                fn = sum(bt[s][f"{name}_fn"] for s in bt)
-                err = np.concatenate([bt[s][f"{name}__err"] for s in bt])
-                ov[f"{name}_sensitivity"] = tp / (tp + fn) if tp + fn else None
-                ov[f"{name}_precision"] = tp / (tp + fp) if tp + fp else None
-                un = sum(bt[s][f"{name}_unannotated"] for s in bt)
-                ov[f"{name}_precision_strict"] = tp / (tp + fp + un) if tp + fp + un else None
-                ov[f"{name}_timing_mae_ms"] = float(np.abs(err).mean()) if len(err) else None
-                ov[f"{name}_timing_mean_ms"] = float(err.mean()) if len(err) else None
-                ov[f"{name}_unannotated"] = int(sum(bt[s][f"{name}_unannotated"] for s in bt))
-            by_tolerance[str(tol)] = {"overall": ov, "per_foot": {
-                side: {k: v for k, v in bt[side].items() if not k.endswith("__err")} for side in bt}}
+            by_tolerance[str(tol)] = {"overall": _events_of(inputs, tol),
+                                      "per_foot": {side: res[side]["_by_tolerance"][str(tol)] for side in res}}
         overall.update(by_tolerance[str(EVENT_TOL_S)]["overall"])
-        sl = np.concatenate([res[s]["_sl_err"] for s in res])
-        overall["stride_length_mae_m"] = float(np.abs(sl).mean()) if len(sl) else None
-        overall["stride_length_mean_error_m"] = float(sl.mean()) if len(sl) else None
-        overall["strides_matched"] = int(len(sl))
+        from estimators.gait.evaluation import paired_errors
+        pe = paired_errors(np.concatenate([res[s]["_sl_err"] for s in res]), 0.0)
+        overall["stride_length_mae_m"] = _none(pe["mae"])
+        overall["stride_length_mean_error_m"] = _none(pe["mean"])
+        overall["strides_matched"] = pe["n"]
         if speed:
             p.update(task, description="speed: 2 feet x 10 min at 100 Hz")
             overall["seconds_2feet_10min"] = speed_2feet_10min(ex)
