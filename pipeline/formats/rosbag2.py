@@ -77,14 +77,14 @@ def custom_data_of_mcap(metadata: dict[str, dict[str, str]]) -> dict[str, str]:
     return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else {}
 
 
-def iter_bag_blocks(info: BagInfo, result: ReadResult) -> Iterator[Block]:
+def iter_bag_blocks(info: BagInfo, result: ReadResult, on_block=None) -> Iterator[Block]:
     """Blocks of every decodable topic of the bag, file after file; fills ``result``."""
     if info.storage == "mcap" and info.compression_mode in ("", "none", "message"):
         shas = []
         for f in info.files:
             part = ReadResult()
             try:
-                yield from iter_blocks(f, part)
+                yield from iter_blocks(f, part, on_block=on_block)
             except McapFormatError as e:
                 raise McapFormatError(f"{f.name}: {e}") from None
             for name, md in part.metadata.items():
