@@ -23,6 +23,7 @@ pages = [
     st.Page(_PAGES / "overview.py", title="Overview", icon=":material/dashboard:", url_path="overview", default=True),
     st.Page(_PAGES / "accuracy.py", title="Accuracy", icon=":material/target:", url_path="accuracy"),
     st.Page(_PAGES / "participant.py", title="Participant", icon=":material/person:", url_path="participant"),
+    st.Page(_PAGES / "programme.py", title="Programme", icon=":material/trending_up:", url_path="programme"),
     st.Page(_PAGES / "activity.py", title="Activity", icon=":material/directions_run:", url_path="activity"),
     st.Page(_PAGES / "runs.py", title="Runs", icon=":material/history:", url_path="runs"),
 ]

@@ -148,3 +148,58 @@ def run_durations(runs: pd.DataFrame) -> go.Figure:
                                      "running": "#4c78a8"}, hover_name="run_id", title="Run durations (s)")
     fig.update_xaxes(type="category", title="started (UTC)")
     return _layout(fig, 260)
+
+
+def programme_change(change: pd.DataFrame, name: str) -> go.Figure:
+    """Change from the first to the latest visit per participant, with ± its MDC95 (the measurement's own noise)."""
+    c = change.dropna(subset=["change"]).sort_values("participant_id")
+    colors = np.where(c["beyond_mdc"], "#e45756", "#4c78a8")
+    fig = go.Figure(go.Scatter(
+        x=c["change"], y=c["participant_id"], mode="markers", marker=dict(size=11, color=colors),
+        error_x=dict(type="data", array=c["mdc95"], visible=True, color="#888"),
+        hovertext=[f"{p}: {a:.3g} → {b:.3g} (change {d:+.3g}, MDC95 {m:.3g})" for p, a, b, d, m in
+                   zip(c["participant_id"], c["baseline"], c["latest"], c["change"], c["mdc95"])],
+        hoverinfo="text", showlegend=False))
+    fig.add_vline(x=0, line=dict(color="#333", width=1))
+    fig.update_xaxes(title=f"change in {name} (latest − first visit)")
+    return _layout(fig, max(220, 60 + 40 * len(c)),
+                   title=f"{name}: change between visits (red: beyond the MDC95 of the two sessions; bars: ± MDC95)")
+
+
+def clinical_trend(series: pd.DataFrame, name: str, band: tuple | None = None) -> go.Figure:
+    """One measure across a participant's visits, ± 1.96 SEM (within-session uncertainty); optional normative band
+    ``(low, high, label)``."""
+    s = series.sort_values("visit")
+    fig = go.Figure(go.Scatter(x=s["date"], y=s["value"], mode="lines+markers",
+                               error_y=dict(type="data", array=1.96 * s["sem"], visible=True),
+                               hovertext=s["session_id"] + " · visit " + s["visit"].astype(str), showlegend=False))
+    if band is not None:
+        lo, hi, label = band
+        fig.add_hrect(y0=lo if lo is not None else s["value"].min(), y1=hi if hi is not None else s["value"].max(),
+                      fillcolor="#54a24b", opacity=0.12, line_width=0, annotation_text=label,
+                      annotation_position="top left")
+    return _layout(fig, 260, title=name)
+
+
+def walking_bout_durations(bouts: pd.DataFrame) -> go.Figure:
+    """Histogram of free-living walking-bout durations (log-spaced bins), per chest day."""
+    b = bouts[bouts["seconds"] > 0]
+    edges = np.geomspace(max(1.0, float(b["seconds"].min())), float(b["seconds"].max()) * 1.01, 16) if len(b) else [1, 2]
+    fig = go.Figure()
+    for day, g in b.groupby("day"):
+        h, _ = np.histogram(g["seconds"], bins=edges)
+        fig.add_trace(go.Bar(x=[f"{a:.0f}-{c:.0f}" for a, c in zip(edges[:-1], edges[1:])], y=h, name=str(day)))
+    fig.update_xaxes(title="bout duration (s)")
+    fig.update_yaxes(title="bouts")
+    return _layout(fig, 300, title="Walking bouts: duration distribution", barmode="group")
+
+
+def walking_by_hour(bouts: pd.DataFrame) -> go.Figure:
+    """Walking minutes per local hour of the day, per chest day."""
+    fig = go.Figure()
+    for day, g in bouts.groupby("day"):
+        m = g.groupby("hour")["seconds"].sum().reindex(range(24), fill_value=0) / 60
+        fig.add_trace(go.Bar(x=list(range(24)), y=m.to_numpy(), name=str(day)))
+    fig.update_xaxes(title="hour of the day (local)", dtick=2)
+    fig.update_yaxes(title="walking minutes")
+    return _layout(fig, 280, title="Walking by time of day", barmode="group")

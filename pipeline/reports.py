@@ -19,7 +19,7 @@ from pipeline.stages import canonical_json
 from warehouse.catalog import Warehouse, first
 
 #: bump when the report's content or layout changes: every report is then rewritten once
-REPORT_FORMAT = 1
+REPORT_FORMAT = 2                  # 2: clinician summary page, clinical measures, walking bouts (issue 18)
 TMP_PREFIX = ".tmp-"
 
 #: ``build(study, participant_id, out_dir) -> {"html": Path, "pdf": Path}``

@@ -3,11 +3,15 @@
 Layout (always the same five A4 pages, so a study coordinator can file them; a section without data
 says why and what to run):
 
-1. identification (pseudonym, study, snapshot) · sessions · data quality
-2. gait parameters across sessions (Figure 1) and their per-session table, with symmetry
+1. summary for the clinician: speed, asymmetry ratios, steps/day, upright time at the latest visit, the change
+   since the previous visit against its minimal detectable change, normative bands with their source, and the
+   flags where data quality limits a number
+2. gait: parameters across sessions (Figure 1), clinical measures per visit and per side (paretic /
+   non-paretic ratio, symmetry ratio, variability) and their trend with uncertainty (Figure 5)
 3. joint-angle cycles of the newest lab session against a normative band (Figure 2)
-4. daily activity: time per class per day (Figure 3) and a daily table (steps, transitions)
-5. accuracy against the reference, where one was recorded (Figure 4: Bland–Altman of stride length)
+4. daily activity: time per class per day (Figure 3), a daily table, and free-living walking bouts
+   (durations, time of day: Figure 6; steps, cadence within bouts, longest bout)
+5. sessions, data quality, and accuracy against the reference where one was recorded (Figure 4)
 
 Only the pseudonym identifies the participant; file names (which may carry site identifiers) are
 not printed. Figures are drawn once with matplotlib and embedded in both outputs (inline SVG in
@@ -25,16 +29,28 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from reports.normative import CLINICAL_BANDS, band_label, normative_band
 from warehouse import queries as Q
-from reports.normative import normative_band
 
 A4 = (8.27, 11.69)
-TITLES = {1: "Participant, sessions and data quality", 2: "Gait parameters", 3: "Joint angles",
-          4: "Daily activity", 5: "Accuracy against reference"}
+TITLES = {1: "Summary", 2: "Gait: speed, steps and asymmetry", 3: "Joint angles",
+          4: "Daily activity and free-living walking", 5: "Sessions, data quality and accuracy against reference"}
 FIG_CAPTIONS = {1: "Figure 1: Gait parameters across sessions (the gait stage's summary per session)",
                 2: "Figure 2: Joint angles over the gait cycle, newest lab session, against a normative band",
                 3: "Figure 3: Time per activity class and day",
-                4: "Figure 4: Bland-Altman plot of stride length (IMU vs reference)"}
+                4: "Figure 4: Bland-Altman plot of stride length (IMU vs reference)",
+                5: "Figure 5: Clinical measures per lab visit (error bars: ± 1.96 SEM within the session)",
+                6: "Figure 6: Free-living walking bouts: duration and time of day"}
+#: page-1 rows from the clinical measures: (measure, quantity, label, band key)
+SUMMARY_GAIT = [("gait_speed_m_s", "value", "Gait speed (m/s)", "gait_speed_m_s"),
+                ("cadence_steps_min", "value", "Cadence (steps/min)", None),
+                ("step_time_s", "symmetry_ratio", "Step time symmetry ratio", None),
+                ("swing_time_s", "symmetry_ratio", "Swing time symmetry ratio", "swing_time_s_symmetry"),
+                ("stance_time_s", "symmetry_ratio", "Stance time symmetry ratio", "stance_time_s_symmetry"),
+                ("single_support_s", "symmetry_ratio", "Single support symmetry ratio", None),
+                ("step_length_m", "symmetry_ratio", "Step length symmetry ratio *", "step_length_m_symmetry"),
+                ("double_support_pct", "value", "Double support (% of stride)", "double_support_pct")]
+UPRIGHT = ("standing", "level_walking", "stairs_up", "stairs_down")
 
 
 # ---- data -----------------------------------------------------------------------------------
@@ -71,6 +87,8 @@ def collect(con, root: Path, participant_id: str, study: str | None) -> dict:
         "joints": Q.joint_cycles(con, participant_id, study), "calibration": Q.calibration_qc(con, participant_id, study),
         "daily": Q.activity_daily(con, participant_id, study), "accuracy": acc, "stride_pairs": pairs,
         "orientation": Q.orientation_coverage(con, participant_id, study),
+        "clinical": Q.clinical_visits(con, study, participant_id),
+        "walking": Q.walking_bouts(con, participant_id, study),
     }
 
 
@@ -166,6 +184,50 @@ def fig_bland_altman(pairs: pd.DataFrame):
     return fig, bias, sd
 
 
+def fig_clinical(visits: pd.DataFrame):
+    """Speed and the temporal symmetry ratios per lab visit, ± 1.96 SEM, with the healthy band where one exists."""
+    plt = _plt()
+    panels = [("gait_speed_m_s", "value", "gait speed (m/s)", "gait_speed_healthy_m_s"),
+              ("step_time_s", "symmetry_ratio", "step time SR", None),
+              ("swing_time_s", "symmetry_ratio", "swing time SR", "swing_time_s_symmetry"),
+              ("stance_time_s", "symmetry_ratio", "stance time SR", "stance_time_s_symmetry")]
+    fig, axes = plt.subplots(1, len(panels), figsize=(7.4, 2.2), squeeze=False)
+    for ax, (m, q, title, band) in zip(axes[0], panels):
+        sr = Q.clinical_series(visits, m, q).sort_values("visit")
+        if band in CLINICAL_BANDS:
+            lo, hi, _what, _src = CLINICAL_BANDS[band][0]
+            ax.axhspan(lo, hi, color="#54a24b", alpha=0.15, lw=0)
+        ax.errorbar(sr["visit"], sr["value"], yerr=1.96 * sr["sem"], marker="o", capsize=3, lw=1.2, color="#4c78a8")
+        ax.set_title(title)
+        ax.set_xticks(sr["visit"], [f"visit {v}" for v in sr["visit"]])
+        ax.set_xlim(sr["visit"].min() - 0.5, sr["visit"].max() + 0.5)
+    fig.tight_layout()
+    return fig
+
+
+def fig_walking(bouts: pd.DataFrame):
+    """Histogram of walking-bout durations (log bins) and walking minutes per local hour, per chest day."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(7.4, 2.3))
+    b = bouts[bouts["seconds"] > 0]
+    edges = np.geomspace(max(1.0, float(b["seconds"].min())), float(b["seconds"].max()) * 1.01, 14)
+    days = sorted(b["day"].unique())
+    a1.hist([b.loc[b["day"] == d, "seconds"] for d in days], bins=edges, label=days, color=None)
+    a1.set_xscale("log")
+    a1.set_xlabel("bout duration (s)")
+    a1.set_ylabel("bouts")
+    width = 0.8 / max(1, len(days))
+    for k, d in enumerate(days):
+        m = b[b["day"] == d].groupby("hour")["seconds"].sum().reindex(range(24), fill_value=0) / 60
+        a2.bar(np.arange(24) + (k - (len(days) - 1) / 2) * width, m.to_numpy(), width=width, label=d)
+    a2.set_xlabel("hour of the day (local)")
+    a2.set_ylabel("walking minutes")
+    a2.set_xticks(range(0, 24, 3))
+    a1.legend(fontsize=6, frameon=False)
+    fig.tight_layout()
+    return fig
+
+
 def _svg(fig) -> str:
     buf = io.StringIO()
     fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
@@ -189,15 +251,14 @@ def sessions_table(d) -> pd.DataFrame:
     s = d["sessions"]
     if s.empty:
         return pd.DataFrame(columns=["session", "kind", "protocol", "start", "hours", "recordings"])
-    return pd.DataFrame({"session": s["session_id"], "kind": s["kind"], "protocol": s["protocol"],
-                         "start (UTC)": pd.to_datetime(s["start"], utc=True).dt.strftime("%Y-%m-%d %H:%M"),
-                         "hours": s["hours"].round(2), "recordings": s["recordings"], "trials": s["trials"]})
+    return pd.DataFrame({"Session": s["session_id"], "Kind": s["kind"].str.replace("_", " "), "Protocol": s["protocol"],
+                         "Start (UTC)": pd.to_datetime(s["start"], utc=True).dt.strftime("%Y-%m-%d %H:%M"),
+                         "Hours": s["hours"].round(2), "Recordings": s["recordings"], "Trials": s["trials"]})
 
 
 def gait_table(gait: pd.DataFrame) -> pd.DataFrame:
-    cols = {"session_id": "session", "strides": "strides", "speed_m_s": "speed m/s",
-            "cadence_steps_min": "cadence /min", "stride_length_m": "stride length m", "stance_pct": "stance %",
-            "si_stride_time_pct": "SI stride time %", "si_stride_length_pct": "SI stride length %"}
+    cols = {"session_id": "Session", "strides": "Strides", "speed_m_s": "Speed m/s",
+            "cadence_steps_min": "Cadence /min", "stride_length_m": "Stride length m", "stance_pct": "Stance % of stride"}
     return gait[[c for c in cols if c in gait]].rename(columns=cols)
 
 
@@ -208,7 +269,7 @@ def quality_table(d) -> pd.DataFrame:
             ("failed pipeline stages", int((iss["source"] == "stage").sum()) if not iss.empty else 0),
             ("calibration QC flags", int((iss["source"] == "calibration").sum()) if not iss.empty else 0),
             ("IMUs with orientation", len(d["orientation"]))]
-    return pd.DataFrame(rows, columns=["check", "count"])
+    return pd.DataFrame(rows, columns=["Check", "Count"])
 
 
 def activity_table(daily: pd.DataFrame) -> pd.DataFrame:
@@ -226,12 +287,174 @@ def activity_table(daily: pd.DataFrame) -> pd.DataFrame:
     out["transitions"] = tr.reindex(out.index).fillna(0).astype(int)
     out = out.round(2).reset_index()
     out["day"] = out["day"].astype(str)
-    return out
+    return out.rename(columns={"day": "Day", "lying h": "Lying h", "sitting h": "Sitting h", "standing h": "Standing h",
+                               "walking h": "Walking h", "steps": "Steps (all)", "transitions": "Posture transitions"})
+
+
+def _num(v, digits: int = 2) -> str:
+    return "—" if v is None or not np.isfinite(v) else f"{v:.{digits}f}"
+
+
+def _band_text(key: str | None, value: float) -> str:
+    """'healthy ≤ 1.06 (Patterson et al. 2010)' or the class a value falls in, with its source."""
+    if key is None or key not in CLINICAL_BANDS:
+        return ""
+    if key.endswith("_symmetry"):
+        lo, hi, _what, src = CLINICAL_BANDS[key][0]
+        return f"healthy ≤ {hi:.2f} ({src})"
+    what = band_label(key, value)
+    src = next((b[3] for b in CLINICAL_BANDS[key] if b[2] == what), "")
+    return f"{what} ({src})" if what else ""
+
+
+def free_living_by_visit(d) -> pd.DataFrame:
+    """Per lab visit: the chest days after it (before the next visit): steps/day, upright h/day, recorded h/day,
+    walking bouts ≥ 1 min per day, longest walking bout (min)."""
+    daily, walking, ses = d["daily"], d["walking"], d["sessions"]
+    cols = ["visit", "days", "steps/day", "upright h/day", "recorded h/day", "bouts ≥ 1 min/day",
+            "longest bout (min)"]
+    if daily is None or daily.empty:
+        return pd.DataFrame(columns=cols)
+    lab = ses[ses["kind"] == "lab"].sort_values("start")
+    starts = [pd.Timestamp(t).tz_convert("UTC").date() for t in lab["start"]] if len(lab) else []
+    dd = daily[daily["class"] != "_transitions"].copy()
+    dd["day"] = pd.to_datetime(dd["day"].astype(str).str[:10]).dt.date
+    per_day = dd.groupby("day").agg(steps=("steps", lambda x: x.sum(min_count=1)), recorded=("hours", "sum"))
+    per_day["upright"] = dd[dd["class"].isin(UPRIGHT)].groupby("day")["hours"].sum().reindex(per_day.index).fillna(0)
+    if walking is not None and not walking.empty:
+        w = walking.assign(day=pd.to_datetime(walking["day"]).dt.date)
+        per_day["long_bouts"] = w[w["seconds"] >= 60].groupby("day").size().reindex(per_day.index).fillna(0)
+        per_day["longest"] = w.groupby("day")["seconds"].max().reindex(per_day.index) / 60
+    else:
+        per_day["long_bouts"], per_day["longest"] = np.nan, np.nan
+    per_day["visit"] = [sum(1 for s0 in starts if s0 <= day) or 1 for day in per_day.index]
+    rows = []
+    for v, g in per_day.groupby("visit"):
+        rows.append([v, len(g), g["steps"].mean(), g["upright"].mean(), g["recorded"].mean(), g["long_bouts"].mean(),
+                     g["longest"].max()])
+    return pd.DataFrame(rows, columns=cols)
+
+
+def summary_table(d) -> tuple[pd.DataFrame, list[str]]:
+    """Page 1: each headline measure at the latest visit, the previous visit, the change and its MDC95, and the
+    normative band with its source; plus the flags where data quality limits a number."""
+    visits, flags = d["clinical"], []
+    cols = ["Measure", "Latest visit", "Previous visit", "Change", "MDC95 of the change", "Beyond noise?",
+            "Reference band (source)"]
+    rows = []
+    n_visits = 0
+    if visits is not None and not visits.empty:
+        n_visits = int(visits["visit"].max())
+        latest = visits[visits["visit"] == n_visits]
+        for m, q, label, band in SUMMARY_GAIT:
+            ch = Q.programme_change(visits, m, q, against="previous")
+            if ch.empty:
+                continue
+            r = ch.iloc[0]
+            has_prev = r["visits"] > 1
+            rows.append([label, _num(r["latest"] if has_prev else r["baseline"]), _num(r["baseline"]) if has_prev
+                         else "—", f"{r['change']:+.2f}" if has_prev and np.isfinite(r["change"]) else "—",
+                         _num(r["mdc95"]) if has_prev else "—",
+                         ("see *" if m == "step_length_m" else "yes" if r["beyond_mdc"] else "no")
+                         if has_prev and np.isfinite(r["change"]) else "—",
+                         _band_text(band, r["latest"] if has_prev else r["baseline"])])
+        fl = sorted({f for f in latest["flag"].fillna("") if f})
+        if "few_strides" in fl:
+            few = latest.loc[latest["flag"] == "few_strides", "measure"].tolist()
+            flags.append(f"Fewer than 6 usable strides on a side at the latest visit ({', '.join(few)}): those "
+                         f"numbers are less certain.")
+        if "one_side" in fl:
+            flags.append("Strides on one side only at the latest visit: no ratios for the measures concerned.")
+        side = latest["paretic_side"].dropna().unique()
+        flags.append(f"Paretic side: {side[0]} (session metadata or study manifest)." if len(side) else
+                     "Paretic side unknown: symmetry ratios only (larger / smaller side), no paretic ratios.")
+        note = latest["note"].dropna()
+        if len(note) and any(k in note.iloc[0] for k in ("contralateral", "out of order", "no step length")):
+            flags.append("Gait events: " + note.iloc[0][:240])
+        flags.append("* Step length comes from two separately integrated foot sensors: the ratio is uncertain by "
+                     "about ±0.1 (docs/clinical_measures.md); the temporal ratios are the more reliable asymmetry "
+                     "measures.")
+    fl_v = free_living_by_visit(d)
+    if not fl_v.empty:
+        last = fl_v.iloc[-1]
+        prev = fl_v.iloc[-2] if len(fl_v) > 1 else None
+        for col, label, band, digits in (("steps/day", "Steps per day (free living)", "steps_per_day", 0),
+                                         ("upright h/day", "Upright time (h/day)", None, 1),
+                                         ("longest bout (min)", "Longest walking bout (min)", None, 1)):
+            a, b = float(last[col]), (float(prev[col]) if prev is not None else np.nan)
+            rows.append([label, _num(a, digits), _num(b, digits), f"{a - b:+.{digits}f}" if np.isfinite(b) and
+                         np.isfinite(a) else "—", "—", "—", _band_text(band, a)])
+        if float(last["recorded h/day"]) < 23.0:
+            flags.append(f"Free-living days recorded {last['recorded h/day']:.1f} h on average (not whole days): "
+                         f"steps and upright time are per recorded day.")
+    iss = d["issues"]
+    if not iss.empty:
+        n_stage = int((iss["source"] == "stage").sum())
+        n_rec = int((iss["source"] == "recording").sum())
+        if n_stage:
+            flags.append(f"{n_stage} pipeline stage(s) failed for this participant: some numbers are missing.")
+        if n_rec:
+            flags.append(f"{n_rec} recording warning(s) (gaps, clock issues): see page 5.")
+    return pd.DataFrame(rows, columns=cols), flags
+
+
+def clinical_visit_table(visits: pd.DataFrame) -> pd.DataFrame:
+    """One row per lab visit: speed, cadence, symmetry ratios, double support, usable strides per side."""
+    out = []
+    for v, g in visits.groupby("visit"):
+        m = g.set_index("measure")
+        get = lambda name, col="value": m[col].get(name, np.nan)                # noqa: E731
+        out.append({"Visit": int(v), "Date": pd.Timestamp(g["date"].iloc[0]).strftime("%Y-%m-%d"),
+                    "Speed m/s": _num(get("gait_speed_m_s")), "Cadence /min": _num(get("cadence_steps_min"), 0),
+                    "Step time SR": _num(get("step_time_s", "symmetry_ratio")),
+                    "Swing SR": _num(get("swing_time_s", "symmetry_ratio")),
+                    "Stance SR": _num(get("stance_time_s", "symmetry_ratio")),
+                    "Single supp. SR": _num(get("single_support_s", "symmetry_ratio")),
+                    "Step length SR *": _num(get("step_length_m", "symmetry_ratio")),
+                    "Double supp. %": _num(get("double_support_pct"), 1),
+                    "Strides L / R": f"{int(get('step_time_s', 'n_left') or 0)} / {int(get('step_time_s', 'n_right') or 0)}"})
+    return pd.DataFrame(out)
+
+
+def clinical_side_table(visits: pd.DataFrame) -> pd.DataFrame:
+    """Latest visit, per measure: the two sides (paretic / non-paretic when known), their ratio, symmetry ratio,
+    stride-to-stride CV per side."""
+    latest = visits[visits["visit"] == visits["visit"].max()]
+    names = {"step_time_s": "Step time (s)", "step_length_m": "Step length (m) *", "swing_time_s": "Swing (s)",
+             "stance_time_s": "Stance (s)", "single_support_s": "Single support (s)",
+             "stride_time_s": "Stride time (s)", "stride_length_m": "Stride length (m)"}
+    side = latest["paretic_side"].dropna()
+    par = side.iloc[0] if len(side) else None
+    a_lab, b_lab = ("Paretic", "Non-paretic") if par else ("Left", "Right")
+    rows = []
+    for name, label in names.items():
+        r = latest[latest["measure"] == name]
+        if r.empty:
+            continue
+        r = r.iloc[0]
+        a, b = (r["left_value"], r["right_value"]) if par in (None, "left") else (r["right_value"], r["left_value"])
+        ca, cb = (r["cv_left_pct"], r["cv_right_pct"]) if par in (None, "left") else (r["cv_right_pct"], r["cv_left_pct"])
+        rows.append({"Measure": label, a_lab: _num(a, 3), b_lab: _num(b, 3),
+                     f"{a_lab} / {b_lab.lower()}": _num(a / b if b else np.nan),
+                     "Symmetry ratio": _num(r["symmetry_ratio"]), f"CV {a_lab.lower()} %": _num(ca, 1),
+                     f"CV {b_lab.lower()} %": _num(cb, 1)})
+    return pd.DataFrame(rows)
+
+
+def walking_table(bouts: pd.DataFrame) -> pd.DataFrame:
+    w = Q.walking_summary(bouts)
+    return pd.DataFrame({"Day": w["day"], "Steps in bouts": w["steps"].round(0), "Walking min": w["walking_min"].round(1),
+                         "Bouts": w["bouts"], "Median bout s": w["median_bout_s"].round(0),
+                         "Longest bout s": w["longest_bout_s"].round(0),
+                         "Cadence in bouts ≥ 1 min": w["cadence_long_bouts_spm"].round(0),
+                         "% walking in bouts ≥ 1 min": w["share_in_long_bouts_pct"].round(0)})
 
 
 def accuracy_table(acc: pd.DataFrame) -> pd.DataFrame:
     group = [c for c in ("stage", "estimator", "metric", "unit") if c in acc and acc[c].notna().any()]
-    return acc.groupby(group, dropna=False)["value"].agg(["count", "mean", "std"]).round(3).reset_index()
+    t = acc.groupby(group, dropna=False)["value"].agg(["count", "mean", "std"]).round(3).reset_index()
+    return t.rename(columns={"stage": "Stage", "estimator": "Estimator", "metric": "Metric", "unit": "Unit",
+                             "count": "N", "mean": "Mean", "std": "SD"})
 
 
 # ---- the document model: five pages of blocks ------------------------------------------------------
@@ -242,16 +465,24 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
     ses = d["sessions"]
     span = "—" if ses.empty else f"{pd.to_datetime(ses['start'].min(), utc=True):%Y-%m-%d} to " \
                                  f"{pd.to_datetime(ses['end'].max(), utc=True):%Y-%m-%d}"
+    n_lab = int((ses["kind"] == "lab").sum())
     pages[1] += [("text", f"Participant (pseudonym): {d['participant_id']}    Study: {d['study']}"),
-                 ("text", f"Sessions: {len(ses)} ({int((ses['kind'] == 'lab').sum())} lab, "
-                          f"{int((ses['kind'] == 'free_living').sum())} free-living), {span}"),
-                 ("table", "Sessions", sessions_table(d).head(18)),
-                 ("table", "Data quality", quality_table(d))]
-    if len(ses) > 18:
-        pages[1].append(("note", f"… and {len(ses) - 18} more sessions (see the dashboard)."))
-    flags = d["issues"]
-    if not flags.empty:
-        pages[1].append(("table", "Quality flags", flags[["source", "session_id", "what", "message"]].head(8)))
+                 ("text", f"Lab visits: {n_lab}    Free-living sessions: {int((ses['kind'] == 'free_living').sum())}"
+                          f"    Period: {span}")]
+    summ, flags = summary_table(d)
+    if summ.empty:
+        pages[1].append(("note", "No clinical gait measures or free-living results for this participant yet: "
+                                 + Q.RUN_HINT + "."))
+    else:
+        pages[1].append(("table", "At the latest visit, and the change since the previous visit", summ))
+        pages[1].append(("note", "Change beyond noise = larger than the MDC95 of the change, 1.96·√(SEM₁² + SEM₂²) "
+                                 "from each session's stride-to-stride variation; day-to-day variation is not in it "
+                                 "(published test-retest MDC for gait speed after stroke: 0.18 m/s, Fulk & "
+                                 "Echternach 2008). Symmetry ratio = larger / smaller side (1 = symmetric, Patterson "
+                                 "et al. 2010). Bands are orientation values, not cut-offs for this device."))
+    if flags:
+        pages[1].append(("heading", "Where data quality limits a number"))
+        pages[1] += [("text", f"• {f}") for f in flags]
 
     g = d["gait"]
     if d["strides"] is None:
@@ -260,8 +491,20 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[2].append(("note", "No strides were detected in this participant's lab sessions."))
     else:
         pages[2].append(("figure", FIG_CAPTIONS[1], fig_gait(g)))
-        pages[2].append(("table", "Per session, the gait stage's summary (SI: symmetry index, 200·|L−R|/(L+R) %; "
-                                  "0 = symmetric)", gait_table(g)))
+        pages[2].append(("table", "Per session, both feet", gait_table(g)))
+    cv = d["clinical"]
+    if cv is None:
+        pages[2].append(("note", "No clinical gait measures yet (the clinical stage runs after the gait stage): "
+                                 + Q.RUN_HINT + "."))
+    elif not cv.empty:
+        pages[2].append(("table", "Clinical measures per lab visit (SR: symmetry ratio, larger / smaller side)",
+                         clinical_visit_table(cv)))
+        pages[2].append(("table", "Latest visit per side", clinical_side_table(cv)))
+        pages[2].append(("figure", FIG_CAPTIONS[5] + "; green: healthy range (Bohannon & Williams Andrews 2011; "
+                                                     "Patterson et al. 2010)", fig_clinical(cv)))
+        pages[2].append(("note", "Step time: contralateral contact to this foot's contact; single support: the "
+                                 "other foot's swing. * Step length: ±0.1 on its ratio from the method. Definitions "
+                                 "and references: docs/clinical_measures.md."))
 
     j = d["joints"]
     if j is None:
@@ -291,14 +534,27 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[4].append(("note", "No free-living chest recording classified for this participant."))
     else:
         pages[4].append(("figure", FIG_CAPTIONS[3], fig_activity(daily)))
-        pages[4].append(("table", "Per day", activity_table(daily).head(14)))
+        pages[4].append(("table", "Per day (hours per class, steps, posture transitions)",
+                         activity_table(daily).head(14)))
+    walk = d["walking"]
+    if walk is not None and not walk.empty:
+        pages[4].append(("figure", FIG_CAPTIONS[6], fig_walking(walk)))
+        pages[4].append(("table", "Walking bouts per day (chest sensor; consecutive walking and stairs joined)",
+                         walking_table(walk).head(14)))
 
+    pages[5] += [("table", "Sessions", sessions_table(d).head(10)), ("table", "Data quality", quality_table(d))]
+    if len(ses) > 10:
+        pages[5].append(("note", f"… and {len(ses) - 10} more sessions (see the dashboard)."))
+    if not d["issues"].empty:
+        pages[5].append(("table", "Quality flags", d["issues"][["source", "session_id", "what", "message"]].head(6)
+                         .rename(columns={"source": "Source", "session_id": "Session", "what": "What",
+                                          "message": "Message"})))
     acc, pairs = d["accuracy"], d["stride_pairs"]
     if acc is None and pairs is None:
         pages[5].append(("note", Q.missing_hint("accuracy")))
     else:
         if acc is not None and not acc.empty:
-            pages[5].append(("table", "Accuracy metrics of this participant's sessions", accuracy_table(acc).head(16)))
+            pages[5].append(("table", "Accuracy metrics of this participant's sessions", accuracy_table(acc).head(10)))
         elif pairs is None or pairs.empty:
             pages[5].append(("note", "No reference was recorded in this participant's sessions."))
         if pairs is not None and not pairs.empty:
@@ -335,7 +591,9 @@ def render_html(d: dict, pages: dict, meta: dict) -> str:
     for n, title in TITLES.items():
         out.append(f"<section id='page-{n}'><h2>{n}. {e(title)}</h2>")
         for b in pages[n]:
-            if b[0] == "text":
+            if b[0] == "heading":
+                out.append(f"<h3>{e(b[1])}</h3>")
+            elif b[0] == "text":
                 out.append(f"<p>{e(b[1])}</p>")
             elif b[0] == "note":
                 out.append(f"<p class='note'>{e(b[1])}</p>")
@@ -353,6 +611,25 @@ def render_html(d: dict, pages: dict, meta: dict) -> str:
 def _wrap(text: str, width: int = 110) -> list[str]:
     import textwrap
     return textwrap.wrap(text, width) or [""]
+
+
+#: characters of DejaVu Sans at 6.5 pt that fit across the table width (0.88 of A4)
+_TABLE_CHARS = 150
+
+
+def _col_widths(df: pd.DataFrame) -> tuple[list[int], float]:
+    """Column widths in characters from the content (header included, 4..60 each) and the font size (6.5 pt,
+    smaller down to 5 pt when the columns need more than the page width; cells are cut to their width)."""
+    w = [max([len(str(c))] + [len(_fmt(v)) for v in df[c]]) for c in df.columns] if len(df.columns) else [4]
+    w = [min(max(4, x + 2), 60) for x in w]
+    size = 6.5
+    if sum(w) > _TABLE_CHARS:
+        size = max(5.0, 6.5 * _TABLE_CHARS / sum(w))
+        room = int(_TABLE_CHARS * 6.5 / size)
+        while sum(w) > room:                     # cut the widest column until the rest fits
+            i = int(np.argmax(w))
+            w[i] -= 1
+    return w, size
 
 
 def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
@@ -376,7 +653,10 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
             for b in pages[n]:
                 if y < 0.08:
                     break
-                if b[0] in ("text", "note"):
+                if b[0] == "heading":
+                    page.text(0.06, y, b[1], fontsize=9, weight="bold")
+                    y -= 0.02
+                elif b[0] in ("text", "note"):
                     for line in _wrap(b[1]):
                         page.text(0.06, y, line, fontsize=8, style="italic" if b[0] == "note" else "normal",
                                   color="0.3" if b[0] == "note" else "0.0")
@@ -392,11 +672,14 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                         continue
                     ax = page.add_axes([0.06, y - h, 0.88, h])
                     ax.axis("off")
-                    cells = [[_fmt(v)[:40] for v in r] for r in df.itertuples(index=False)] or [["—"] * len(df.columns)]
-                    tb = ax.table(cellText=cells, colLabels=[str(c) for c in df.columns], loc="upper left",
-                                  cellLoc="left", colLoc="left", bbox=[0, 0, 1, 1])
+                    widths, size = _col_widths(df)
+                    cells = [[_fmt(v)[:w] for v, w in zip(r, widths)] for r in df.itertuples(index=False)] or \
+                        [["—"] * len(df.columns)]
+                    tb = ax.table(cellText=cells, colLabels=[str(c)[:w] for c, w in zip(df.columns, widths)],
+                                  loc="upper left", cellLoc="left", colLoc="left", bbox=[0, 0, 1, 1],
+                                  colWidths=[w / sum(widths) for w in widths])
                     tb.auto_set_font_size(False)
-                    tb.set_fontsize(6.5)
+                    tb.set_fontsize(size)
                     for (r, _c), cell in tb.get_celld().items():
                         cell.set_linewidth(0.3)
                         if r == 0:

@@ -32,7 +32,9 @@ class ParticipantSpec:
     """One participant: ``id`` pseudonym (e.g. "P001"); ``sex`` "F"/"M"; ``height_m``; ``thigh_m`` and
     ``shank_m`` (hip-knee and knee-ankle joint-centre distances); ``speed_m_s`` comfortable walking
     speed; ``cadence_steps_min``; ``condition`` "healthy" | "hemiparetic"; ``paretic_side`` "left" |
-    "right" (hemiparetic only); ``severity`` 0..1 scaling the asymmetry."""
+    "right" (hemiparetic only); ``severity`` 0..1 scaling the asymmetry. ``follow_up_speed_m_s``,
+    ``follow_up_cadence_steps_min``, ``follow_up_severity``: the values at the last lab visit of a programme
+    (``[study] visits`` > 1), reached linearly over the visits; None = as at baseline."""
     id: str
     sex: str = "F"
     height_m: float = 1.70
@@ -43,10 +45,26 @@ class ParticipantSpec:
     condition: str = "healthy"
     paretic_side: str | None = None
     severity: float = 0.0
+    follow_up_speed_m_s: float | None = None
+    follow_up_cadence_steps_min: float | None = None
+    follow_up_severity: float | None = None
 
     @property
     def hemiparetic(self) -> bool:
         return self.condition == "hemiparetic"
+
+    def at_visit(self, visit: int, visits: int) -> "ParticipantSpec":
+        """The participant at lab visit ``visit`` (1-based) of ``visits``: baseline values at visit 1, the
+        ``follow_up_*`` values at the last visit, linear in between."""
+        if visits <= 1 or visit <= 1:
+            return self
+        f = (min(visit, visits) - 1) / (visits - 1)
+        kw = {}
+        for name in ("speed_m_s", "cadence_steps_min", "severity"):
+            end = getattr(self, f"follow_up_{name}")
+            if end is not None:
+                kw[name] = getattr(self, name) + f * (end - getattr(self, name))
+        return replace(self, **kw) if kw else self
 
 
 @dataclass(frozen=True)
@@ -116,6 +134,8 @@ class StudyManifest:
     sampling_rate_hz: float = 100.0
     first_lab_date: _dt.date = _dt.date(2026, 3, 2)
     lab_start_local: str = "09:00"
+    visits: int = 1                   # lab visits per participant (a programme: baseline, follow-ups)
+    visit_interval_days: int = 42     # days between a participant's visits
     participants: tuple[ParticipantSpec, ...] = ()
     lab: LabProtocol = LabProtocol()
     free_living: FreeLivingSpec = FreeLivingSpec()
@@ -199,6 +219,8 @@ def _coerce(ctx: _Ctx, where: str, val, default):
             return _dt.date.fromisoformat(str(val))
         except ValueError:
             raise ctx.err(where, f"expected a date YYYY-MM-DD, got {val!r}") from None
+    if default is None and isinstance(val, (int, float)) and not isinstance(val, bool):
+        return float(val)                   # optional numbers (follow_up_*): None = not given
     if isinstance(default, str) or default is None:
         if not isinstance(val, str):
             raise ctx.err(where, f"expected a string, got {val!r}")
@@ -221,10 +243,14 @@ def _validate_participant(ctx: _Ctx, i: int, p: ParticipantSpec, policy: Privacy
     if p.sex not in ("F", "M"):
         raise ctx.err(f"{where}.sex", f"expected 'F' or 'M', got {p.sex!r}")
     checks = [("height_m", 1.0, 2.3), ("thigh_m", 0.25, 0.65), ("shank_m", 0.25, 0.65),
-              ("speed_m_s", 0.2, 2.0), ("cadence_steps_min", 50.0, 140.0), ("severity", 0.0, 1.0)]
+              ("speed_m_s", 0.2, 2.0), ("cadence_steps_min", 50.0, 140.0), ("severity", 0.0, 1.0),
+              ("follow_up_speed_m_s", 0.2, 2.0), ("follow_up_cadence_steps_min", 50.0, 140.0),
+              ("follow_up_severity", 0.0, 1.0)]
     for name, lo, hi in checks:
         v = getattr(p, name)
-        if not (lo <= v <= hi):
+        if name.startswith("follow_up_") and v is None:
+            continue
+        if not isinstance(v, float) or not (lo <= v <= hi):
             raise ctx.err(f"{where}.{name}", f"{v} outside the plausible range [{lo}, {hi}]")
     if p.condition not in ("healthy", "hemiparetic"):
         raise ctx.err(f"{where}.condition", f"expected 'healthy' or 'hemiparetic', got {p.condition!r}")
@@ -271,6 +297,10 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
         zoneinfo.ZoneInfo(tmp.timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise ctx.err("study.timezone", f"unknown IANA time zone {tmp.timezone!r}") from None
+    if not (1 <= tmp.visits <= 12):
+        raise ctx.err("study.visits", f"{tmp.visits} outside [1, 12]")
+    if not (1 <= tmp.visit_interval_days <= 365):
+        raise ctx.err("study.visit_interval_days", f"{tmp.visit_interval_days} outside [1, 365]")
     if not (10.0 <= tmp.sampling_rate_hz <= 2000.0):
         raise ctx.err("study.sampling_rate_hz", f"{tmp.sampling_rate_hz} outside [10, 2000]")
     _check_hhmm(ctx, "study.lab_start_local", tmp.lab_start_local)
@@ -340,7 +370,8 @@ def load_manifest(path_or_dir: str | Path | None = None) -> StudyManifest:
                                                            f"{list(_SESSION_KINDS)}, got {k} = {v!r}")
     return StudyManifest(name=study["name"], seed=int(study["seed"]), timezone=tmp.timezone,
                          sampling_rate_hz=tmp.sampling_rate_hz, first_lab_date=tmp.first_lab_date,
-                         lab_start_local=tmp.lab_start_local, participants=tuple(parts), lab=lab,
+                         lab_start_local=tmp.lab_start_local, visits=tmp.visits,
+                         visit_interval_days=tmp.visit_interval_days, participants=tuple(parts), lab=lab,
                          free_living=fl, sensor_model=sm, stages=MappingProxyType(stages),
                          topics=MappingProxyType(dict(topics)), privacy=privacy, path=path)
 
@@ -351,3 +382,5 @@ class _StudyHead:
     sampling_rate_hz: float = 100.0
     first_lab_date: _dt.date = _dt.date(2026, 3, 2)
     lab_start_local: str = "09:00"
+    visits: int = 1
+    visit_interval_days: int = 42

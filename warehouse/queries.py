@@ -642,6 +642,118 @@ def activity_daily(con, participant_id: str, study: str | None = None) -> pd.Dat
         ORDER BY day, class""", [participant_id, study, study])
 
 
+# ---- clinical measures and programme change ------------------------------------------------------
+
+#: clinical measures shown in the dashboard and report: (measure, quantity) -> human name. quantity "value" is the
+#: session value, "symmetry_ratio" the larger/smaller ratio (docs/clinical_measures.md)
+CLINICAL_SHOWN = {("gait_speed_m_s", "value"): "Gait speed (m/s)",
+                  ("cadence_steps_min", "value"): "Cadence (steps/min)",
+                  ("step_time_s", "symmetry_ratio"): "Step time symmetry ratio",
+                  ("swing_time_s", "symmetry_ratio"): "Swing time symmetry ratio",
+                  ("stance_time_s", "symmetry_ratio"): "Stance time symmetry ratio",
+                  ("single_support_s", "symmetry_ratio"): "Single support symmetry ratio",
+                  ("step_length_m", "symmetry_ratio"): "Step length symmetry ratio",
+                  ("double_support_pct", "value"): "Double support (% of stride)",
+                  ("stride_length_m", "value"): "Stride length (m)"}
+
+
+def clinical_visits(con, study: str | None = None, participant_id: str | None = None) -> pd.DataFrame | None:
+    """Clinical measures of every lab session with its visit number (1 = first lab session of the participant)."""
+    if not _has_table(con, "clinical_measures"):
+        return None
+    return _df(con, """
+        WITH v AS (SELECT session_id, study, participant_id, start_ns,
+                          row_number() OVER (PARTITION BY study, participant_id ORDER BY start_ns, session_id) AS visit
+                   FROM sessions WHERE kind = 'lab')
+        SELECT v.study, v.participant_id, v.session_id, v.visit, make_timestamptz(v.start_ns // 1000) AS date,
+               c.measure, c.unit, c.value, c.sem, c.mdc95, c.left_value, c.right_value, c.n_left, c.n_right,
+               c.cv_left_pct, c.cv_right_pct, c.paretic_side, c.paretic_value, c.non_paretic_value, c.paretic_ratio,
+               c.symmetry_ratio, c.sem_symmetry_ratio, c.mdc95_symmetry_ratio, c.flag, c.note
+        FROM clinical_measures c JOIN v ON v.session_id = c.session_id
+        WHERE (? IS NULL OR v.study = ?) AND (? IS NULL OR v.participant_id = ?)
+        ORDER BY v.study, v.participant_id, v.visit, c.measure""", [study, study, participant_id, participant_id])
+
+
+def clinical_series(visits: pd.DataFrame, measure: str, quantity: str = "value") -> pd.DataFrame:
+    """One measure per participant and visit: value, its SEM, flag (from :func:`clinical_visits`)."""
+    sem_col = "sem" if quantity == "value" else f"sem_{quantity}"
+    v = visits[visits["measure"] == measure]
+    out = v[["study", "participant_id", "session_id", "visit", "date", "flag", "n_left", "n_right"]].copy()
+    out["value"] = v[quantity].astype(float)
+    out["sem"] = v[sem_col].astype(float) if sem_col in v else np.nan
+    return out.reset_index(drop=True)
+
+
+def programme_change(visits: pd.DataFrame, measure: str, quantity: str = "value",
+                     against: str = "first") -> pd.DataFrame:
+    """Per participant: the latest visit against the first (``against="first"``) or the previous one
+    (``"previous"``), change, its MDC95 from both sessions' SEMs (:func:`estimators.gait.clinical.change_mdc95`),
+    and whether the change exceeds it."""
+    from estimators.gait.clinical import change_mdc95
+    s = clinical_series(visits, measure, quantity)
+    rows = []
+    for (study, pid), g in s.groupby(["study", "participant_id"], sort=True):
+        g = g.sort_values("visit")
+        a, b = g.iloc[0 if against == "first" or len(g) < 2 else -2], g.iloc[-1]
+        ch = float(b["value"] - a["value"]) if len(g) > 1 else np.nan
+        mdc = change_mdc95(float(a["sem"]), float(b["sem"])) if len(g) > 1 else np.nan
+        rows.append({"study": study, "participant_id": pid, "visits": len(g), "baseline": a["value"],
+                     "latest": b["value"] if len(g) > 1 else np.nan, "change": ch, "mdc95": mdc,
+                     "beyond_mdc": bool(np.isfinite(ch) and np.isfinite(mdc) and abs(ch) > mdc),
+                     "flag": ", ".join(sorted({f for f in g["flag"].fillna("") if f}))})
+    return pd.DataFrame(rows, columns=["study", "participant_id", "visits", "baseline", "latest", "change", "mdc95",
+                                       "beyond_mdc", "flag"])
+
+
+# ---- free-living walking bouts ---------------------------------------------------------------------
+
+WALKING_CLASSES = ("level_walking", "stairs_up", "stairs_down")
+
+
+def walking_bouts(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Walking bouts of the chest days (the activity stage's bouts of a walking class; consecutive walking classes
+    joined into one bout): session, local start, duration, steps, cadence within the bout (steps/min)."""
+    b = activity_bouts(con, participant_id, study)
+    if b is None:
+        return None
+    b = b.sort_values(["session_id", "start_ns"]).reset_index(drop=True)
+    walk = b["class"].isin(WALKING_CLASSES).to_numpy()
+    if not walk.any():
+        return pd.DataFrame(columns=["session_id", "day", "start_local", "hour", "seconds", "steps", "cadence_spm"])
+    # a new bout starts at a walking row whose previous row (same session) is not walking or is not contiguous
+    prev_walk = np.r_[False, walk[:-1]] & (b["session_id"].to_numpy() == np.r_[None, b["session_id"].to_numpy()[:-1]])
+    contiguous = np.r_[False, b["start_ns"].to_numpy()[1:] <= b["end_ns"].to_numpy()[:-1] + 1_000_000_000]
+    new = walk & ~(prev_walk & contiguous)
+    bout_id = np.cumsum(new)
+    w = b[walk].assign(bout=bout_id[walk])
+    out = w.groupby("bout").agg(session_id=("session_id", "first"), start_local=("start_local", "first"),
+                                start_ns=("start_ns", "first"), end_ns=("end_ns", "last"),
+                                steps=("steps", lambda x: x.sum(min_count=1)))
+    out["seconds"] = (out["end_ns"] - out["start_ns"]) / 1e9
+    out["day"] = pd.to_datetime(out["start_local"]).dt.date.astype(str)
+    out["hour"] = pd.to_datetime(out["start_local"]).dt.hour
+    out["cadence_spm"] = np.where(out["seconds"] > 0, 60.0 * out["steps"] / out["seconds"], np.nan)
+    return out.reset_index(drop=True)[["session_id", "day", "start_local", "hour", "seconds", "steps", "cadence_spm"]]
+
+
+def walking_summary(bouts: pd.DataFrame) -> pd.DataFrame:
+    """Per chest day: steps, walking minutes, bouts, median and longest bout, median cadence in bouts ≥ 60 s, share
+    of the walking time in bouts ≥ 60 s."""
+    if bouts is None or bouts.empty:
+        return pd.DataFrame(columns=["session_id", "day", "steps", "walking_min", "bouts", "median_bout_s",
+                                     "longest_bout_s", "cadence_long_bouts_spm", "share_in_long_bouts_pct"])
+    rows = []
+    for (sid, day), g in bouts.groupby(["session_id", "day"], sort=True):
+        long = g[g["seconds"] >= 60]
+        rows.append({"session_id": sid, "day": day, "steps": g["steps"].sum(min_count=1),
+                     "walking_min": g["seconds"].sum() / 60, "bouts": len(g), "median_bout_s": g["seconds"].median(),
+                     "longest_bout_s": g["seconds"].max(),
+                     "cadence_long_bouts_spm": long["cadence_spm"].median() if len(long) else np.nan,
+                     "share_in_long_bouts_pct": 100 * long["seconds"].sum() / g["seconds"].sum()
+                     if g["seconds"].sum() else np.nan})
+    return pd.DataFrame(rows)
+
+
 # ---- runs -----------------------------------------------------------------------------------
 
 def pipeline_runs(con, limit: int = 200) -> pd.DataFrame:

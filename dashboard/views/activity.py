@@ -54,6 +54,30 @@ if snap is not None and not empty_warehouse_note(snap):
             table["transitions"] = trans.reindex(table.index).fillna(0).astype(int)
             table = table.drop(columns=["_transitions"], errors="ignore")
             st.dataframe(table.reset_index(), hide_index=True)
+            walk = snap.q(Q.walking_bouts, pid, study)
+            if walk is not None and not walk.empty:
+                st.subheader("Free-living walking bouts")
+                ws = Q.walking_summary(walk)
+                today = ws[ws["day"] == day]
+                c = st.columns(4)
+                if len(today):
+                    t = today.iloc[0]
+                    c[0].metric("Walking bouts", int(t["bouts"]))
+                    c[1].metric("Longest bout (min)", f"{t['longest_bout_s'] / 60:.1f}")
+                    c[2].metric("Bouts ≥ 1 min: cadence", "—" if t["cadence_long_bouts_spm"] != t["cadence_long_bouts_spm"]
+                                else f"{t['cadence_long_bouts_spm']:.0f} /min")
+                    c[3].metric("Walking in bouts ≥ 1 min", f"{t['share_in_long_bouts_pct']:.0f} %")
+                g1, g2 = st.columns(2)
+                g1.plotly_chart(F.walking_bout_durations(walk), key="walking_durations")
+                g2.plotly_chart(F.walking_by_hour(walk), key="walking_by_hour")
+                st.dataframe(ws.rename(columns={"session_id": "session", "walking_min": "walking min",
+                                                "median_bout_s": "median bout s", "longest_bout_s": "longest bout s",
+                                                "cadence_long_bouts_spm": "cadence in bouts ≥ 1 min (/min)",
+                                                "share_in_long_bouts_pct": "% walking in bouts ≥ 1 min"}),
+                             hide_index=True)
+                st.caption("Walking bouts = the activity stage's runs of level walking and stairs (joined when "
+                           "consecutive); cadence = steps / bout duration. Steps per day: < 5,000 sedentary, "
+                           "≥ 10,000 active (Tudor-Locke & Bassett 2004).")
             if len(days) > 1:
                 st.subheader("Trend across weeks")
                 st.plotly_chart(F.weekly_trend(daily), key="weekly_trend")

@@ -39,12 +39,12 @@ if snap is not None and not empty_warehouse_note(snap):
                     avail = [p for p in ("speed_m_s", "cadence_steps_min", "stride_length_m", "stance_pct")
                              if p in summ]
                     st.plotly_chart(F.gait_trend(summ, avail), key="gait_trend")
-                    sym = [c for c in Q.GAIT_SYMMETRY if c in summ]
-                    show = ["session_id", "protocol", "strides"] + [c for c in Q.GAIT_PARAMS if c in summ] + sym
+                    show = ["session_id", "protocol", "strides"] + [c for c in Q.GAIT_PARAMS if c in summ]
                     st.dataframe(summ[show], hide_index=True,
                                  column_config={c: st.column_config.NumberColumn(format="%.3f") for c in show[3:]})
-                    st.caption("The gait stage's own summary per session (both feet). Symmetry index = "
-                               "200·|left − right| / (left + right) % (0 = symmetric).")
+                    st.caption("The gait stage's own summary per session (both feet). Left/right asymmetry (step "
+                               "time, swing, stance, single support, step length: paretic ratio and symmetry ratio) "
+                               "and its change between visits: the Programme page.")
         with tab_joint:
             jc = snap.q(Q.joint_cycles, pid, study)
             if jc is None:

@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["ClinicalParams", "FootEvents", "FootStrides", "StepPhases", "Measure", "ClinicalSummary",
-           "step_phases", "clinical_summary", "common_walking_frame", "walking_direction", "equal_stride_scale", "mdc95", "SIDE_MEASURES", "SESSION_MEASURES"]
+           "step_phases", "clinical_summary", "common_walking_frame", "walking_direction", "equal_stride_scale",
+           "mdc95", "change_mdc95", "SIDE_MEASURES", "SESSION_MEASURES"]
 
 #: per-side measures: name -> unit
 SIDE_MEASURES = {"step_length_m": "m", "step_time_s": "s", "swing_time_s": "s", "stance_time_s": "s",
@@ -364,3 +365,9 @@ def equal_stride_scale(own_lengths_m: np.ndarray, other_lengths_m: np.ndarray) -
     if not len(a) or not len(b) or not a.mean() > 0:
         return float("nan")
     return float(0.5 * (a.mean() + b.mean()) / a.mean())
+
+
+def change_mdc95(sem_a: float, sem_b: float) -> float:
+    """MDC95 of the change between two sessions with their own SEMs: 1.96·√(SEM_a² + SEM_b²) (C10; equals
+    1.96·√2·SEM when both SEMs are equal)."""
+    return float(1.96 * np.hypot(sem_a, sem_b))

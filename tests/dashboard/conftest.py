@@ -23,7 +23,7 @@ from tests.corpus import T0_NS, small_recording
 from warehouse.catalog import Warehouse
 
 APP = Path(__file__).resolve().parents[2] / "dashboard" / "app.py"
-PAGES = ("overview", "accuracy", "participant", "activity", "runs")
+PAGES = ("overview", "accuracy", "participant", "programme", "activity", "runs")
 
 
 def _ingest(root: Path, inbox: Path) -> None:

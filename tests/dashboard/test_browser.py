@@ -35,6 +35,7 @@ EXPECT_DEMO = {
     "": ["StrideLab overview", "Participants", "P001", "P002"],
     "accuracy": ["Accuracy against references", "orientation", "inclination_rmse_deg", "gait"],
     "participant": ["Participant", "P001", "Sessions", "Gait parameters"],
+    "programme": ["Programme: change between visits", "Cohort: first", "MDC95", "Participant trend"],
     "activity": ["Daily activity", "Daily totals"],
     "runs": ["Pipeline runs", "Stage runs", "joint_angles"],
 }
@@ -99,7 +100,7 @@ def _open_every_page(browser, server: str, expect: dict, shots: Path, errors: li
             page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
         assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {name}"
         assert page.get_by_text("Page not found").count() == 0, f"{name}: page not found"
-        if path in ("participant", "accuracy", "activity", "runs"):
+        if path in ("participant", "accuracy", "activity", "runs", "programme"):
             page.locator(".js-plotly-plot").first.wait_for(timeout=30_000)
         page.screenshot(path=str(shots / f"{name}.png"), full_page=True)
         assert (shots / f"{name}.png").stat().st_size > 10_000
@@ -141,3 +142,35 @@ def test_every_page_in_chromium(server, tmp_path_factory):
         finally:
             browser.close()
     print(f"screenshots in {shots}")
+
+
+def test_cohort_change_page_in_chromium(demo_wh, tmp_path_factory):
+    """The Programme page on the demo pipeline's two-visit warehouse: the cohort-change figure (one marker per
+    participant with its MDC95 bar) and the participant trends are drawn; screenshot kept (path printed, or in
+    $STRIDELAB_SCREENSHOTS)."""
+    from playwright.sync_api import sync_playwright
+    shots = Path(os.environ.get("STRIDELAB_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots_programme"))
+    shots.mkdir(parents=True, exist_ok=True)
+    errors: list[str] = []
+    with _serve(demo_wh) as url, sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(f"{url}/programme", wait_until="domcontentloaded")
+            page.get_by_role("heading", name="Programme: change between visits").wait_for(timeout=60_000)
+            page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                                   timeout=60_000)
+            page.get_by_text("Cohort: first", exact=False).first.wait_for(state="attached", timeout=30_000)
+            plots = page.locator(".js-plotly-plot")
+            plots.first.wait_for(timeout=30_000)
+            assert plots.count() >= 5                     # the cohort change + four participant trends
+            # the cohort figure has one marker per participant of the demo warehouse (P001, P002)
+            assert page.locator(".js-plotly-plot").first.locator("g.points path.point").count() == 2
+            assert page.locator('[data-testid="stException"]').count() == 0
+            page.screenshot(path=str(shots / "programme.png"), full_page=True)
+        finally:
+            browser.close()
+    assert not errors, errors
+    assert (shots / "programme.png").stat().st_size > 20_000
+    print(f"screenshot: {shots / 'programme.png'}")

@@ -7,7 +7,7 @@ from streamlit.testing.v1 import AppTest
 from tests.dashboard.conftest import APP, PAGES
 
 TITLES = {"overview": "StrideLab overview", "accuracy": "Accuracy against references", "participant": "Participant",
-          "activity": "Daily activity", "runs": "Pipeline runs"}
+          "activity": "Daily activity", "runs": "Pipeline runs", "programme": "Programme: change between visits"}
 
 
 def open_page(page: str, query: dict | None = None) -> AppTest:
@@ -145,5 +145,9 @@ def test_every_page_on_the_real_pipeline_output(page, app_env, demo_wh):
         assert any("stride_length_m" in df.value.columns for df in at.dataframe)
     elif page == "activity":
         assert len(at.dataframe) > 0 or len(at.get("plotly_chart")) > 0
+    elif page == "programme":
+        change = at.dataframe[0].value
+        assert set(change["participant"]) == {"P001", "P002"} and change["first visit"].notna().all()
+        assert "MDC95" in texts(at)
     elif page == "runs":
         assert "joint_angles" in at.dataframe[1].value["stage"].tolist()

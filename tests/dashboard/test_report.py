@@ -53,7 +53,8 @@ def test_pdf_figure_is_drawn(report, tmp_path):
 def test_html_is_self_contained(report):
     paths, _ = report
     html = paths["html"].read_text()
-    assert "<svg" in html and html.count("<figure>") == 4
+    # Figures 1-4 and 6 (walking bouts); the synthetic warehouse has no clinical measures (Figure 5)
+    assert "<svg" in html and html.count("<figure>") == 5 and "Figure 6: Free-living walking bouts" in html
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", html)     # nothing fetched from elsewhere
     assert "<script" not in html
     assert "P001" in html and ".mcap" not in html
@@ -74,3 +75,19 @@ def test_unknown_participant_and_empty_warehouse(ingested_wh, missing_wh, tmp_pa
         build_report(missing_wh, "P001", tmp_path)
     with pytest.raises(LookupError, match="not in study"):
         build_report(ingested_wh, "P001", tmp_path, study="other")
+
+
+def test_summary_page_of_a_two_visit_participant(demo_wh, tmp_path):
+    """The demo pipeline's warehouse (two lab visits, a chest day after each): page 1 is the clinician's summary
+    with speed, the asymmetry ratios, steps/day and upright time, the change since the previous visit with its
+    MDC95, bands with their source and the data-quality flags; page 2 holds the per-visit and per-side tables."""
+    paths = build_report(demo_wh, "P001", tmp_path)
+    reader = pypdf.PdfReader(paths["pdf"])
+    assert len(reader.pages) == 5
+    p1, p2 = reader.pages[0].extract_text(), reader.pages[1].extract_text()
+    for t in ("Summary", "Gait speed (m/s)", "Swing time symmetry ratio", "Stance time symmetry ratio",
+              "Steps per day", "Upright time", "Previous visit", "MDC95 of the change", "Perry et al. 1995",
+              "Patterson et al. 2010", "Where data quality limits a number", "Paretic side unknown"):
+        assert t in p1, t
+    assert "SI stride" not in p1 + p2 and "symmetry index" not in (p1 + p2).lower()
+    assert "Clinical measures per lab visit" in p2 and "Latest visit per side" in p2 and "Figure 5" in p2

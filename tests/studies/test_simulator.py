@@ -36,9 +36,16 @@ def _trials(ideal_sessions, pid="P001"):
 
 def test_metadata_names_and_events(manifest):
     recs = list(simulate_study(manifest, participants=1))
-    assert [r.name for r in recs] == ["P001_lab1_calibration", "P001_lab1_walk-1", "P001_free1_day-1"]
+    # a programme of two visits, each a lab session then a free-living day
+    assert [r.name for r in recs] == ["P001_lab1_calibration", "P001_lab1_walk-1", "P001_free1_day-1",
+                                      "P001_lab2_calibration", "P001_lab2_walk-1", "P001_free2_day-2"]
     kinds = [r.metadata["kind"] for r in recs]
-    assert kinds == ["lab", "lab", "free_living"]          # the calibration trial belongs to the lab session
+    assert kinds == ["lab", "lab", "free_living"] * 2      # the calibration trial belongs to the lab session
+    assert [r.metadata["session"] for r in recs[::3]] == ["P001-lab-1", "P001-lab-2"]
+    day_ns = 86_400 * 10**9
+    # follow-up 6 weeks after baseline, same local time (the summer-time change between them: 1 h less)
+    assert round((int(recs[3].imu["foot_left"].t_ns[0]) - int(recs[0].imu["foot_left"].t_ns[0])) / day_ns) == \
+        manifest.visit_interval_days
     for r in recs:
         for k in ("study", "participant", "session", "kind", "protocol", "trial", "timezone"):
             assert isinstance(r.metadata[k], str) and r.metadata[k]
@@ -225,3 +232,15 @@ def test_more_participants_derived_deterministically(manifest):
     assert [p.id for p in ps] == ["P001", "P002", "P003", "P004", "P005", "P006", "P007"]
     assert ps == study_participants(manifest, 7)
     assert ps[6].hemiparetic
+
+
+def test_programme_follow_up_values(manifest):
+    """Visit k of a programme simulates the participant moved towards the follow_up_* values (P003 improves)."""
+    from validation.simulator._gait_patterns import gait_params
+    p3 = manifest.participants[2]
+    assert p3.hemiparetic and p3.follow_up_speed_m_s > p3.speed_m_s and p3.follow_up_severity < p3.severity
+    base, follow = p3.at_visit(1, manifest.visits), p3.at_visit(manifest.visits, manifest.visits)
+    assert base == p3 and follow.speed_m_s == p3.follow_up_speed_m_s and follow.severity == p3.follow_up_severity
+    assert gait_params(follow).speed_m_s > gait_params(base).speed_m_s
+    healthy = manifest.participants[0]
+    assert healthy.at_visit(2, 2) == healthy                # no follow_up_* values: the same participant

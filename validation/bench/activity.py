@@ -447,7 +447,7 @@ def simulated_days(n: int, *, preset: str = "default", window_model: str | None 
     from studies.manifest import load_manifest
     from validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
-    m = dataclasses.replace(m, free_living=dataclasses.replace(m.free_living, hours=24.0))
+    m = dataclasses.replace(m, visits=1, free_living=dataclasses.replace(m.free_living, hours=24.0, start_local="00:00"))
     per = {}
     for i, part in enumerate(study_participants(m, n)):
         if progress_cb:

@@ -72,11 +72,12 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
     from validation.simulate import simulate_to_dir
     from studies.manifest import DEFAULT_MANIFEST, load_manifest
     from validation.simulator import simulate_chest_day, study_participants
-    files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs)
+    files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs, visits=1)
              if "_free" not in f.name]
     for f in directory.glob("*_free*.mcap"):
         f.unlink()
     m = load_manifest(DEFAULT_MANIFEST).with_free_living_hours(24.0)
+    m = replace(m, visits=1, free_living=replace(m.free_living, start_local="00:00"))   # whole consecutive days
     for i, p in enumerate(study_participants(m, participants)):
         t, acc, gyr, events = [], [], [], []
         for k in range(days):
@@ -128,7 +129,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, workd
         tmp = Path(tmp)
         t0 = time.perf_counter()
         if hours <= 48.0:
-            files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs)
+            files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs, visits=1)
         else:
             files = _multi_day(tmp / "inbox", participants, int(days), jobs)
         sim_s = time.perf_counter() - t0

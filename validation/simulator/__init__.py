@@ -4,8 +4,8 @@ Public API
 ----------
 ``simulate_study(manifest, *, seed=None, participants=None)``
     Iterator of ``validation.simulator.Recording`` (field for field the recording layout the format writers read), one at a time (never more than one 24 h day in
-    memory): per participant the lab session (calibration trial, then the walking trials), then the
-    free-living chest day.
+    memory): per participant and visit of the programme (``[study] visits``) the lab session (calibration
+    trial, then the walking trials), then the free-living chest day after it.
 ``simulate_lab_session(manifest, participant, index, *, seed=None, sensor_model=None)``
     Iterator of ``(Recording, LabTrialTruth)`` for one lab session (truth: segment poses, mounting
     rotations, joint angles, gait events, foot points, error-free signals; see ``LabTrialTruth``).
@@ -21,9 +21,11 @@ segment) -> ENU, ISB segment frames (x anterior, y up, z right), nominal sensor 
 Dates: participant i (0-based) has the lab session on ``first_lab_date + i`` days starting at
 ``lab_start_local`` (calibration, then each walking trial 60 s after the previous one ends); the
 free-living recording starts at ``free_living.start_local`` (default 00:00) local time on the next
-day and lasts ``free_living.hours`` (default 24 h: one whole calendar day).
+day and lasts ``free_living.hours`` (default 24 h: one whole calendar day). A programme (``[study] visits``
+> 1) repeats lab session and free-living day every ``visit_interval_days``, visit k simulating
+``ParticipantSpec.at_visit(k)`` (the ``follow_up_*`` values at the last visit).
 
-Recording names: ``P001_lab1_calibration``, ``P001_lab1_walk-1``, ``P001_free1_day-1``.
+Recording names: ``P001_lab1_calibration``, ``P001_lab1_walk-1``, ``P001_free1_day-1`` (visit 2: ``lab2``, ``free2``).
 """
 from __future__ import annotations
 
@@ -86,8 +88,9 @@ def simulate_study(manifest: StudyManifest | str | None = None, *, seed: int | N
         manifest = load_manifest(manifest)
     seed = manifest.seed if seed is None else int(seed)
     for i, p in enumerate(study_participants(manifest, participants, seed)):
-        for rec, _truth in simulate_lab_session(manifest, p, i, seed=seed):
+        for visit in range(1, manifest.visits + 1):
+            for rec, _truth in simulate_lab_session(manifest, p, i, seed=seed, session=visit):
+                yield rec
+            rec, _ = simulate_chest_day(manifest, p, i, seed=seed, session=visit)
             yield rec
-        rec, _ = simulate_chest_day(manifest, p, i, seed=seed)
-        yield rec
-        del rec
+            del rec

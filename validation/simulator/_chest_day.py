@@ -314,10 +314,11 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
                        seed: int | None = None, sensor_model: SensorModelSpec | None = None,
                        session: int = 1, keep_true: bool = False) -> tuple[Recording, ChestDayTruth]:
     """One free-living chest recording of ``manifest.free_living.hours`` starting at
-    ``free_living.start_local`` on the day after the participant's lab session."""
+    ``free_living.start_local`` on the day after the participant's lab session ``session``."""
     spec = sensor_model or manifest.sensor_model
     seed = manifest.seed if seed is None else int(seed)
     rate = manifest.sampling_rate_hz
+    participant = participant.at_visit(session, manifest.visits)      # after visit ``session`` of a programme
     ss = np.random.SeedSequence([seed, index, 2, session])
     s_script, s_dev, s_noise, s_mount, s_breath = ss.spawn(5)      # the first four as before
     rng_script = np.random.default_rng(s_script)
@@ -333,7 +334,9 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     rng_breath = np.random.default_rng(s_breath)
     lo, hi = spec.mounting_misalignment_deg
     mount = random_rotation(rng_mount, 0.3 * lo, 0.5 * hi)
-    day = manifest.first_lab_date + _dt.timedelta(days=index + 1)
+    # after visit ``session`` of a programme; with one visit, ``session`` only reseeds (benches: several days)
+    later = (session - 1) * manifest.visit_interval_days if manifest.visits > 1 else 0
+    day = manifest.first_lab_date + _dt.timedelta(days=index + 1 + later)
     t0_ns = local_to_utc_ns(day, "00:00", manifest.timezone, offset_s=start_s)
     mounts = [(t0_ns, mount)]
     h = FD_STEP_S

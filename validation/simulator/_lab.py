@@ -448,19 +448,23 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
                          session: int = 1, violations: Violations | None = None):
     """Yield ``(Recording, LabTrialTruth)`` for the calibration trial and each walking trial of one lab
     session of ``participant`` (0-based ``index`` in the study, which fixes the date: first_lab_date +
-    index days, trials from lab_start_local on). ``sensor_model`` overrides the manifest's (e.g.
+    index days + (session − 1) · visit_interval_days, trials from lab_start_local on; visit ``session`` of a
+    programme simulates :meth:`ParticipantSpec.at_visit`). ``sensor_model`` overrides the manifest's (e.g.
     ``SensorModelSpec.ideal()`` for noise-free signals); ``violations`` puts the session beyond the methods'
     assumptions (:mod:`validation.simulator.violations`; None = none)."""
     vio = violations or Violations()
     spec = sensor_model or manifest.sensor_model
     seed = manifest.seed if seed is None else int(seed)
     rate = manifest.sampling_rate_hz
+    participant = participant.at_visit(session, manifest.visits)      # a programme: the follow-up values
     geo, gait = body_geometry(participant), gait_params(participant)
     root = np.random.SeedSequence([seed, index, 1, session])
     dev_ss, env_ss, *trial_ss = root.spawn(2 + 1 + manifest.lab.walking_trials)
     devices = draw_devices(np.random.default_rng(dev_ss), spec, geo, SEGMENTS)
     mag_env = MagneticEnvironment(spec, np.random.default_rng(np.random.SeedSequence([seed, 99])))
-    day = manifest.first_lab_date + _dt.timedelta(days=index)
+    # a programme's visits are visit_interval_days apart; with one visit, ``session`` only reseeds (benches)
+    later = (session - 1) * manifest.visit_interval_days if manifest.visits > 1 else 0
+    day = manifest.first_lab_date + _dt.timedelta(days=index + later)
     t_start = local_to_utc_ns(day, manifest.lab_start_local, manifest.timezone)
     pid = participant.id
     sess = f"{pid}-lab-{session}"
