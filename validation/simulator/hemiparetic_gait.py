@@ -1,6 +1,6 @@
 """Foot-IMU simulator of hemiparetic gait after stroke (issue 18): both feet, three severities, own ground truth.
 
-Independent of ``estimators/`` by design (DESIGN.md, issue 16): it imports nothing from there, builds its own
+Independent of the estimator layer by design (DESIGN.md, issue 16): it imports nothing from there, builds its own
 rotations (scipy), its own contact instants and footprints, and none of its thresholds or shapes is a detector's.
 
 Model (per foot, sagittal rockers plus swing in 3-D; ENU, z up; foot frame x to the toes, y left, z up):
