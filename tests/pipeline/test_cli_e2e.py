@@ -6,6 +6,7 @@ import json
 import pytest
 
 from tests.pipeline.test_runner import cli
+from studies.manifest import DEFAULT_MANIFEST, load_manifest
 from warehouse.catalog import first
 from warehouse.read import connect_snapshot
 
@@ -23,7 +24,8 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
     con = connect_snapshot(tmp_path / "wh")
     assert first(con.execute("SELECT count(*) FROM participants"))[0] == 2
     kinds = dict(con.execute("SELECT kind, count(*) FROM sessions GROUP BY 1").fetchall())
-    assert kinds == {"lab": 2, "free_living": 2}
+    visits = load_manifest(DEFAULT_MANIFEST).visits          # the demo study is a programme: each visit = lab + chest day
+    assert kinds == {"lab": 2 * visits, "free_living": 2 * visits}
     # orientation of every lab IMU; none of the free-living chest days (nothing reads it: opt-in per study)
     n_imu = first(con.execute("SELECT count(*) FROM sensors JOIN recordings USING (content_hash) "
                               "JOIN sessions USING (session_id) WHERE sensors.kind = 'imu' AND sessions.kind = 'lab'"))[0]
@@ -33,7 +35,12 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
                           "foot_right", "chest"}
     # every registered stage ran on every session it applies to, and wrote its tables
     ok = dict(con.execute("SELECT stage, count(*) FROM stage_runs WHERE status = 'ok' GROUP BY 1").fetchall())
-    assert ok == {"orientation": 2, "gait": 2, "calibration": 2, "joint_angles": 2, "activity": 2}
+    n = 2 * visits
+    assert {k: v for k, v in ok.items() if k != "clinical"} == {"orientation": n, "gait": n, "calibration": n,
+                                                               "joint_angles": n, "activity": n}
+    done = dict(con.execute("SELECT stage, count(*) FROM stage_runs WHERE status IN ('ok', 'skipped') "
+                            "GROUP BY 1").fetchall())
+    assert done.get("clinical") == n                          # every lab visit: measures, or skipped with a reason
     for table in ("gait_events", "strides", "calibration", "joint_angles", "activity_bouts", "activity_daily"):
         assert first(con.execute(f"SELECT count(*) FROM {table}"))[0] > 0, table
     day = con.execute("SELECT session_id, sum(end_ns - start_ns) / 1e9 FROM activity_bouts GROUP BY 1").fetchall()
@@ -41,18 +48,18 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
     # the simulator's reference is in the warehouse too
     assert first(con.execute("SELECT count(*) FROM reference_events WHERE type = 'IC'"))[0] > 10
     assert first(con.execute("SELECT count(*) FROM sensors WHERE kind = 'reference_pose'"))[0] > 0
-    # ... and scored: orientation against the optical segment poses (7 lab placements + chest per lab session)
+    # ... and scored: orientation against the optical segment poses (7 lab placements + chest per lab session; n lab sessions)
     acc = con.execute("SELECT placement, value FROM accuracy_metrics WHERE stage = 'orientation' "
                       "AND producer = 'orientation' AND metric = 'inclination_rmse_deg'").fetchall()
-    assert len(acc) == 2 * 8 and all(0.0 < v < 10.0 for _, v in acc)
+    assert len(acc) == n * 8 and all(0.0 < v < 10.0 for _, v in acc)
     assert first(con.execute("SELECT count(*) FROM accuracy_metrics WHERE producer = 'gait'"))[0] > 0
     # calibration (helical angle vs the optical mounting) and joint angles (RMSE per plane, ROM pairs)
     cal = con.execute("SELECT value FROM accuracy_metrics WHERE producer = 'calibration' "
                       "AND metric = 'calibration_error_deg'").fetchall()
-    assert len(cal) == 2 * 7 and sorted(v for (v,) in cal)[len(cal) // 2] < 5.0
+    assert len(cal) == n * 7 and sorted(v for (v,) in cal)[len(cal) // 2] < 5.0
     ja = con.execute("SELECT value FROM accuracy_metrics WHERE producer = 'joint_angles' "
                      "AND metric = 'sagittal_rmse_deg'").fetchall()
-    assert len(ja) == 2 * 6 and sorted(v for (v,) in ja)[len(ja) // 2] < 4.0
+    assert len(ja) == n * 6 and sorted(v for (v,) in ja)[len(ja) // 2] < 4.0
     rom = con.execute("SELECT estimate, reference FROM accuracy_pairs WHERE producer = 'joint_angles' "
                       "AND quantity = 'knee_sagittal_rom'").fetchall()
     assert rom and all(abs(e - r) < 20.0 and r > 30.0 for e, r in rom)

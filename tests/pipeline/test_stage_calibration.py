@@ -13,6 +13,7 @@ from pipeline.stages import Stage, StageOutput
 from pipeline.stages import calibration as cal_stage
 from pipeline.stages import joint_angles as ja_stage
 from pipeline.stages import orientation as ori_stage
+from studies.manifest import DEFAULT_MANIFEST, load_manifest
 from warehouse.catalog import Warehouse, first
 from warehouse.read import connect_snapshot, read_imu, read_orientation
 from warehouse.store import read_table
@@ -205,5 +206,6 @@ def test_cli_simulate_then_run_gives_calibration_and_joint_angles(tmp_path, monk
     cal = _df(tmp_path / "wh", "SELECT placement, status FROM calibration")
     assert set(cal["placement"]) == LOWER and set(cal["status"]) <= {"pass", "warn", "fail"}
     ja = _df(tmp_path / "wh", "SELECT joint, side, status, series_path FROM joint_angles")
-    assert len(ja) == 2 * 6                             # two walking trials × hip/knee/ankle × left/right
+    # per lab visit of the programme: two walking trials × hip/knee/ankle × left/right
+    assert len(ja) == load_manifest(DEFAULT_MANIFEST).visits * 2 * 6
     assert set(ja["status"]) <= {"pass", "warn"}
