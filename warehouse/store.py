@@ -18,6 +18,8 @@ import pyarrow.parquet as pq
 
 _SAFE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")     # whole string (fullmatch: '$' would pass 'P001\n')
 TMP_PREFIX = ".tmp-"
+#: uncompressed bytes handed to a series file between two background flushes to the disk (fdatasync)
+WRITEBACK_BYTES = 64 << 20
 
 
 def check_identifier(value: str, what: str) -> str:
@@ -68,12 +70,32 @@ class SeriesWriter:
         self.n_rows = 0
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="parquet")
         self._pending: list[Future] = []
+        self._unsynced = 0
+        self._sync_fd: int | None = None
+        self._sync_pool: ThreadPoolExecutor | None = None
+        self._sync: Future | None = None
 
     def write(self, table: pa.Table) -> None:
         while len(self._pending) >= 2:
             self._pending.pop(0).result()
-        self._pending.append(self._pool.submit(self._w.write_table, table, row_group_size=1 << 20))
+        self._pending.append(self._pool.submit(self._write, table))
         self.n_rows += table.num_rows
+
+    def _write(self, table: pa.Table) -> None:
+        """On the writer thread: encode the table; once ``WRITEBACK_BYTES`` have accumulated, start pushing
+        what was written so far to the disk on a third thread (never waiting for it here). The final ``fsync``
+        of :meth:`commit` then only waits for the tail: a 24 h IMU series (~420 MB) spent ~0.8 s of wall time
+        in that one ``fsync`` at the end of an ingest, with both cores idle."""
+        self._w.write_table(table, row_group_size=1 << 20)
+        self._unsynced += table.nbytes
+        if self._unsynced >= WRITEBACK_BYTES and (self._sync is None or self._sync.done()):
+            if self._sync is not None:
+                self._sync.result()                   # a failed flush (EIO, ENOSPC) fails the write
+            if self._sync_fd is None:
+                self._sync_fd = os.open(self.tmp, os.O_RDONLY)
+                self._sync_pool = ThreadPoolExecutor(1, thread_name_prefix="parquet-sync")
+            self._sync = self._sync_pool.submit(os.fdatasync, self._sync_fd)
+            self._unsynced = 0
 
     def _drain(self) -> None:
         try:
@@ -82,6 +104,12 @@ class SeriesWriter:
         finally:
             self._pending = []
             self._pool.shutdown(wait=True)
+            if self._sync_pool is not None:
+                self._sync_pool.shutdown(wait=True)       # a flush in progress finishes first
+                os.close(self._sync_fd)
+                last, self._sync_fd, self._sync_pool, self._sync = self._sync, None, None, None
+                if last is not None:
+                    last.result()
 
     def commit(self, relpath: str | None = None) -> str:
         """Close and move into place, at ``relpath`` if given (e.g. a name known only at the end)."""
@@ -96,9 +124,13 @@ class SeriesWriter:
         return self.relpath
 
     def abort(self) -> None:
+        """Discard the file. Errors of writes still in flight are not raised again: the file is given up
+        (the caller is usually handling the first of them already)."""
         try:
             try:
                 self._drain()
+            except Exception:  # noqa: BLE001 - see docstring
+                pass
             finally:
                 self._w.close()
         finally:

@@ -129,3 +129,39 @@ def test_coordinator_killed_mid_commit_then_rerun_equals_a_clean_run(tmp_path):
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1")
     assert r.returncode == 0, r.stderr
     assert snapshot_fingerprint(tmp_path / "wh") == snapshot_fingerprint(tmp_path / "clean")
+
+
+def test_series_writer_flushes_in_the_background_and_a_failed_flush_fails_the_write(tmp_path, monkeypatch):
+    """warehouse.store.SeriesWriter pushes written rows to the disk every WRITEBACK_BYTES on a thread of
+    its own; the file reads back whole, and an error of such a flush (disk full) fails the write and
+    leaves no file behind."""
+    import errno
+
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from warehouse import store
+    monkeypatch.setattr(store, "WRITEBACK_BYTES", 1 << 16)
+    tab = pa.table({"t_ns": np.arange(20_000, dtype=np.int64), "x": np.random.default_rng(0).normal(size=20_000)})
+    flushes = []
+    real = os.fdatasync
+    monkeypatch.setattr(store.os, "fdatasync", lambda fd: flushes.append(fd) or real(fd))
+    w = store.SeriesWriter(tmp_path, "series/ok.parquet", tab.schema)
+    for _ in range(6):
+        w.write(tab)
+    w.commit()
+    assert len(flushes) >= 2
+    assert pq.read_table(tmp_path / "series/ok.parquet").equals(pa.concat_tables([tab] * 6))
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(store.os, "fdatasync", full)
+    w = store.SeriesWriter(tmp_path, "series/full.parquet", tab.schema)
+    with pytest.raises(OSError, match="No space left"):
+        for _ in range(6):
+            w.write(tab)
+        w.commit()
+    w.abort()
+    assert not (tmp_path / "series/full.parquet").exists()
+    assert not [p for p in (tmp_path / "series").iterdir() if p.name.startswith(store.TMP_PREFIX)]

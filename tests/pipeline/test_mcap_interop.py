@@ -35,6 +35,29 @@ def test_mcap_ros2_writer_file_is_ingested_bit_equal(tmp_path, compression, chun
     _check_stored(tmp_path / "wh", rec)
 
 
+
+@pytest.mark.parametrize("group_bytes", [40 * 1024, 8 << 20])
+def test_chunks_decoded_in_groups_keep_order_and_channels_defined_mid_file(tmp_path, monkeypatch, group_bytes):
+    """The reader decodes runs of consecutive chunks as one task and joins each channel's blocks
+    (mcap_read.GROUP_BYTES); a channel whose Channel record sits in a chunk in the middle of such a run
+    (its first message comes 6 s into the file) and the run boundaries keep every sample, in order."""
+    from dataclasses import replace
+    from pipeline.formats import mcap_read
+    monkeypatch.setattr(mcap_read, "GROUP_BYTES", group_bytes)
+    seen = []
+    task = mcap_read._group_task
+    monkeypatch.setattr(mcap_read, "_group_task", lambda bodies, *a: seen.append(len(bodies)) or task(bodies, *a))
+    rec = small_recording(seconds=12.0)
+    late = rec.imu["shank_left"]
+    rec.imu["shank_left"] = replace(late, t_ns=late.t_ns[600:], acc=late.acc[600:], gyr=late.gyr[600:],
+                                    mag=late.mag[600:])
+    f = write_mcap_ros2(tmp_path / "late.mcap", rec, compression="zstd", chunk_size=16 * 1024)
+    s = _ingest(tmp_path / "wh", [f])
+    assert s.ingested == ["late.mcap"], s.quarantined
+    _check_stored(tmp_path / "wh", rec)
+    assert max(seen) > 1 and (len(seen) > 1) == (group_bytes < 1 << 20), seen
+
+
 def test_unchunked_file_and_schema_channel_only_in_summary(tmp_path):
     """mcap library, no chunks (Schema/Channel at top level) and a file whose messages come before the
     definitions' only other copy, the summary (the definitions are stripped from the data section)."""
