@@ -49,3 +49,54 @@ def test_a_lab_heading_far_from_the_imus_is_found(heading_deg):
     h, m = segment_alignment(q_est, q_seg)
     assert _angle_deg(h, heading) < 0.3 and _angle_deg(m, mount) < 0.3
     assert orientation_rmse_deg(q_est, align_reference(q_est, q_seg)).total_rmse_deg < 2.0
+
+
+def _literal_alternation(q_est, q_ref, h, iterations, tol=1e-12):
+    """The alternation written per sample (four quaternion products and a 4x4 scatter per iteration), as
+    segment_alignment computed it before its sums were formed once."""
+    from estimators.quaternion import quat_conj, quat_normalize
+
+    def mean(q):
+        q = q[np.all(np.isfinite(q), axis=1)]
+        w, v = np.linalg.eigh(q.T @ q)
+        m = v[:, -1]
+        return m if m[0] >= 0 else -m
+    for _ in range(iterations):
+        mount = mean(quat_mul(quat_conj(quat_mul(h, q_ref)), q_est))
+        g = mean(quat_mul(q_est, quat_conj(quat_mul(q_ref, mount))))
+        new = quat_normalize(np.array([g[0], 0.0, 0.0, g[3]]))
+        done = 1.0 - abs(float(np.dot(new, h))) < tol
+        h = new
+        if done:
+            break
+    mount = mean(quat_mul(quat_conj(quat_mul(h, q_ref)), q_est))
+    fit = quat_mul(quat_mul(np.broadcast_to(h, q_ref.shape), q_ref), np.broadcast_to(mount, q_ref.shape))
+    ok = np.all(np.isfinite(fit), axis=1) & np.all(np.isfinite(q_est), axis=1)
+    return h, mount, float(np.mean(1.0 - np.sum(fit[ok] * q_est[ok], axis=1) ** 2))
+
+
+@pytest.mark.parametrize("heading_deg, iterations", [(-70.0, 5), (150.0, 5), (150.0, 200), (20.0, 3)])
+def test_sums_formed_once_equal_the_per_sample_alternation(heading_deg, iterations):
+    """Same heading, mounting and residual as the alternation computed sample by sample, with NaN rows in
+    either input and a 5° error that leaves a residual, from a start far from the answer."""
+    from estimators.orientation.evaluation import _alternate, _Scatter
+    rng = np.random.default_rng(11)
+    _, _, _, q_seg = _moving(n=2500, seed=4)
+    mount = quat_from_axis_angle([0.5, 1.0, -0.2], np.radians(60.0))
+    heading = quat_from_axis_angle([0, 0, 1], np.radians(heading_deg))
+    noise = quat_from_rotvec(rng.normal(0, np.radians(5.0), (2500, 3)))
+    q_est = quat_mul(quat_mul(quat_mul(heading, q_seg), mount), noise)
+    q_est[rng.choice(2500, 200, replace=False)] = np.nan
+    q_seg = q_seg.copy()
+    q_seg[rng.choice(2500, 150, replace=False), 2] = np.nan
+    start = np.array([1.0, 0.0, 0.0, 0.0])
+    h0, m0, c0 = _literal_alternation(q_est, q_seg, start, iterations)
+    h1, m1, c1 = _alternate(_Scatter(q_est, q_seg), start, iterations)
+    assert np.allclose(h1, h0, atol=1e-9) and np.allclose(m1, m0, atol=1e-9)
+    assert c1 == pytest.approx(c0, rel=1e-9, abs=1e-12) and c0 > 1e-4
+
+
+def test_no_finite_pair_is_refused():
+    q = np.full((10, 4), np.nan)
+    with pytest.raises(ValueError, match="no finite quaternion"):
+        segment_alignment(q, np.tile([1.0, 0, 0, 0], (10, 1)))
