@@ -5,10 +5,11 @@ is written twice: with the project's vectorised writer (``samples_per_s``) and w
 ``Writer`` (``third_party_samples_per_s``: 1 MiB zstd chunks with the Schema and Channel records
 inside them, as the ROS 2 tools write). Each is ingested into a fresh warehouse in its own child
 process, whose peak resident memory is reported. The child first imports the pipeline and ingests a 36 s
-recording into a scratch warehouse (``startup_seconds``: imports, numba's first-call initialisation of its
-cached kernels, DuckDB and Parquet writer set-up: what a worker process pays once, not per file);
-``seconds`` is the 24 h file's ingest run (into a new warehouse, as before) after that, and
-``cold_samples_per_s`` counts the start-up too.
+recording into a new warehouse (``startup_seconds``: imports, numba's first-call initialisation of its
+cached kernels, creating the catalog, DuckDB and Parquet writer set-up: what a worker process or a
+warehouse pays once, not per file); ``seconds`` is the 24 h file's ingest run into that warehouse (a run
+of its own: lock, run ledger, commit and snapshot included), and ``cold_samples_per_s`` counts the
+start-up too.
 ``decompress_floor_samples_per_s`` is the
 single-core zstd decompression of the third-party file's chunks alone, timed in the same run: the
 ratio to it shows how close the reader is to the cost of merely inflating the data.
@@ -65,7 +66,7 @@ def _ingest_child(path: str, root: str, q) -> None:
     rec = synthetic_imu_day(0.01, 100.0, seed=1)
     rec.metadata.update(participant="B000", session="B000-startup")
     small = write_recording(rec, warm / "warm.mcap")
-    s = runner.run(warm / "wh", None, files=[small], stages=False, command="bench ingest")
+    s = runner.run(Path(root), None, files=[small], stages=False, command="bench ingest")
     if len(s.ingested) != 1:
         q.put({"ingested": 0, "quarantined": s.quarantined})
         return
