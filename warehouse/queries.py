@@ -590,20 +590,26 @@ def activity_participants(con) -> pd.DataFrame:
         ON s.session_id = b.{r.q('session_id')} ORDER BY 1, 2""")
 
 
-def activity_bouts(con, participant_id: str, study: str | None = None, day: str | None = None) -> pd.DataFrame | None:
-    """Bouts of a participant (local day and times in the session's time zone), optionally of one day."""
-    r = resolve(con, "activity_bouts")
-    if r is None:
-        return None
-    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"
-    return _df(con, f"""
-        WITH x AS (
+def _bouts_local(r: Resolved) -> str:
+    """SELECT of a participant's bouts with their local start and end (the session's time zone); parameters:
+    participant_id, study, study. Shared by :func:`activity_bouts` and :func:`activity_daily`."""
+    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"   # optional in DATASETS
+    return f"""
             SELECT s.session_id, CAST(b.{r.q('class')} AS VARCHAR) AS class,
                    b.{r.q('start_ns')} AS start_ns, b.{r.q('end_ns')} AS end_ns, {steps} AS steps,
                    timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('start_ns')} // 1000)) AS start_local,
                    timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('end_ns')} // 1000)) AS end_local
             FROM {r.qtable} b JOIN sessions s ON s.session_id = b.{r.q('session_id')}
-            WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?))
+            WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)"""
+
+
+def activity_bouts(con, participant_id: str, study: str | None = None, day: str | None = None) -> pd.DataFrame | None:
+    """Bouts of a participant (local day and times in the session's time zone), optionally of one day."""
+    r = resolve(con, "activity_bouts")
+    if r is None:
+        return None
+    return _df(con, f"""
+        WITH x AS ({_bouts_local(r)})
         SELECT *, CAST(start_local AS DATE) AS day, (end_ns - start_ns) / 1e9 AS seconds FROM x
         WHERE (? IS NULL OR CAST(start_local AS DATE) = CAST(? AS DATE))
         ORDER BY start_ns""", [participant_id, study, study, day, day])
@@ -617,15 +623,10 @@ def activity_daily(con, participant_id: str, study: str | None = None) -> pd.Dat
     r = resolve(con, "activity_bouts")
     if r is None:
         return None
-    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"
     return _df(con, f"""
         WITH x AS (
-            SELECT s.session_id, CAST(b.{r.q('class')} AS VARCHAR) AS class, b.{r.q('start_ns')} AS start_ns,
-                   {steps} AS steps,
-                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('start_ns')} // 1000)) AS t0,
-                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('end_ns')} // 1000)) AS t1
-            FROM {r.qtable} b JOIN sessions s ON s.session_id = b.{r.q('session_id')}
-            WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?) AND b.{r.q('end_ns')} > b.{r.q('start_ns')}),
+            SELECT session_id, class, start_ns, steps, start_local AS t0, end_local AS t1
+            FROM ({_bouts_local(r)}) WHERE end_ns > start_ns),
         d AS (
             SELECT x.*, CAST(dd AS DATE) AS day,
                    epoch(least(t1, CAST(dd AS DATE) + INTERVAL 1 DAY) - greatest(t0, CAST(dd AS TIMESTAMP))) AS seconds,
