@@ -51,13 +51,17 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
 
 
 def _ledger(wh: Path) -> tuple[int, dict]:
-    """IMU samples in the warehouse, and per stage: runs, worker seconds, why they ran (the ledger)."""
+    """IMU samples in the warehouse, and per stage: runs (``ok``), ``skipped`` runs (a session without the
+    stage's inputs, with a reason in the ledger) and their worker seconds."""
     from warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
         n = int(con.execute("SELECT coalesce(sum(n_samples), 0) FROM sensors WHERE kind = 'imu'").fetchall()[0][0])
-        stages = {st: {"runs": int(k), "worker_s": float(sec or 0.0)} for st, k, sec in con.execute(
-            "SELECT stage, count(*), sum(duration_s) FROM stage_runs WHERE status = 'ok' GROUP BY 1 ORDER BY 1").fetchall()}
+        stages = {st: {"runs": int(k), "skipped": int(sk), "worker_s": float(sec or 0.0)}
+                  for st, k, sk, sec in con.execute(
+            "SELECT stage, count(*) FILTER (WHERE status = 'ok'), count(*) FILTER (WHERE status = 'skipped'), "
+            "sum(duration_s) FILTER (WHERE status IN ('ok', 'skipped')) FROM stage_runs "
+            "WHERE status IN ('ok', 'skipped') GROUP BY 1 ORDER BY 1").fetchall()}
         return n, stages
     finally:
         con.close()
