@@ -17,16 +17,25 @@ CLASS_MAP = np.array([0, 0, 1, 2, 3, 3, 1])
 WINDOW_S = 10.0
 
 
+def window_samples(fs: float, window_s: float = WINDOW_S) -> int:
+    """Samples per scoring window of :func:`window_confusion`."""
+    return int(round(window_s * fs))
+
+
 def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, code_to_class: dict,
-                     window_s: float = WINDOW_S) -> np.ndarray:
+                     window_s: float = WINDOW_S, first_sample: int = 0) -> np.ndarray:
     """(4, 4) confusion (rows reference, columns predicted) over ``window_s`` windows inside one label.
 
     second_class: (S,) per-second class index (:data:`estimators.activity.CLASSES`) from sample 0;
     labels: (N,) reference label code per sample; code_to_class: code -> SCORED_CLASSES index (codes not in it
-    are not scored)."""
+    are not scored). ``labels`` may be a slice of the recording starting at sample ``first_sample`` (a
+    multiple of :func:`window_samples`): confusions of consecutive slices add up to that of the whole, so a
+    week-long recording is scored a day at a time."""
     n = labels.shape[0]
-    w = int(round(window_s * fs))
-    sec = (np.arange(n) / fs).astype(np.int64)
+    w = window_samples(fs, window_s)
+    if first_sample % w:
+        raise ValueError(f"first_sample {first_sample} is not a multiple of the {w}-sample window")
+    sec = (np.arange(first_sample, first_sample + n) / fs).astype(np.int64)
     sec = np.minimum(sec, second_class.shape[0] - 1)
     C = np.zeros((4, 4), dtype=np.int64)
     for i in range(0, n - w + 1, w):

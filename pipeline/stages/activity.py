@@ -20,6 +20,8 @@ from warehouse.read import read_column_range, series_rows
 
 #: longer recordings are classified per local day (bounded memory); a 24-25 h day stays one piece
 DAY_PIECES_ABOVE_S = 26 * 3600.0
+#: samples whose reference labels are scored at once (accuracy rows; about a day at 100 Hz)
+SCORE_SLICE_SAMPLES = 1 << 23
 
 
 def default_params() -> dict:
@@ -107,22 +109,30 @@ def accuracy_rows(sid: str, events: list[dict], rec: dict, root, path: str, fs: 
     """Window accuracy against the recording's labelled ``activity`` intervals (each annotation is one label run;
     labels outside :data:`estimators.activity.evaluation.SCORED_CLASSES` are not scored), by the one scorer
     :func:`estimators.activity.evaluation.window_confusion` that ``stridelab bench activity`` uses."""
-    from estimators.activity.evaluation import SCORED_CLASSES, scores, window_confusion
+    from estimators.activity.evaluation import SCORED_CLASSES, scores, window_confusion, window_samples
     act = [e for e in events if e.get("type") == "activity" and e.get("end_ns") is not None
            and rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]]
     if not any(e.get("label") in SCORED_CLASSES for e in act):
         return []
-    t_ns = read_column_range(root, path, ("t_ns",), 0, series_rows(root, path), dtype=np.int64).ravel()
-    k = (np.asarray(sec_t, np.int64) - int(t_ns[0])) // 1_000_000_000      # seconds from the first sample
+    n = series_rows(root, path)
+    t_first = int(read_column_range(root, path, ("t_ns",), 0, 1, dtype=np.int64)[0])
+    k = (np.asarray(sec_t, np.int64) - t_first) // 1_000_000_000      # seconds from the first sample
     second_class = np.zeros(int(k.max()) + 1 if len(k) else 1, np.int64)
     second_class[k[k >= 0]] = np.asarray(sec)[k >= 0]
-    codes = np.full(len(t_ns), -1, np.int64)
-    code_to_class = {}
-    for i, e in enumerate(act):
-        codes[np.searchsorted(t_ns, e["t_ns"]):np.searchsorted(t_ns, e["end_ns"])] = i
-        if e.get("label") in SCORED_CLASSES:
-            code_to_class[i] = SCORED_CLASSES.index(e["label"])
-    sc = scores(window_confusion(second_class, codes, fs, code_to_class))
+    code_to_class = {i: SCORED_CLASSES.index(e["label"]) for i, e in enumerate(act) if e.get("label") in SCORED_CLASSES}
+    # sample-level labels a slice at a time (whole windows, about a day): a week is 60 M samples, whose stamps,
+    # label codes and second indices held at once took ~1.5 GB
+    w = window_samples(fs)
+    step = max(1, SCORE_SLICE_SAMPLES // w) * w
+    C = 0
+    for a in range(0, n, step):
+        t_ns = read_column_range(root, path, ("t_ns",), a, min(n, a + step), dtype=np.int64).ravel()
+        codes = np.full(len(t_ns), -1, np.int64)
+        for i, e in enumerate(act):
+            codes[np.searchsorted(t_ns, e["t_ns"]):np.searchsorted(t_ns, e["end_ns"])] = i
+        C = C + window_confusion(second_class, codes, fs, code_to_class, first_sample=a)
+        del t_ns, codes
+    sc = scores(C)
     wm = params.get("window_model", "default")
     est = f"activity:{params['preset']}" + (f"+window_model:{wm}" if wm else "")
     rows = [{"session_id": sid, "stage": "activity", "estimator": est, "placement": params["placement"],

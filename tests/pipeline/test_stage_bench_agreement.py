@@ -29,8 +29,13 @@ def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
     assert 0.3 < stage["total_rmse_deg"] < 20          # a real figure, not an empty score
 
 
-def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch):
+@pytest.mark.parametrize("score_slice", [None, 20_000])
+def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch, score_slice):
+    """... also when the stage scores the recording in slices of 20,000 samples (a week-long recording is
+    scored about a day at a time)."""
     from validation.bench.activity import run_benchmark
+    if score_slice:
+        monkeypatch.setattr(activity, "SCORE_SLICE_SAMPLES", score_slice)
     src = shared_data("uci_chest")
     d = tmp_path / "uci"
     d.mkdir()

@@ -128,3 +128,22 @@ def test_label_consistency_counts_windows_the_signal_contradicts():
     assert out["contradicted"] == [0, 5, 5, 0]
     assert out["ceiling_balanced_accuracy"] == pytest.approx((1.0 + 15 / 20 + 15 / 20) / 3)
     assert out["per_participant"]["9"]["contradicted"] == [0, 5, 5, 0] and "held_out" in out
+
+
+def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
+    import numpy as np
+    import pytest
+    from estimators.activity.evaluation import window_confusion, window_samples
+    rng = np.random.default_rng(3)
+    fs, n = 50.0, 400_000
+    second_class = rng.integers(0, 7, size=int(n / fs) + 1)
+    labels = np.repeat(rng.integers(-1, 4, size=n // 2100 + 1), 2100)[:n]     # label runs of 42 s
+    code_to_class = {0: 0, 1: 1, 2: 2, 3: 3}
+    whole = window_confusion(second_class, labels, fs, code_to_class)
+    w = window_samples(fs)
+    step = 37 * w
+    parts = sum(window_confusion(second_class, labels[a:a + step], fs, code_to_class, first_sample=a)
+                for a in range(0, n, step))
+    assert whole.sum() > 100 and np.array_equal(parts, whole)
+    with pytest.raises(ValueError, match="multiple"):
+        window_confusion(second_class, labels[1:], fs, code_to_class, first_sample=1)
