@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import pickle
 from pathlib import Path
 from typing import Callable
 
@@ -60,12 +61,33 @@ def remove_orphan_temporaries(out_dir: Path) -> int:
     return removed
 
 
+def _serial(fn: Callable, items: list, on_done: Callable) -> None:
+    for it in items:
+        try:
+            r = fn(*it)
+        except Exception as e:  # noqa: BLE001 - one report must not stop the others
+            r = e
+        on_done(it, r)
+
+
+def _picklable(fn) -> bool:
+    try:
+        pickle.dumps(fn)
+    except Exception:  # noqa: BLE001 - a closure or lambda: build in this process
+        return False
+    return True
+
+
 def write_reports(wh: Warehouse, run_id: str, out_dir: Path, build: ReportBuilder, version: str,
-                  on_progress: Callable[[str], None] = lambda m: None) -> tuple[list[str], list[str]]:
+                  on_progress: Callable[[str], None] = lambda m: None,
+                  run_all: Callable | None = None) -> tuple[list[str], list[str]]:
     """Write every missing or stale report; returns (pdf paths written, failures as one line each).
 
-    Each written report is recorded in its own transaction after its files are in place; a report that
-    fails is not recorded (the next run tries again) and does not stop the others."""
+    ``run_all(fn, items, on_done)`` (the local engine's: its worker processes) builds the reports in
+    parallel when ``build`` can be pickled; otherwise, or without it, they are built one after the other
+    in this process. Each written report is recorded in its own transaction, by this process, after its
+    files are in place; a report that fails is not recorded (the next run tries again) and does not stop
+    the others."""
     out_dir = Path(out_dir).resolve()
     written, failed = [], []
     if out_dir.is_dir():
@@ -75,22 +97,29 @@ def write_reports(wh: Warehouse, run_id: str, out_dir: Path, build: ReportBuilde
                     "(SELECT study, participant_id FROM participants)")
     who = wh.con.execute("SELECT DISTINCT s.study, s.participant_id FROM sessions s JOIN recordings r "
                          "USING (session_id) WHERE r.status = 'ingested' ORDER BY 1, 2").fetchall()
+    todo, hashes = [], {}
     for study, pid in who:
         h = report_inputs(wh, study, pid, version)
         row = first(wh.con.execute("SELECT inputs_hash, html_path, pdf_path FROM reports WHERE study = ? AND "
                                    "participant_id = ? AND out_dir = ?", [study, pid, str(out_dir)]))
         if row is not None and row[0] == h and Path(row[1]).is_file() and Path(row[2]).is_file():
             continue
-        try:
-            paths = build(study, pid, out_dir)
-        except Exception as e:  # noqa: BLE001 - one report must not stop the others
-            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        todo.append((study, pid, out_dir))
+        hashes[(study, pid)] = h
+
+    def done(item, paths) -> None:
+        study, pid, _ = item
+        if isinstance(paths, BaseException):
+            msg = str(paths).splitlines()[0] if str(paths) else type(paths).__name__
             failed.append(f"report {study}/{pid}: {msg}")
             on_progress(f"report {study}/{pid}: FAILED: {msg}")
-            continue
+            return
         with wh.transaction() as con:
             con.execute("INSERT OR REPLACE INTO reports VALUES (?, ?, ?, ?, ?, ?, ?, current_timestamp)",
-                        [study, pid, str(out_dir), h, str(paths["html"]), str(paths["pdf"]), run_id])
+                        [study, pid, str(out_dir), hashes[(study, pid)], str(paths["html"]), str(paths["pdf"]),
+                         run_id])
         written.append(str(paths["pdf"]))
         on_progress(f"report {study}/{pid}: {paths['pdf']}")
+
+    (run_all if run_all is not None and len(todo) > 1 and _picklable(build) else _serial)(build, todo, done)
     return written, failed

@@ -371,8 +371,10 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                 if stages:
                     run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
                 if stages and build_report is not None and reports_dir is not None:
+                    # on the local engine's workers (already started, imports done); a Dask cluster's
+                    # workers may not see the reports folder, so there they are built here
                     written, failed = write_reports(wh, run_id, Path(reports_dir), build_report, _version(),
-                                                    on_progress)
+                                                    on_progress, run_all=ex.run_all if ex.name == "local" else None)
                     summary.reports += written
                     summary.failed += failed
                 status = "failed" if summary.failed else "ok"
