@@ -353,12 +353,16 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
     raise SystemExit(exit_code(summary))
 
 
+def _build_report(wh: Path, study: str, participant: str, out_dir: Path) -> dict:
+    from reports.participant import build_report
+    return build_report(wh, participant, out_dir, study=study)
+
+
 def _report_builder(wh: Path):
-    """The dashboard's report writer for the runner's report phase (the CLI wires the layers)."""
-    def build(study: str, participant: str, out_dir: Path) -> dict:
-        from reports.participant import build_report
-        return build_report(wh, participant, out_dir, study=study)
-    return build
+    """The report writer for the runner's report phase (the CLI wires the layers); a partial of a module-level
+    function, so the runner can hand it to its worker processes (reports built in parallel)."""
+    import functools
+    return functools.partial(_build_report, Path(wh))
 
 
 @main.command()
@@ -392,18 +396,27 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     from pipeline.config import default_inbox, default_warehouse
     inbox, wh = default_inbox(), default_warehouse()
     existing = sorted(inbox.glob("*.mcap")) if inbox.is_dir() else []
-    if public_dir is not None:
-        from pipeline.importers import import_public
-        res = import_public(public_dir, inbox / "public", max_trials=max_trials or None,
-                            on_file=lambda m: err_console.print(f"  {m}", markup=False, highlight=False))
-        for e in res.errors:
-            err_console.print(f"  refused: {e}", markup=False, highlight=False)
-    elif existing:
-        err_console.print(f"using the {len(existing)} recordings already in {inbox}")
-    else:
-        err_console.print(f"simulating the demo study into {inbox} …")
-        simulate_to_dir(inbox, jobs=jobs or os.cpu_count() or 1,
-                        on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
+    warming = _start_warm_kernels()
+    try:
+        if public_dir is not None:
+            from pipeline.importers import import_public
+            res = import_public(public_dir, inbox / "public", max_trials=max_trials or None,
+                                on_file=lambda m: err_console.print(f"  {m}", markup=False, highlight=False))
+            for e in res.errors:
+                err_console.print(f"  refused: {e}", markup=False, highlight=False)
+        elif existing:
+            err_console.print(f"using the {len(existing)} recordings already in {inbox}")
+        else:
+            from studies.manifest import DEFAULT_MANIFEST, load_manifest
+            fl = load_manifest(DEFAULT_MANIFEST).free_living
+            err_console.print(f"simulating the demo study into {inbox} (chest days of {fl.hours:g} h from "
+                              f"{fl.start_local}, not whole days: studies/demo/study.toml [free_living]) …", markup=False)
+            simulate_to_dir(inbox, jobs=jobs or os.cpu_count() or 1,
+                            on_file=lambda p: err_console.print(f"  wrote {p.name}", markup=False))
+        _finish_warm_kernels(warming)
+    finally:
+        if warming is not None and warming.poll() is None:
+            warming.terminate()
     from pipeline.config import default_reports
     summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo",
                                  reports_dir=default_reports(), build_report=_report_builder(wh))
@@ -412,6 +425,30 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
         err_console.print(f"warehouse: {wh}")
         return
     _serve(wh, port)
+
+
+def _start_warm_kernels():
+    """``stridelab warm-kernels`` in a second process when this installation's kernels are not compiled yet
+    (``make demo`` installs the packages and leaves the compilation to the demo), so that it runs while the
+    demo study is simulated instead of before; None when there is nothing to compile."""
+    import subprocess
+    import sys
+    from pipeline.console import err_console
+    from stridelab.warm import is_warm
+    if is_warm():
+        return None
+    err_console.print("compiling the numba kernels once (stridelab warm-kernels) in a second process, meanwhile:")
+    return subprocess.Popen([sys.executable, "-m", "stridelab", "warm-kernels"])
+
+
+def _finish_warm_kernels(proc) -> None:
+    """Wait for the warm-up before the pipeline starts, so that no stage compiles a kernel on the run's clock."""
+    from pipeline.console import err_console
+    if proc is None:
+        return
+    if proc.wait() != 0:
+        err_console.print(f"warning: stridelab warm-kernels failed (exit {proc.returncode}); the stages compile "
+                          "their kernels during the run instead (slower)", markup=False)
 
 
 def _serve(wh: Path, port: int, address: str = "localhost") -> None:

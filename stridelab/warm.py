@@ -7,14 +7,25 @@ the pipeline really passes and written to the installation's shared cache (``est
 Every later process (``make demo``, the nightly run's pool or Dask workers) loads the machine code from there
 instead of compiling it on the user's clock. Kernels only benches call (PSO tuning, the comparison filters)
 stay lazily compiled; the command lists how many.
+
+A finished warm-up leaves ``warm-kernels.json`` in the cache directory with a fingerprint of the sources
+(path, size, mtime of every module of the packages that define kernels) and numba's version:
+:func:`is_warm` tells ``stridelab demo`` whether it has to run the warm-up itself (``make demo`` installs
+the packages, then the demo compiles the kernels in a second process while it simulates the study, before
+the pipeline runs; see ``stridelab/cli.py``).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import sys
 import tempfile
 from dataclasses import replace
 from pathlib import Path
+
+MARKER = "warm-kernels.json"
+KERNEL_PACKAGES = ("estimators", "pipeline", "warehouse")   # where the pipeline's numba kernels are defined
 
 
 def kernel_stats() -> dict:
@@ -79,8 +90,49 @@ def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_
     return {**kernel_stats(), "stage_runs": summary.stage_runs}
 
 
+def fingerprint(root: Path | None = None) -> str:
+    """What numba's cache validity depends on here: each kernel module's path, size and mtime (numba's own
+    index check), numba's and Python's versions."""
+    import numba
+    root = Path(__file__).resolve().parent.parent if root is None else Path(root)
+    h = hashlib.sha256(f"{numba.__version__} {sys.version}".encode())
+    for pkg in KERNEL_PACKAGES:
+        for f in sorted((root / pkg).rglob("*.py")):
+            st = f.stat()
+            h.update(f"{f.relative_to(root)} {st.st_size} {st.st_mtime_ns}\n".encode())
+    return h.hexdigest()
+
+
+def _marker() -> Path | None:
+    from estimators._numba_cache import CACHE_DIR
+    return Path(CACHE_DIR) / MARKER if CACHE_DIR else None
+
+
+def is_warm() -> bool:
+    """True when ``stridelab warm-kernels`` finished in this installation's cache for the current sources;
+    also True outside a venv (numba's default cache: nothing to warm for the demo)."""
+    m = _marker()
+    if m is None:
+        return True
+    try:
+        return json.loads(m.read_text())["fingerprint"] == fingerprint()
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def write_marker(signatures: int) -> None:
+    """Record a finished warm-up for the current sources (atomically: temporary file + rename)."""
+    m = _marker()
+    if m is None:
+        return
+    tmp_m = m.with_name(f".{m.name}.tmp-{os.getpid()}")
+    tmp_m.write_text(json.dumps({"fingerprint": fingerprint(), "signatures": int(signatures)}))
+    os.replace(tmp_m, m)
+
+
 def warm(**kw) -> dict:
     from estimators._numba_cache import CACHE_DIR
     with tempfile.TemporaryDirectory(prefix="stridelab-warm-") as tmp:
         out = run_small_study(Path(tmp), **kw)
+    write_marker(out["signatures_compiled"] + out["signatures_from_cache"])
     return {"cache_dir": CACHE_DIR or "numba default (__pycache__ beside each source file)", **out}

@@ -65,6 +65,7 @@ def test_after_warm_kernels_every_stage_runs_without_compiling(tmp_path):
     assert r.returncode == 0, r.stderr
     warm = json.loads(r.stdout)
     assert warm["cache_dir"] == str(cache) and warm["signatures_compiled"] >= 15 and warm["stage_runs"] == 7
+    assert _py("import json; from stridelab.warm import is_warm; print(json.dumps(is_warm()))", cache) is True
     code = ("import json, sys; from pathlib import Path; from stridelab.warm import run_small_study; "
             "print(json.dumps(run_small_study(Path(sys.argv[1]), index=1, hours=1.0, start_local='12:00')))")
     second = _py(code, cache, tmp_path / "second")
