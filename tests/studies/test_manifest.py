@@ -10,7 +10,7 @@ def test_default_manifest():
     m = load_manifest()
     assert m.name == "demo" and len(m.participants) == 4
     assert sum(p.hemiparetic for p in m.participants) >= 1
-    assert m.free_living.hours == 12.0 and m.with_free_living_hours(0.2).free_living.hours == 0.2
+    assert m.free_living.hours == 6.0 and m.with_free_living_hours(0.2).free_living.hours == 0.2
     assert m.visits == 2 and m.visit_interval_days == 42           # a programme: baseline and follow-up
     assert load_manifest(DEFAULT_MANIFEST.parent) == m
 
@@ -18,7 +18,7 @@ def test_default_manifest():
 @pytest.mark.parametrize("edit, field", [
     (("speed_m_s = 1.25", "speed_m_s = \"fast\""), "participants[0].speed_m_s"),
     (("condition = \"hemiparetic\"\nparetic_side = \"left\"", "condition = \"hemiparetic\""), "paretic_side"),
-    (("hours = 12.0", "hours = -1.0"), "free_living.hours"),
+    (("hours = 6.0", "hours = -1.0"), "free_living.hours"),
     (("timezone = \"Europe/Zurich\"", "timezone = \"Mars/Olympus\""), "study.timezone"),
     (("noise_scale = 1.0", "noise_scle = 1.0"), "sensor_model"),
     (("name = \"demo\"", "name = \"../../etc\""), "study.name"),                 # path traversal
