@@ -6,6 +6,7 @@ parallel worker processes; the files are byte-identical to a serial run.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
@@ -42,11 +43,13 @@ def _worker(manifest, hours, seed: int, participants, index: int, directory: Pat
 
 
 def simulate_to_dir(directory: Path, *, manifest=None, seed: int | None = None, participants: int | None = None,
-                    hours: float | None = None, jobs: int = 1, visits: int | None = None,
+                    hours: float | None = None, jobs: int = 1, visits: int | None = None, nice: int = 0,
                     on_file: Callable[[Path], None] = lambda p: None) -> list[Path]:
     """Simulate a study (default: the demo manifest) into ``directory``; returns the files written, in
     participant order. ``jobs`` worker processes simulate participants in parallel (same bytes as serial).
-    ``visits`` overrides the manifest's number of lab visits per participant (``[study] visits``)."""
+    ``visits`` overrides the manifest's number of lab visits per participant (``[study] visits``).
+    ``nice``: the workers' niceness increment (``stridelab demo`` lets its concurrent kernel warm-up go first:
+    the pipeline waits for both, and the warm-up is the one process that cannot be split)."""
     from validation.simulator import study_participants
     m = _load(manifest, hours, visits)
     seed = m.seed if seed is None else int(seed)
@@ -60,7 +63,8 @@ def simulate_to_dir(directory: Path, *, manifest=None, seed: int | None = None, 
                 on_file(f)
                 out.append(f)
         return out
-    with ProcessPoolExecutor(min(jobs, len(people)), mp_context=mp.get_context("spawn")) as pool:
+    with ProcessPoolExecutor(min(jobs, len(people)), mp_context=mp.get_context("spawn"),
+                             initializer=os.nice if nice else None, initargs=(nice,) if nice else ()) as pool:
         futs = [pool.submit(_worker, manifest, hours, seed, participants, i, directory, visits)
                 for i in range(len(people))]
         for fut in futs:                       # in participant order; workers run ahead
