@@ -13,8 +13,9 @@ chunk) into records, so Python runs once per chunk, never once per message; chun
 checked and decoded by a small thread pool (zstandard, lz4, the CRC and the numba kernels release the
 GIL), and the CDR decoders of :mod:`pipeline.formats.ros2_cdr` turn a whole channel of a chunk into
 arrays at once. Consecutive chunks (up to :data:`GROUP_BYTES`) form one task whose blocks are joined per
-channel, so the consumer runs once per ~8 MiB whatever chunk size the writer chose. Blocks are yielded in file order while at most a bounded number of chunks is in flight,
-so memory does not grow with the length of the recording. The file's SHA-256 and the data-section CRC
+channel, so the consumer runs once per ~8 MiB whatever chunk size the writer chose. Blocks are yielded
+in file order while at most a bounded number of chunks is in flight, so memory does not grow with the
+length of the recording. The file's SHA-256 and the data-section CRC
 are computed on the same pass, on a separate thread.
 """
 from __future__ import annotations
