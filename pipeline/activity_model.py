@@ -46,15 +46,22 @@ def load_model(path: Path | str = MODEL_PATH) -> WindowModel:
 
 
 def classify_recording(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: int = 0, timezone: str = "UTC",
-                       params: ActivityParams = PRESETS["default"], window_model: str | None = "default"
-                       ) -> ActivityResult:
-    """Rules (``classify_day``) then, unless ``window_model`` is None, the window-model refinement."""
-    res = classify_day(acc_m_s2, sampling_rate_hz=sampling_rate_hz, t0_ns=t0_ns, timezone=timezone, params=params)
+                       params: ActivityParams = PRESETS["default"], window_model: str | None = "default",
+                       overwrite_input: bool = False) -> ActivityResult:
+    """Rules (``classify_day``) refined, unless ``window_model`` is None, by the window model. The window
+    posterior is computed first, so that with ``overwrite_input=True`` the rules may reuse the samples' memory
+    (a 24 h day at 100 Hz: 200 MB less at the peak; the caller must not use ``acc_m_s2`` afterwards)."""
+    posterior = None
+    if window_model is not None:
+        from estimators.activity.window_model import window_posterior
+        model = load_model(MODEL_PATH if window_model == "default" else window_model)
+        posterior = window_posterior(acc_m_s2, sampling_rate_hz, model)
+    res = classify_day(acc_m_s2, sampling_rate_hz=sampling_rate_hz, t0_ns=t0_ns, timezone=timezone, params=params,
+                       overwrite_input=overwrite_input)
     if window_model is None:
         return res
-    from estimators.activity.window_model import refine_with_window_model
-    model = load_model(MODEL_PATH if window_model == "default" else window_model)
-    return refine_with_window_model(res, acc_m_s2, sampling_rate_hz, model, params.stairs_lean_deg)
+    from estimators.activity.window_model import apply_window_posterior
+    return apply_window_posterior(res, posterior, params.stairs_lean_deg)
 
 
 # ---------------------------------------------------------------- fitting and cross-validation (UCI)

@@ -37,10 +37,10 @@ def second_sums(acc, fs, n_sec):
 
 
 @njit(cache=True)
-def calibrate_norm(acc, scale, offset, gain, fs, n_sec):
-    """acc_g = (acc · scale − offset) · gain (new array); ‖acc_g‖ − 1 per sample; per-second mean/std of ‖acc_g‖."""
+def calibrate_norm(acc, out, scale, offset, gain, fs, n_sec):
+    """acc_g = (acc · scale − offset) · gain into ``out`` (N, 3), which may be ``acc`` itself (each element is read
+    before it is written); ‖acc_g‖ − 1 per sample; per-second mean/std of ‖acc_g‖."""
     n = acc.shape[0]
-    out = np.empty((n, 3))
     mag = np.empty(n)
     s = np.zeros(n_sec)
     s2 = np.zeros(n_sec)
@@ -60,7 +60,7 @@ def calibrate_norm(acc, scale, offset, gain, fs, n_sec):
         c[k] += 1.0
     mean = s / np.maximum(c, 1.0)
     std = np.sqrt(np.maximum(s2 / np.maximum(c, 1.0) - mean * mean, 0.0))
-    return out, mag, mean, std
+    return mag, mean, std
 
 
 @njit(cache=True)

@@ -169,11 +169,23 @@ def refine_with_window_model(res: ActivityResult, acc_m_s2: np.ndarray, sampling
     """``res`` (from ``classify_day`` on the same recording) with ``second_class`` refined by ``model``
     (``merge_window_posterior``); bouts, transitions and steps stay the rules'. A recording shorter than
     one window is returned unchanged."""
+    return apply_window_posterior(res, window_posterior(acc_m_s2, sampling_rate_hz, model), stairs_lean_deg)
+
+
+def window_posterior(acc_m_s2: np.ndarray, sampling_rate_hz: float, model: WindowModel):
+    """(posterior (W, 4), gait-like (W,), walking lean (W,)) of the 10-s windows of a recording, or None when it is
+    shorter than one window; what ``merge_window_posterior`` needs, computed before the rules may reuse the
+    samples' memory (``classify_day(..., overwrite_input=True)``)."""
     acc = np.asarray(acc_m_s2, np.float64)
-    if acc.shape[0] < WINDOW_S * sampling_rate_hz or res.second_class.size < WINDOW_S:
-        return res
+    if acc.shape[0] < WINDOW_S * sampling_rate_hz:
+        return None
     x, wf = model_features(acc, sampling_rate_hz, model.feature_set, model.context)
-    proba = model.predict_proba(x)
-    lean = wf.x[:, FEATURE_NAMES.index("lean_walk_deg")]
-    cls = merge_window_posterior(res.second_class, proba, wf.gait, lean, stairs_lean_deg)
-    return replace(res, second_class=cls)
+    return model.predict_proba(x), wf.gait, wf.x[:, FEATURE_NAMES.index("lean_walk_deg")]
+
+
+def apply_window_posterior(res: ActivityResult, posterior, stairs_lean_deg: float = 4.0) -> ActivityResult:
+    """``res`` with ``second_class`` refined by a ``window_posterior`` of the same recording (unchanged if None)."""
+    if posterior is None or res.second_class.size < WINDOW_S:
+        return res
+    proba, gait, lean = posterior
+    return replace(res, second_class=merge_window_posterior(res.second_class, proba, gait, lean, stairs_lean_deg))

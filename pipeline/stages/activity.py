@@ -71,7 +71,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
             t0_ns = int(read_column_range(inp.root, path, ("t_ns",), a, a + 1, dtype=np.int64)[0])
             acc = read_column_range(inp.root, path, ("acc_x", "acc_y", "acc_z"), a, b)
             res = classify_recording(acc, sampling_rate_hz=fs, t0_ns=t0_ns, timezone=tz, params=p,
-                                     window_model=params.get("window_model", "default"))
+                                     window_model=params.get("window_model", "default"), overwrite_input=True)
             del acc
             sec = res.second_class
             step_sec = np.floor(res.step_times_s).astype(np.int64)
