@@ -7,11 +7,11 @@ says why and what to run):
    since the previous visit against its minimal detectable change, normative bands with their source, and the
    flags where data quality limits a number
 2. gait: parameters across sessions (Figure 1), clinical measures per visit and per side (paretic /
-   non-paretic ratio, symmetry ratio, variability) and their trend with uncertainty (Figure 5)
-3. joint-angle cycles of the newest lab session against a normative band (Figure 2)
-4. daily activity: time per class per day (Figure 3), a daily table, and free-living walking bouts
-   (durations, time of day: Figure 6; steps, cadence within bouts, longest bout)
-5. sessions, data quality, and accuracy against the reference where one was recorded (Figure 4)
+   non-paretic ratio, symmetry ratio, variability) and their trend with uncertainty (Figure 2)
+3. joint-angle cycles of the newest lab session against a normative band (Figure 3)
+4. daily activity: time per class per day (Figure 4), a daily table, and free-living walking bouts
+   (durations, time of day: Figure 5; steps, cadence within bouts, longest bout)
+5. sessions, data quality, and accuracy against the reference where one was recorded (Figure 6)
 
 Only the pseudonym identifies the participant; file names (which may carry site identifiers) are
 not printed. Figures are drawn once with matplotlib and embedded in both outputs (inline SVG in
@@ -35,12 +35,13 @@ from warehouse import queries as Q
 A4 = (8.27, 11.69)
 TITLES = {1: "Summary", 2: "Gait: speed, steps and asymmetry", 3: "Joint angles",
           4: "Daily activity and free-living walking", 5: "Sessions, data quality and accuracy against reference"}
-FIG_CAPTIONS = {1: "Figure 1: Gait parameters across sessions (the gait stage's summary per session)",
-                2: "Figure 2: Joint angles over the gait cycle, newest lab session, against a normative band",
-                3: "Figure 3: Time per activity class and day",
-                4: "Figure 4: Bland-Altman plot of stride length (IMU vs reference)",
-                5: "Figure 5: Clinical measures per lab visit (error bars: ± 1.96 SEM within the session)",
-                6: "Figure 6: Free-living walking bouts: duration and time of day"}
+#: figures, numbered in the order they appear in the report
+FIG_CAPTIONS = {"gait": "Figure 1: Gait parameters across sessions (the gait stage's summary per session)",
+                "clinical": "Figure 2: Clinical measures per lab visit (error bars: ± 1.96 SEM within the session)",
+                "joints": "Figure 3: Joint angles over the gait cycle, newest lab session, against a normative band",
+                "activity": "Figure 4: Time per activity class and day",
+                "walking": "Figure 5: Free-living walking bouts: duration and time of day",
+                "bland_altman": "Figure 6: Bland-Altman plot of stride length (IMU vs reference)"}
 #: page-1 rows from the clinical measures: (measure, quantity, label, band key)
 SUMMARY_GAIT = [("gait_speed_m_s", "value", "Gait speed (m/s)", "gait_speed_m_s"),
                 ("cadence_steps_min", "value", "Cadence (steps/min)", None),
@@ -490,7 +491,7 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
     elif g is None or g.empty:
         pages[2].append(("note", "No strides were detected in this participant's lab sessions."))
     else:
-        pages[2].append(("figure", FIG_CAPTIONS[1], fig_gait(g)))
+        pages[2].append(("figure", FIG_CAPTIONS["gait"], fig_gait(g)))
         pages[2].append(("table", "Per session, both feet", gait_table(g)))
     cv = d["clinical"]
     if cv is None:
@@ -500,7 +501,7 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[2].append(("table", "Clinical measures per lab visit (SR: symmetry ratio, larger / smaller side)",
                          clinical_visit_table(cv)))
         pages[2].append(("table", "Latest visit per side", clinical_side_table(cv)))
-        pages[2].append(("figure", FIG_CAPTIONS[5] + "; green: healthy range (Bohannon & Williams Andrews 2011; "
+        pages[2].append(("figure", FIG_CAPTIONS["clinical"] + "; green: healthy range (Bohannon & Williams Andrews 2011; "
                                                      "Patterson et al. 2010)", fig_clinical(cv)))
         pages[2].append(("note", "Step time: contralateral contact to this foot's contact; single support: the "
                                  "other foot's swing. * Step length: ±0.1 on its ratio from the method. Definitions "
@@ -513,7 +514,7 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[3].append(("note", "No joint-angle cycles for this participant."))
     else:
         fig, sid = fig_joints(j)
-        pages[3].append(("figure", FIG_CAPTIONS[2] + f" ({sid})", fig))
+        pages[3].append(("figure", FIG_CAPTIONS["joints"] + f" ({sid})", fig))
         pages[3].append(("note", "Grey: approximate adult normative mean ± SD, sagittal plane (reports/normative.py); "
                                  "coloured bands: ± SD over the session's cycles."))
         rom = j.groupby([c for c in ("session_id", "joint", "side", "plane") if c in j])["mean_deg"].agg(np.ptp)
@@ -533,12 +534,12 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
     elif daily.empty:
         pages[4].append(("note", "No free-living chest recording classified for this participant."))
     else:
-        pages[4].append(("figure", FIG_CAPTIONS[3], fig_activity(daily)))
+        pages[4].append(("figure", FIG_CAPTIONS["activity"], fig_activity(daily)))
         pages[4].append(("table", "Per day (hours per class, steps, posture transitions)",
                          activity_table(daily).head(14)))
     walk = d["walking"]
     if walk is not None and not walk.empty:
-        pages[4].append(("figure", FIG_CAPTIONS[6], fig_walking(walk)))
+        pages[4].append(("figure", FIG_CAPTIONS["walking"], fig_walking(walk)))
         pages[4].append(("table", "Walking bouts per day (chest sensor; consecutive walking and stairs joined)",
                          walking_table(walk).head(14)))
 
@@ -559,7 +560,7 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
             pages[5].append(("note", "No reference was recorded in this participant's sessions."))
         if pairs is not None and not pairs.empty:
             fig, bias, sd = fig_bland_altman(pairs)
-            pages[5].append(("figure", FIG_CAPTIONS[4] + f": bias {bias * 100:+.1f} cm, limits of agreement "
+            pages[5].append(("figure", FIG_CAPTIONS["bland_altman"] + f": bias {bias * 100:+.1f} cm, limits of agreement "
                                                          f"± {1.96 * sd * 100:.1f} cm, n = {len(pairs)}", fig))
     return pages
 
@@ -617,10 +618,29 @@ def _wrap(text: str, width: int = 110) -> list[str]:
 _TABLE_CHARS = 150
 
 
+def _header_chars(label: str) -> int:
+    """Characters a column header needs when it may take two lines (split at a space)."""
+    words = label.split()
+    best = len(label)
+    for i in range(1, len(words)):
+        best = min(best, max(len(" ".join(words[:i])), len(" ".join(words[i:]))))
+    return best
+
+
+def _header_lines(label: str, width: int) -> str:
+    """The header in at most two lines of ``width`` characters (cut only when even two lines are too short)."""
+    import textwrap
+    lines = textwrap.wrap(label, max(1, width)) or [""]
+    if len(lines) > 2:
+        lines = [lines[0], " ".join(lines[1:])]
+    return "\n".join(x[:width] for x in lines)
+
+
 def _col_widths(df: pd.DataFrame) -> tuple[list[int], float]:
     """Column widths in characters from the content (header included, 4..60 each) and the font size (6.5 pt,
-    smaller down to 5 pt when the columns need more than the page width; cells are cut to their width)."""
-    w = [max([len(str(c))] + [len(_fmt(v)) for v in df[c]]) for c in df.columns] if len(df.columns) else [4]
+    smaller down to 5 pt when the columns need more than the page width; a header may take two lines, cells
+    are cut to their width)."""
+    w = [max([_header_chars(str(c))] + [len(_fmt(v)) for v in df[c]]) for c in df.columns] if len(df.columns) else [4]
     w = [min(max(4, x + 2), 60) for x in w]
     size = 6.5
     if sum(w) > _TABLE_CHARS:
@@ -666,16 +686,18 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                     df = b[2]
                     page.text(0.06, y, b[1], fontsize=9, weight="bold")
                     y -= 0.008
-                    rows = len(df) + 1
+                    widths, size = _col_widths(df)
+                    labels = [_header_lines(str(c), w - 1) for c, w in zip(df.columns, widths)]
+                    two_line = any("\n" in x for x in labels)
+                    rows = len(df) + 1 + two_line
                     h = min(0.016 * rows, y - 0.06)
                     if h <= 0.02:
                         continue
                     ax = page.add_axes([0.06, y - h, 0.88, h])
                     ax.axis("off")
-                    widths, size = _col_widths(df)
                     cells = [[_fmt(v)[:w] for v, w in zip(r, widths)] for r in df.itertuples(index=False)] or \
                         [["—"] * len(df.columns)]
-                    tb = ax.table(cellText=cells, colLabels=[str(c)[:w] for c, w in zip(df.columns, widths)],
+                    tb = ax.table(cellText=cells, colLabels=labels,
                                   loc="upper left", cellLoc="left", colLoc="left", bbox=[0, 0, 1, 1],
                                   colWidths=[w / sum(widths) for w in widths])
                     tb.auto_set_font_size(False)
@@ -684,6 +706,8 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                         cell.set_linewidth(0.3)
                         if r == 0:
                             cell.set_facecolor("#eeeeee")
+                            if two_line:                  # the bbox scales the rows: the header gets two of them
+                                cell.set_height(2 * cell.get_height())
                     y -= h + 0.03
                 elif b[0] == "figure":
                     fig = b[2]

@@ -27,7 +27,7 @@ def test_pdf_pages_pseudonym_and_known_figure(report):
     texts = [p.extract_text() for p in reader.pages]
     assert all("P001" in t for t in texts)                       # the pseudonym on every page
     assert "Figure 1: Gait parameters across sessions" in texts[1]
-    assert "Figure 3: Time per activity class and day" in texts[3]
+    assert "Figure 4: Time per activity class and day" in texts[3]
     assert "Bland-Altman" in texts[4]
     assert not any(".mcap" in t for t in texts)                  # file names (possible site identifiers) never printed
     assert reader.metadata.title == "StrideLab report P001"
@@ -53,8 +53,8 @@ def test_pdf_figure_is_drawn(report, tmp_path):
 def test_html_is_self_contained(report):
     paths, _ = report
     html = paths["html"].read_text()
-    # Figures 1-4 and 6 (walking bouts); the synthetic warehouse has no clinical measures (Figure 5)
-    assert "<svg" in html and html.count("<figure>") == 5 and "Figure 6: Free-living walking bouts" in html
+    # Figures 1 and 3-6; the synthetic warehouse has no clinical measures (Figure 2)
+    assert "<svg" in html and html.count("<figure>") == 5 and "Figure 5: Free-living walking bouts" in html
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", html)     # nothing fetched from elsewhere
     assert "<script" not in html
     assert "P001" in html and ".mcap" not in html
@@ -86,8 +86,24 @@ def test_summary_page_of_a_two_visit_participant(demo_wh, tmp_path):
     assert len(reader.pages) == 5
     p1, p2 = reader.pages[0].extract_text(), reader.pages[1].extract_text()
     for t in ("Summary", "Gait speed (m/s)", "Swing time symmetry ratio", "Stance time symmetry ratio",
-              "Steps per day", "Upright time", "Previous visit", "MDC95 of the change", "Perry et al. 1995",
+              "Steps per day", "Upright time", "Previous visit", "MDC95", "Perry et al. 1995",
               "Patterson et al. 2010", "Where data quality limits a number", "Paretic side unknown"):
         assert t in p1, t
     assert "SI stride" not in p1 + p2 and "symmetry index" not in (p1 + p2).lower()
-    assert "Clinical measures per lab visit" in p2 and "Latest visit per side" in p2 and "Figure 5" in p2
+    assert "Clinical measures per lab visit" in p2 and "Latest visit per side" in p2 and "Figure 2" in p2
+
+
+def test_table_headers_wrap_instead_of_being_cut():
+    """A header longer than its column's content takes two lines in the PDF; no header loses characters (the
+    page-1 summary cut "MDC95 of the change" to "MDC95 of the chang")."""
+    import pandas as pd
+
+    from reports.participant import _col_widths, _header_lines
+    cols = ["Measure", "Latest visit", "Previous visit", "Change", "MDC95 of the change", "Beyond noise?",
+            "Reference band (source)"]
+    df = pd.DataFrame([["Single support symmetry ratio", "1.21", "1.30", "-0.09", "0.05", "yes", "1.00-1.05 (P)"]],
+                      columns=cols)
+    widths, _ = _col_widths(df)
+    labels = [_header_lines(c, w - 1) for c, w in zip(cols, widths)]
+    assert [" ".join(x.split("\n")) for x in labels] == cols
+    assert labels[4].count("\n") == 1 and max(len(x) for x in labels[4].split("\n")) < len(cols[4])
