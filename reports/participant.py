@@ -258,7 +258,7 @@ def sessions_table(d) -> pd.DataFrame:
 
 
 def gait_table(gait: pd.DataFrame) -> pd.DataFrame:
-    cols = {"session_id": "Session", "strides": "Strides", "speed_m_s": "Speed m/s",
+    cols = {"session_id": "Session", "strides": "Strides", "speed_m_s": "Mean stride speed m/s",
             "cadence_steps_min": "Cadence /min", "stride_length_m": "Stride length m", "stance_pct": "Stance % of stride"}
     return gait[[c for c in cols if c in gait]].rename(columns=cols)
 
@@ -493,6 +493,10 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
     else:
         pages[2].append(("figure", FIG_CAPTIONS["gait"], fig_gait(g)))
         pages[2].append(("table", "Per session, both feet", gait_table(g)))
+        pages[2].append(("note", "Mean stride speed: the mean of every kept stride's length / time (turns and "
+                                 "walk ends included). The gait speed of the clinical measures (page 1 and below) "
+                                 "is total distance / total time of the straight, steady strides (docs: "
+                                 "clinical measures C7-C8), so the two differ, most for a variable gait."))
     cv = d["clinical"]
     if cv is None:
         pages[2].append(("note", "No clinical gait measures yet (the clinical stage runs after the gait stage): "
