@@ -4,7 +4,8 @@ The study (N participants, each a lab session and one free-living recording of `
 is simulated once into a temporary inbox; then ``stridelab run`` processes it into fresh warehouses in child
 processes, with 1 and 2 workers on a subset for the scaling figure and with ``--jobs`` workers on the whole
 study. Peak memory is the largest resident set of any process of the run (coordinator or worker); CPU is
-user + system time of the whole process tree of the run; a participant-day is one participant's lab session
+user + system time of the whole process tree of the run (Dask's scheduler and workers included, all children of
+the run process); a participant-day is one participant's lab session
 and 24 h of free-living recording. A multi-day recording (``--days`` > 2) is made of consecutive simulated
 days (day k: the participant's day simulated as session k, shifted by k days) written as one MCAP file.
 """
@@ -70,6 +71,18 @@ def _ledger(wh: Path) -> tuple[int, dict]:
         con.close()
 
 
+def _fingerprint(wh: Path) -> dict:
+    """Every table's content hash of the published snapshot (``warehouse.catalog.fingerprint``; run ids, times
+    and host names excluded), to compare two warehouses built from the same inbox."""
+    from warehouse.catalog import fingerprint
+    from warehouse.read import connect_snapshot
+    con = connect_snapshot(wh)
+    try:
+        return fingerprint(con, wh)
+    finally:
+        con.close()
+
+
 def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list[Path]:
     """Each participant's lab session and one ``days``-day free-living recording (consecutive simulated days)."""
     from dataclasses import replace
@@ -117,9 +130,13 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
 @click.option("--scaling-participants", type=click.IntRange(0, 1000), default=4, show_default=True,
               help="Study size for the 1-vs-2-worker speed-up (0: skip it).")
 @click.option("--engine", type=click.Choice(["local", "dask"]), default="local", show_default=True)
+@click.option("--compare-engines", is_flag=True,
+              help="Also run the whole study on the other engine (dask if --engine local) into a second warehouse: "
+                   "its wall time, the ratio to the first, and whether the two warehouses are identical.")
 @click.option("--workdir", type=click.Path(file_okay=False, path_type=Path), default=None)
 @click.option("--json", "as_json", is_flag=True)
-def command(participants, hours, days, jobs, scaling_participants, engine, workdir, as_json) -> None:
+def command(participants, hours, days, jobs, scaling_participants, engine, compare_engines, workdir,
+            as_json) -> None:
     """End-to-end pipeline on a simulated study: wall time, CPU per participant-day, samples/s, peak memory,
     1→2 worker speed-up.
 
@@ -128,6 +145,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, workd
       stridelab bench pipeline --participants 20 --json
       stridelab bench pipeline --days 7 --participants 1 --jobs 1 --json
       stridelab bench pipeline -n 4 --hours 2 --engine dask
+      stridelab bench pipeline --participants 20 --compare-engines --json
     """
     from validation.simulate import simulate_to_dir
     if days is not None:
@@ -164,6 +182,16 @@ def command(participants, hours, days, jobs, scaling_participants, engine, workd
             "samples_per_s": n / full["wall_s"], "peak_rss_mb": full["peak_rss_mb"],
             "stages": stages, "failed": full["failed"],
         }
+        if compare_engines:
+            other = "dask" if engine == "local" else "local"
+            err_console.print(f"full run on the {other} engine: {participants} participants, {jobs} workers …")
+            alt = _run(tmp / "inbox", tmp / "wh_other", jobs, other)
+            out["engines"] = {engine: {"run_wall_s": full["wall_s"], "cpu_s": full["cpu_s"],
+                                       "peak_rss_mb": full["peak_rss_mb"]},
+                              other: {"run_wall_s": alt["wall_s"], "cpu_s": alt["cpu_s"],
+                                      "peak_rss_mb": alt["peak_rss_mb"], "failed": alt["failed"]},
+                              f"{other}_over_{engine}_wall": alt["wall_s"] / full["wall_s"],
+                              "identical_warehouse": _fingerprint(tmp / "wh") == _fingerprint(tmp / "wh_other")}
         if k:
             out["scaling"] = {"participants": k, "wall_s_1_worker": scaling[1]["wall_s"],
                               "wall_s_2_workers": scaling[2]["wall_s"],
