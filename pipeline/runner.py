@@ -95,6 +95,37 @@ def _fault_injection(var: str = "STRIDELAB_TEST_KILL_WORKER_ONCE") -> None:
         os.kill(os.getpid(), 9)
 
 
+#: least seconds between two snapshots published while a run commits (env ``STRIDELAB_PUBLISH_INTERVAL_S``;
+#: 0 publishes after every commit). Each phase and the run end with one, so readers see a run's progress at
+#: most this late. Publishing copies the whole catalog (18 MB for 20 participants, growing with the study): once
+#: per task, a 20-participant night made 201 copies and the coordinator spent ~10 s of its time in them.
+PUBLISH_INTERVAL_S = 2.0
+
+
+class _Publisher:
+    """Publishes the catalog after commits, at most once per ``PUBLISH_INTERVAL_S`` (:meth:`due`), and on
+    :meth:`flush` when something was committed since the last snapshot."""
+
+    def __init__(self, wh: Warehouse, interval_s: float | None = None):
+        self.wh = wh
+        env = os.environ.get("STRIDELAB_PUBLISH_INTERVAL_S")
+        self.interval = float(env) if interval_s is None and env else (
+            PUBLISH_INTERVAL_S if interval_s is None else float(interval_s))
+        self.last = float("-inf")
+        self.dirty = False
+
+    def due(self) -> None:
+        self.dirty = True
+        if time.monotonic() - self.last >= self.interval:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.dirty:
+            self.wh.publish_snapshot()
+            self.last = time.monotonic()
+            self.dirty = False
+
+
 def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float]:
     _fault_injection()
     stage = {s.name: s for s in registry()}[stage_name]
@@ -119,8 +150,9 @@ def _no_phase(name: str, total: int) -> None:
 def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
                  on_progress: Callable[[str], None] = lambda m: None,
                  on_phase: Callable[[str, int], None] = _no_phase, options: dict | None = None,
-                 replace: Iterable[Path] = ()) -> None:
+                 replace: Iterable[Path] = (), publisher: _Publisher | None = None) -> None:
     """Ingest ``files``; those also in ``replace`` supersede the recordings they correct (``--replace``)."""
+    publisher = publisher or _Publisher(wh)
     replacing = {str(Path(f).resolve()) for f in replace}
     todo, seen = [], set()
     for f in files:
@@ -153,10 +185,11 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
          "quarantined": summary.quarantined}[r.status].append(
             r.message if r.status in ("quarantined", "reexport") else res.file_name)
         summary.messages.append(r.message)
-        wh.publish_snapshot()
+        publisher.due()
         on_progress(r.message)
 
     ex.run_all(ingest_mod.prepare, todo, done)
+    publisher.flush()
 
 
 def inbox_recordings(inbox: Path) -> list[Path]:
@@ -255,7 +288,8 @@ def _why_stale(wh: Warehouse, session_id: str, stage: Stage, params: dict, input
 
 def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                on_progress: Callable[[str], None] = lambda m: None, only_sessions: list[str] | None = None,
-               on_phase: Callable[[str, int], None] = _no_phase) -> None:
+               on_phase: Callable[[str, int], None] = _no_phase, publisher: _Publisher | None = None) -> None:
+    publisher = publisher or _Publisher(wh)
     sessions = wh.con.execute("SELECT session_id, study, kind FROM sessions ORDER BY session_id").fetchall()
     if only_sessions is not None:
         sessions = [s for s in sessions if s[0] in only_sessions]
@@ -317,10 +351,11 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                                               "note": out.note or None}])
                 summary.stage_runs += 1
                 on_progress(f"{stage.name} {sid}: {out.status} in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
-            wh.publish_snapshot()
+            publisher.due()
 
         on_phase(stage.name, len(items))
         ex.run_all(_stage_task_4, items, done)
+        publisher.flush()
 
 
 def _has_column(con, table: str, column: str) -> bool:
@@ -367,9 +402,11 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                 todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
                 if inbox is not None and Path(inbox).is_dir():
                     todo += inbox_recordings(Path(inbox))
-                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or ())
+                publisher = _Publisher(wh)
+                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or (),
+                             publisher=publisher)
                 if stages:
-                    run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase)
+                    run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase, publisher=publisher)
                 if stages and build_report is not None and reports_dir is not None:
                     # on the local engine's workers (already started, imports done); a Dask cluster's
                     # workers may not see the reports folder, so there they are built here

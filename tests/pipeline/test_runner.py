@@ -85,8 +85,11 @@ def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapsho
     expected = snapshot_fingerprint(tmp_path / "clean")
 
     wh = tmp_path / "killed"
+    # a snapshot after every commit (not at most every PUBLISH_INTERVAL_S), so that the snapshot count marks
+    # the point of the run to kill it at
     p = subprocess.Popen([*STRIDELAB, "run", "--inbox", str(tmp_path / "inbox"), "--warehouse", str(wh), "--jobs", "2"],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                         env={**os.environ, "STRIDELAB_PUBLISH_INTERVAL_S": "0"})
     deadline = time.time() + 300
     while time.time() < deadline:
         snap = latest_snapshot(wh)
@@ -169,3 +172,43 @@ def test_an_older_warehouse_is_upgraded_in_place(tmp_path):
     con = connect_snapshot(tmp_path / "wh")
     assert [v for (v,) in con.execute("SELECT version FROM schema_migrations ORDER BY 1").fetchall()][:2] == [1, 2]
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 2
+
+
+def test_snapshots_are_published_at_most_once_per_interval_and_at_each_phase_end(monkeypatch):
+    """Commits publish a snapshot only when PUBLISH_INTERVAL_S has passed since the last one; a phase end
+    (``flush``) publishes what is still unpublished, and nothing when all is published; 0 (or the env
+    variable) publishes after every commit."""
+    from pipeline import runner
+
+    class FakeWarehouse:
+        published = 0
+
+        def publish_snapshot(self):
+            self.published += 1
+
+    clock = [100.0]
+    monkeypatch.setattr(runner.time, "monotonic", lambda: clock[0])
+    monkeypatch.delenv("STRIDELAB_PUBLISH_INTERVAL_S", raising=False)
+    wh = FakeWarehouse()
+    pub = runner._Publisher(wh)
+    assert pub.interval == runner.PUBLISH_INTERVAL_S > 0
+    pub.due()                                   # the first commit of a run is visible at once
+    assert wh.published == 1
+    for _ in range(5):                          # a burst of commits within the interval
+        clock[0] += runner.PUBLISH_INTERVAL_S / 10
+        pub.due()
+    assert wh.published == 1
+    pub.flush()                                 # end of a phase: the burst becomes visible
+    assert wh.published == 2
+    pub.flush()                                 # nothing new: no copy of the catalog
+    assert wh.published == 2
+    clock[0] += runner.PUBLISH_INTERVAL_S
+    pub.due()
+    assert wh.published == 3
+
+    monkeypatch.setenv("STRIDELAB_PUBLISH_INTERVAL_S", "0")
+    wh0 = FakeWarehouse()
+    pub0 = runner._Publisher(wh0)
+    for _ in range(4):
+        pub0.due()
+    assert wh0.published == 4
