@@ -436,3 +436,30 @@ def test_inclination_is_an_angle_even_with_a_scale_error_left_by_autocalibration
     thesis_theta = classify_day(acc, sampling_rate_hz=FS,
                                 params=dataclasses.replace(PRESETS["default"], theta_mode="thesis"))
     assert np.median(thesis_theta.inclination_deg[walking]) > 25.0 and len(thesis_theta.bouts) < len(r.bouts)
+
+
+def test_overwrite_input_gives_the_same_result_and_reuses_the_array():
+    """``overwrite_input=True`` (the stage's memory saving) changes where the calibrated signal lives, not the
+    result; without it the caller's samples stay untouched. Also through the window model, whose posterior
+    must be computed before the rules overwrite the samples."""
+    from pipeline.activity_model import classify_recording
+    p = ActivityParams(thigh_length_m=0.45)
+    acc = _day([_posture(5, 3000), _walk(20), _posture(5, 3000), _sit_stand(-1), _posture(10, 6000),
+                _sit_stand(+1, lean_start=10, lean_end=10), _posture(10, 3000), _walk(20), _posture(5, 2000)])
+    acc = np.ascontiguousarray(acc * 1.02 + 0.05)          # off-nominal gain and offset: a real calibration step
+    for run in (lambda a, **k: classify_day(a, sampling_rate_hz=FS, params=p, **k),
+                lambda a, **k: classify_recording(a, sampling_rate_hz=FS, params=p, **k)):
+        keep = acc.copy()
+        ref = run(acc)
+        np.testing.assert_array_equal(acc, keep)           # the copy path leaves the input alone
+        work = acc.copy()
+        got = run(work, overwrite_input=True)
+        assert not np.array_equal(work, keep)              # the array was reused for the calibrated signal
+        for f in dataclasses.fields(ref):
+            a, b = getattr(ref, f.name), getattr(got, f.name)
+            if isinstance(a, np.ndarray):
+                np.testing.assert_array_equal(a, b, err_msg=f.name)
+            elif dataclasses.is_dataclass(a):
+                assert repr(a) == repr(b), f.name
+            else:
+                assert a == b, f.name
