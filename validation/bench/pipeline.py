@@ -5,7 +5,8 @@ is simulated once into a temporary inbox; then ``stridelab run`` processes it in
 processes, with 1 and 2 workers on a subset for the scaling figure and with ``--jobs`` workers on the whole
 study. Peak memory is the largest resident set of any process of the run (coordinator or worker); CPU is
 user + system time of the whole process tree of the run (Dask's scheduler and workers included, all children of
-the run process); a participant-day is one participant's lab session
+the run process), split into the coordinator's own (``coordinator_cpu_s``: catalog commits, and on one job the
+tasks too) and its children's (``workers_cpu_s``); a participant-day is one participant's lab session
 and 24 h of free-living recording. A multi-day recording (``--days`` > 2) is made of consecutive simulated
 days (day k: the participant's day simulated as session k, shifted by k days) written as one MCAP file.
 """
@@ -38,8 +39,10 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
     code = ("import json, resource, sys; from pathlib import Path; from pipeline import runner; "
             "s = runner.run(Path(sys.argv[1]), Path(sys.argv[2]), jobs=int(sys.argv[3]), engine=sys.argv[4]); "
             "hwm = [int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmHWM:')]; "
-            "print(json.dumps({**s.as_dict(), 'peak_child_kb': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, "
-            "'peak_self_kb': hwm[0] if hwm else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))")
+            "me, ch = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN); "
+            "print(json.dumps({**s.as_dict(), 'peak_child_kb': ch.ru_maxrss, "
+            "'peak_self_kb': hwm[0] if hwm else me.ru_maxrss, 'coordinator_cpu_s': me.ru_utime + me.ru_stime, "
+            "'workers_cpu_s': ch.ru_utime + ch.ru_stime}))")
     r = subprocess.run([sys.executable, "-c", code, str(wh), str(inbox), str(jobs), engine],
                        capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -120,6 +123,28 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
     return files
 
 
+_STUDY_FILE = ".bench-study.json"
+
+
+def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
+    """The recordings of a study simulated earlier into ``inbox`` by this bench with the same size, or None when
+    there is none yet; a folder holding another study (or anything else) is refused."""
+    if not inbox.exists() or not any(inbox.iterdir()):
+        return None
+    meta = inbox / _STUDY_FILE
+    if not meta.is_file():
+        raise click.ClickException(f"{inbox}: not a study simulated by this bench (no {_STUDY_FILE}); "
+                                   "give an empty or new folder to --inbox")
+    m = json.loads(meta.read_text())
+    if (m["participants"], m["hours"]) != (participants, hours):
+        raise click.ClickException(f"{inbox}: holds {m['participants']} participants x {m['hours']} h, not "
+                                   f"{participants} x {hours} h; use another --inbox folder")
+    files = [inbox / f for f in m["files"]]
+    if not all(f.is_file() for f in files):
+        raise click.ClickException(f"{inbox}: recordings are missing; delete the folder to simulate again")
+    return files
+
+
 @click.command("pipeline")
 @click.option("--participants", "-n", type=click.IntRange(1, 1000), default=20, show_default=True)
 @click.option("--hours", type=click.FloatRange(0.01, 48), default=24.0, show_default=True,
@@ -134,9 +159,12 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
               help="Also run the whole study on the other engine (dask if --engine local) into a second warehouse: "
                    "its wall time, the ratio to the first, and whether the two warehouses are identical.")
 @click.option("--workdir", type=click.Path(file_okay=False, path_type=Path), default=None)
+@click.option("--inbox", "keep_inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Keep the simulated study in this folder and reuse it on the next run with the same "
+                   "--participants/--hours/--days (simulating 20 participant-days takes about 5 min).")
 @click.option("--json", "as_json", is_flag=True)
 def command(participants, hours, days, jobs, scaling_participants, engine, compare_engines, workdir,
-            as_json) -> None:
+            keep_inbox, as_json) -> None:
     """End-to-end pipeline on a simulated study: wall time, CPU per participant-day, samples/s, peak memory,
     1→2 worker speed-up.
 
@@ -146,6 +174,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
       stridelab bench pipeline --days 7 --participants 1 --jobs 1 --json
       stridelab bench pipeline -n 4 --hours 2 --engine dask
       stridelab bench pipeline --participants 20 --compare-engines --json
+      stridelab bench pipeline --participants 20 --inbox /tmp/study20 --json   # simulate once, rerun on it
     """
     from validation.simulate import simulate_to_dir
     if days is not None:
@@ -153,12 +182,21 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
-        if hours <= 48.0:
-            files = simulate_to_dir(tmp / "inbox", participants=participants, hours=hours, jobs=jobs, visits=1)
+        inbox = tmp / "inbox" if keep_inbox is None else Path(keep_inbox)
+        files = _reuse(inbox, participants, hours) if keep_inbox is not None else None
+        if files is not None:
+            sim_s = None
+            err_console.print(f"reusing the {len(files)} simulated recordings in {inbox}")
         else:
-            files = _multi_day(tmp / "inbox", participants, int(days), jobs)
-        sim_s = time.perf_counter() - t0
-        err_console.print(f"simulated {len(files)} recordings of {participants} participants in {sim_s:.0f} s")
+            if hours <= 48.0:
+                files = simulate_to_dir(inbox, participants=participants, hours=hours, jobs=jobs, visits=1)
+            else:
+                files = _multi_day(inbox, participants, int(days), jobs)
+            sim_s = time.perf_counter() - t0
+            if keep_inbox is not None:
+                (inbox / _STUDY_FILE).write_text(json.dumps({"participants": participants, "hours": hours,
+                                                             "files": sorted(f.name for f in files)}))
+            err_console.print(f"simulated {len(files)} recordings of {participants} participants in {sim_s:.0f} s")
         k = min(scaling_participants, participants)
         sub = tmp / "inbox_sub"
         sub.mkdir()
@@ -171,7 +209,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             err_console.print(f"scaling run: {k} participants, {j} worker(s) …")
             scaling[j] = _run(sub, tmp / f"wh_sub{j}", j, engine)
         err_console.print(f"full run: {participants} participants, {jobs} workers …")
-        full = _run(tmp / "inbox", tmp / "wh", jobs, engine)
+        full = _run(inbox, tmp / "wh", jobs, engine)
         n, stages = _ledger(tmp / "wh")
         pdays = participants * hours / 24.0
         out = {
@@ -180,12 +218,13 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             "cpu_s": full["cpu_s"], "cpu_s_per_participant_day": full["cpu_s"] / pdays,
             "wall_s_per_recorded_day": full["wall_s"] / pdays,
             "samples_per_s": n / full["wall_s"], "peak_rss_mb": full["peak_rss_mb"],
+            "coordinator_cpu_s": full["coordinator_cpu_s"], "workers_cpu_s": full["workers_cpu_s"],
             "stages": stages, "failed": full["failed"],
         }
         if compare_engines:
             other = "dask" if engine == "local" else "local"
             err_console.print(f"full run on the {other} engine: {participants} participants, {jobs} workers …")
-            alt = _run(tmp / "inbox", tmp / "wh_other", jobs, other)
+            alt = _run(inbox, tmp / "wh_other", jobs, other)
             out["engines"] = {engine: {"run_wall_s": full["wall_s"], "cpu_s": full["cpu_s"],
                                        "peak_rss_mb": full["peak_rss_mb"]},
                               other: {"run_wall_s": alt["wall_s"], "cpu_s": alt["cpu_s"],
