@@ -134,33 +134,24 @@ def merge_window_posterior(second_class: np.ndarray, proba: np.ndarray, gait_lik
     sec = np.asarray(second_class).astype(np.int8).copy()
     w = int(WINDOW_S)
     n_win = min(proba.shape[0], sec.size // w)
-    for i in range(n_win):
-        s = sec[i * w:(i + 1) * w]                  # view into sec
-        rule = s.copy()
-        free = (rule != LYING) & (rule != NON_WEAR)
-        if not free.any():
-            continue
-        p = proba[i]
-        walk_s = free & ((rule == LEVEL) | (rule == UP) | (rule == DOWN))
-        dyn = walk_s if walk_s.any() else (free if gait_like[i] else np.zeros_like(free))
-        k = int(np.argmax(p))
-        if k <= 1:                                  # the model sees a posture even where the chest moves
-            dyn_cls = SITTING if k == 0 else STANDING
-        elif k == 2:
-            dyn_cls = LEVEL
-        else:
-            dyn_cls = UP if lean_walk_deg[i] > stairs_lean_deg else DOWN
-        posture = SITTING if p[0] > p[1] else STANDING
-        for j in np.flatnonzero(free):
-            if dyn[j]:
-                if dyn_cls in (UP, DOWN) and rule[j] in (UP, DOWN):
-                    s[j] = rule[j]                  # the rules found the stairs: keep their direction
-                else:
-                    s[j] = dyn_cls
-            elif rule[j] == SITTING:
-                s[j] = SITTING
-            else:
-                s[j] = posture
+    if n_win <= 0:
+        return sec
+    rule = sec[: n_win * w].reshape(n_win, w)          # (window, second); the same gates for every window at once
+    p = np.asarray(proba)[:n_win]
+    free = (rule != LYING) & (rule != NON_WEAR)
+    stairs = (rule == UP) | (rule == DOWN)
+    walk_s = free & ((rule == LEVEL) | stairs)
+    gait = np.asarray(gait_like[:n_win], bool)
+    dyn = np.where(walk_s.any(axis=1)[:, None], walk_s, free & gait[:, None])
+    k = np.argmax(p, axis=1)                            # the model sees a posture even where the chest moves
+    up_down = np.where(np.asarray(lean_walk_deg[:n_win]) > stairs_lean_deg, UP, DOWN)
+    dyn_cls = np.choose(np.minimum(k, 3), [SITTING, STANDING, LEVEL, 0]).astype(np.int8)
+    dyn_cls = np.where(k >= 3, up_down, dyn_cls).astype(np.int8)
+    posture = np.where(p[:, 0] > p[:, 1], SITTING, STANDING).astype(np.int8)
+    keep_stairs = ((dyn_cls == UP) | (dyn_cls == DOWN))[:, None] & stairs   # the rules found the stairs: keep
+    moving = np.where(keep_stairs, rule, dyn_cls[:, None])                 # their direction
+    still = np.where(rule == SITTING, rule, posture[:, None])
+    sec[: n_win * w] = np.where(free, np.where(dyn, moving, still), rule).ravel()
     return sec
 
 

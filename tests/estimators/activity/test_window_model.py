@@ -45,6 +45,44 @@ def test_motion_only_where_the_chest_moves():
     assert (out == DOWN).all()
 
 
+def _merge_one_window_at_a_time(second_class, proba, gait_like, lean_walk_deg, stairs_lean_deg=4.0):
+    """The gates of the module docstring written out second by second (the reference for the array form)."""
+    sec = np.asarray(second_class).astype(np.int8).copy()
+    for i in range(min(proba.shape[0], sec.size // 10)):
+        s = sec[i * 10:(i + 1) * 10]
+        rule = s.copy()
+        free = (rule != LYING) & (rule != NON_WEAR)
+        walk = free & np.isin(rule, (LEVEL, UP, DOWN))
+        dyn = walk if walk.any() else (free if gait_like[i] else np.zeros_like(free))
+        k = int(np.argmax(proba[i]))
+        cls = (SITTING, STANDING, LEVEL)[k] if k <= 2 else (UP if lean_walk_deg[i] > stairs_lean_deg else DOWN)
+        posture = SITTING if proba[i, 0] > proba[i, 1] else STANDING
+        for j in np.flatnonzero(free):
+            if dyn[j]:
+                s[j] = rule[j] if cls in (UP, DOWN) and rule[j] in (UP, DOWN) else cls
+            elif rule[j] != SITTING:
+                s[j] = posture
+    return sec
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_merge_equals_the_second_by_second_gates(seed):
+    rng = np.random.default_rng(seed)
+    n_win = 300
+    # rule timelines of runs of a few seconds, so windows mix classes; ties in the posterior included
+    codes = np.array([SITTING, STANDING, LEVEL, UP, DOWN, LYING, NON_WEAR])
+    runs = rng.choice(codes, size=n_win * 3, p=[0.25, 0.25, 0.15, 0.05, 0.05, 0.15, 0.10])
+    sec = np.repeat(runs, rng.integers(1, 8, runs.size))[: n_win * 10 + 7]       # 7 s after the last window
+    proba = rng.dirichlet(np.ones(4), size=n_win)
+    proba[::17] = 0.25
+    gait = rng.random(n_win) < 0.3
+    lean = rng.normal(4.0, 3.0, n_win)
+    lean[::23] = np.nan
+    got = merge_window_posterior(sec, proba, gait, lean)
+    np.testing.assert_array_equal(got, _merge_one_window_at_a_time(sec, proba, gait, lean))
+    assert got.dtype == np.int8 and got.shape == sec.shape
+
+
 def _model(n_feat, **kw):
     rng = np.random.default_rng(0)
     return WindowModel(feature_set="no_clusters", context=(6,), mean=np.zeros(n_feat), scale=np.ones(n_feat),
