@@ -2,7 +2,8 @@
 #   make demo   create .venv, install the pinned dependencies, run `stridelab demo`, which compiles the numba
 #               kernels once (`stridelab warm-kernels`, into .venv/var/cache/stridelab-numba) in a second
 #               process while it simulates the demo study, then runs the pipeline
-#   make install  the same installation, kernels compiled (`stridelab warm-kernels`) before it returns
+#   make install  the same installation, kernels compiled (`stridelab warm-kernels`) and the packages' bytecode
+#               compiled once before it returns (benches and nightly runs start many processes)
 #   make test   install if missing, compile the packages' bytecode once, run the test suite
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'",
 #   INSTALLER=pip (skip uv).
@@ -51,13 +52,14 @@ $(STAMP): $(DEPS)
 	$(VENV)/bin/stridelab warm-kernels
 	@touch $@
 
-# Bytecode of every installed module, once (uv installs without it): the test suite starts many processes,
-# and with PYTHONDONTWRITEBYTECODE set each would compile its imports again.
+# Bytecode of every installed module, once (uv installs without it): the test suite, the benches and every
+# run's workers start many processes, and with PYTHONDONTWRITEBYTECODE set each would compile its imports
+# again (about 2 s of CPU per process for scipy, pandas and DuckDB).
 $(BYTECODE): $(DEPS)
 	@$(VENV)/bin/python -m compileall -q -j 0 $(VENV)/lib >/dev/null || true
 	@touch $@
 
-install: $(STAMP)
+install: $(STAMP) $(BYTECODE)
 
 demo: $(DEPS)
 	$(VENV)/bin/stridelab demo $(ARGS)
