@@ -1,0 +1,39 @@
+"""``stridelab bench pipeline`` end to end on a tiny study: the JSON keys issue 19 asks for, both engines giving
+the same warehouse, and ``--inbox`` reusing (and guarding) a simulated study."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+BENCH = [sys.executable, "-m", "pipeline", "bench", "pipeline"]
+
+
+def _bench(*args, check=True):
+    r = subprocess.run([*BENCH, *map(str, args)], capture_output=True, text=True, timeout=900)
+    if check:
+        assert r.returncode == 0, r.stderr[-2000:]
+    return r
+
+
+@pytest.mark.slow
+def test_bench_pipeline_json_engines_and_inbox_reuse(tmp_path):
+    inbox = tmp_path / "study"
+    common = ("-n", 1, "--hours", 0.05, "--jobs", 2, "--scaling-participants", 0, "--inbox", inbox, "--json")
+    first = json.loads(_bench(*common, "--compare-engines").stdout)
+    for k in ("run_wall_s", "cpu_s_per_participant_day", "peak_rss_mb", "coordinator_cpu_s", "workers_cpu_s"):
+        assert first[k] > 0, k
+    assert first["cpu_s"] == pytest.approx(first["coordinator_cpu_s"] + first["workers_cpu_s"], rel=0.05)
+    assert first["failed"] == [] and first["simulate_s"] > 0
+    eng = first["engines"]
+    assert eng["identical_warehouse"] is True and eng["dask"]["failed"] == []
+    assert eng["dask_over_local_wall"] == pytest.approx(eng["dask"]["run_wall_s"] / eng["local"]["run_wall_s"])
+
+    again = json.loads(_bench(*common).stdout)        # the same study, not simulated again
+    assert again["simulate_s"] is None and again["imu_samples"] == first["imu_samples"]
+
+    other = _bench("-n", 2, "--hours", 0.05, "--scaling-participants", 0, "--inbox", inbox, "--json", check=False)
+    assert other.returncode != 0
+    assert "holds 1 participants" in other.stderr and "use another --inbox folder" in other.stderr
