@@ -109,7 +109,7 @@ class DaskEngine:
         # Dask's nanny spawns workers with MALLOC_TRIM_THRESHOLD_=65536 (to hand freed memory back to the OS
         # at once). Setting it also freezes glibc's mmap threshold at 128 KiB, so every array the decoders
         # and the stages allocate and drop is a fresh mmap: page faults and zeroing on each. A 20-participant
-        # night cost 273 instead of 182 worker CPU-s (ingest phase 90 s instead of 53 s). The workers keep
+        # night cost 273 worker CPU-s with it and 226 without (ingest phase 90 s and 64 s). The workers keep
         # glibc's adaptive defaults, as the local engine's do; the thread settings stay.
         environ = {k: v for k, v in (dask.config.get("distributed.nanny.pre-spawn-environ") or {}).items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}

@@ -108,9 +108,14 @@ class _Publisher:
 
     def __init__(self, wh: Warehouse, interval_s: float | None = None):
         self.wh = wh
-        env = os.environ.get("STRIDELAB_PUBLISH_INTERVAL_S")
-        self.interval = float(env) if interval_s is None and env else (
-            PUBLISH_INTERVAL_S if interval_s is None else float(interval_s))
+        env = os.environ.get("STRIDELAB_PUBLISH_INTERVAL_S", "").strip()
+        if interval_s is None and env:
+            try:
+                interval_s = float(env)
+            except ValueError:
+                raise ValueError(f"STRIDELAB_PUBLISH_INTERVAL_S={env!r} is not a number of seconds; "
+                                 "set it to e.g. 2 (or 0: a snapshot after every commit)") from None
+        self.interval = PUBLISH_INTERVAL_S if interval_s is None else max(0.0, float(interval_s))
         self.last = float("-inf")
         self.dirty = False
 

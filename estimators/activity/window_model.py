@@ -144,9 +144,8 @@ def merge_window_posterior(second_class: np.ndarray, proba: np.ndarray, gait_lik
     gait = np.asarray(gait_like[:n_win], bool)
     dyn = np.where(walk_s.any(axis=1)[:, None], walk_s, free & gait[:, None])
     k = np.argmax(p, axis=1)                            # the model sees a posture even where the chest moves
-    up_down = np.where(np.asarray(lean_walk_deg[:n_win]) > stairs_lean_deg, UP, DOWN)
-    dyn_cls = np.choose(np.minimum(k, 3), [SITTING, STANDING, LEVEL, 0]).astype(np.int8)
-    dyn_cls = np.where(k >= 3, up_down, dyn_cls).astype(np.int8)
+    dyn_cls = np.array([SITTING, STANDING, LEVEL, UP], np.int8)[k]     # stairs: up or down by the lean
+    dyn_cls[(k == 3) & ~(np.asarray(lean_walk_deg[:n_win]) > stairs_lean_deg)] = DOWN
     posture = np.where(p[:, 0] > p[:, 1], SITTING, STANDING).astype(np.int8)
     keep_stairs = ((dyn_cls == UP) | (dyn_cls == DOWN))[:, None] & stairs   # the rules found the stairs: keep
     moving = np.where(keep_stairs, rule, dyn_cls[:, None])                 # their direction

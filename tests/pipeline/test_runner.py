@@ -212,3 +212,7 @@ def test_snapshots_are_published_at_most_once_per_interval_and_at_each_phase_end
     for _ in range(4):
         pub0.due()
     assert wh0.published == 4
+
+    monkeypatch.setenv("STRIDELAB_PUBLISH_INTERVAL_S", "soon")
+    with pytest.raises(ValueError, match="STRIDELAB_PUBLISH_INTERVAL_S='soon' is not a number of seconds"):
+        runner._Publisher(wh0)
