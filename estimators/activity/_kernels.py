@@ -141,3 +141,28 @@ def vertical_projection(acc, ga):
         else:
             out[i] = 0.0
     return out
+
+
+@njit(cache=True)
+def acf_at_lag(v, lag, eps):
+    """Per row of ``v`` (W, n): Σ (v_i − v̄)(v_{i+k} − v̄) / max(Σ (v_i − v̄)², eps) at the row's lag k (0 unless
+    0 < k < n). ``estimators.activity.windows`` step and stride regularity."""
+    w, n = v.shape
+    out = np.zeros(w)
+    for r in range(w):
+        k = lag[r]
+        if k <= 0 or k >= n:
+            continue
+        m = 0.0
+        for i in range(n):
+            m += v[r, i]
+        m /= n
+        den = 0.0
+        for i in range(n):
+            d = v[r, i] - m
+            den += d * d
+        num = 0.0
+        for i in range(n - k):
+            num += (v[r, i] - m) * (v[r, i + k] - m)
+        out[r] = num / max(den, eps)
+    return out

@@ -147,3 +147,25 @@ def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
     assert whole.sum() > 100 and np.array_equal(parts, whole)
     with pytest.raises(ValueError, match="multiple"):
         window_confusion(second_class, labels[1:], fs, code_to_class, first_sample=1)
+
+
+def test_periodogram_and_regularity_match_their_reference_definitions():
+    """The fast periodogram equals scipy.signal.periodogram (both detrends, even and odd nfft) and the
+    regularity kernel equals the direct normalised autocorrelation, including out-of-range lags."""
+    from scipy import signal as sg
+    from estimators.activity.windows import _acf_at, _periodogram
+    rng = np.random.default_rng(3)
+    v = rng.standard_normal((40, 260)) + np.linspace(0, 2, 260)
+    for nfft in (512, 515):
+        for det in ("constant", "linear"):
+            f0, p0 = sg.periodogram(v, fs=26.0, nfft=nfft, axis=1, detrend=det)
+            f1, p1 = _periodogram(v, 26.0, nfft, det)
+            np.testing.assert_allclose(f1, f0, rtol=1e-12)
+            np.testing.assert_allclose(p1, p0, rtol=1e-9, atol=1e-14 * p0.max())
+    lag = rng.integers(-2, 265, size=40)
+    ref = np.zeros(40)
+    for i, k in enumerate(lag):
+        x = v[i] - v[i].mean()
+        if 0 < k < 260:
+            ref[i] = (x[:-k] * x[k:]).sum() / (x * x).sum()
+    np.testing.assert_allclose(_acf_at(v, lag), ref, rtol=1e-10, atol=1e-12)
