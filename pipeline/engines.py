@@ -10,7 +10,9 @@ immutable Parquet files and return rows, so a task that dies can simply be run a
   ADDRESS``; the warehouse directory must be on a filesystem shared with the workers.
 
 Workers of both engines die with the coordinator (``pipeline/lifeline.py``): a coordinator killed
-by the OOM killer leaves no worker behind.
+by the OOM killer leaves no worker behind. Their tasks run through ``worker_tuning.run_task``
+(heap allocation without mmap churn, free memory returned after each task); a single job runs in
+the coordinator with the allocator's defaults.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Callable
 
 from pipeline.lifeline import COORDINATOR_ENV, die_with_parent
+from pipeline.worker_tuning import run_task
 
 
 class TaskLost(RuntimeError):
@@ -60,7 +63,7 @@ class LocalEngine:
                 i = queue.pop(0)
                 attempts[i] += 1
                 try:
-                    pending[self.pool.submit(fn, *items[i])] = i
+                    pending[self.pool.submit(run_task, fn, *items[i])] = i
                 except BrokenProcessPool:
                     queue.insert(0, i)
                     attempts[i] -= 1
@@ -138,7 +141,7 @@ class DaskEngine:
         from dask.distributed import as_completed
         if not items:
             return
-        futs = {self.client.submit(fn, *it, pure=False, retries=self.max_attempts - 1): k
+        futs = {self.client.submit(run_task, fn, *it, pure=False, retries=self.max_attempts - 1): k
                 for k, it in enumerate(items)}
         for fut in as_completed(list(futs)):
             k = futs[fut]
