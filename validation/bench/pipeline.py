@@ -159,7 +159,8 @@ def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
 @click.option("--compare-engines", is_flag=True,
               help="Also run the whole study on the other engine (dask if --engine local) into a second warehouse: "
                    "its wall time, the ratio to the first, and whether the two warehouses are identical.")
-@click.option("--workdir", type=click.Path(file_okay=False, path_type=Path), default=None)
+@click.option("--workdir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the bench's warehouses are built (created if missing) [default: the system temp dir].")
 @click.option("--inbox", "keep_inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Keep the simulated study in this folder and reuse it on the next run with the same "
                    "--participants/--hours/--days (simulating 20 participant-days takes about 5 min).")
@@ -180,6 +181,11 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
     from validation.simulate import simulate_to_dir
     if days is not None:
         hours = 24.0 * days
+    if workdir is not None:
+        try:
+            workdir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise click.ClickException(f"--workdir {workdir}: cannot create it ({e.strerror}); choose a writable folder")
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
