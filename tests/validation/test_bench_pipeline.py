@@ -37,3 +37,29 @@ def test_bench_pipeline_json_engines_and_inbox_reuse(tmp_path):
     other = _bench("-n", 2, "--hours", 0.05, "--scaling-participants", 0, "--inbox", inbox, "--json", check=False)
     assert other.returncode != 0
     assert "holds 1 participants" in other.stderr and "use another --inbox folder" in other.stderr
+
+
+def test_drop_caches_without_permission_is_a_one_line_error(monkeypatch):
+    import builtins
+    import click
+    from validation.bench import pipeline as bench
+
+    real_open = builtins.open
+
+    def refuse(path, *a, **k):
+        if str(path) == "/proc/sys/vm/drop_caches":
+            raise PermissionError(13, "Permission denied")
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", refuse)
+    with pytest.raises(click.ClickException, match=r"--drop-caches: cannot write /proc/sys/vm/drop_caches "
+                                                   r"\(Permission denied\); it needs root"):
+        bench._drop_page_cache()
+
+
+def test_workdir_that_cannot_be_created_is_a_one_line_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    r = _bench("-n", 1, "--workdir", blocker / "sub", check=False)
+    assert r.returncode != 0
+    assert r.stderr.strip().splitlines()[-1].startswith(f"Error: --workdir {blocker / 'sub'}: cannot create it")

@@ -13,6 +13,7 @@ days (day k: the participant's day simulated as session k, shifted by k days) wr
 from __future__ import annotations
 
 import json
+import os
 import resource
 import shutil
 import subprocess
@@ -73,6 +74,17 @@ def _ledger(wh: Path) -> tuple[int, dict]:
         return n, stages
     finally:
         con.close()
+
+
+def _drop_page_cache() -> None:
+    """Write back dirty pages and drop the page cache (Linux, root): a timed run then reads from disk."""
+    os.sync()
+    try:
+        with open("/proc/sys/vm/drop_caches", "w") as f:
+            f.write("3\n")
+    except OSError as e:
+        raise click.ClickException(f"--drop-caches: cannot write /proc/sys/vm/drop_caches ({e.strerror}); it needs "
+                                   f"root on Linux: run the bench as root or leave the option out") from None
 
 
 def _fingerprint(wh: Path) -> dict:
@@ -164,9 +176,12 @@ def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
 @click.option("--inbox", "keep_inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Keep the simulated study in this folder and reuse it on the next run with the same "
                    "--participants/--hours/--days (simulating 20 participant-days takes about 5 min).")
+@click.option("--drop-caches", is_flag=True,
+              help="Write back and drop the page cache before every timed run (root only), so the recordings are "
+                   "read from disk as in a real night and runs are comparable; JSON key page_cache_dropped.")
 @click.option("--json", "as_json", is_flag=True)
 def command(participants, hours, days, jobs, scaling_participants, engine, compare_engines, workdir,
-            keep_inbox, as_json) -> None:
+            keep_inbox, drop_caches, as_json) -> None:
     """End-to-end pipeline on a simulated study: wall time, CPU per participant-day, samples/s, peak memory,
     1→2 worker speed-up.
 
@@ -177,6 +192,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
       stridelab bench pipeline -n 4 --hours 2 --engine dask
       stridelab bench pipeline --participants 20 --compare-engines --json
       stridelab bench pipeline --participants 20 --inbox /tmp/study20 --json   # simulate once, rerun on it
+      sudo stridelab bench pipeline --participants 20 --inbox /tmp/study20 --drop-caches --json
     """
     from validation.simulate import simulate_to_dir
     if days is not None:
@@ -186,6 +202,9 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             workdir.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise click.ClickException(f"--workdir {workdir}: cannot create it ({e.strerror}); choose a writable folder")
+    if drop_caches:
+        _drop_page_cache()                  # refuse before minutes of simulation, not after
+    before_run = _drop_page_cache if drop_caches else (lambda: None)
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
@@ -214,8 +233,10 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
         scaling = {}
         for j in ((1, 2) if k else ()):
             err_console.print(f"scaling run: {k} participants, {j} worker(s) …")
+            before_run()
             scaling[j] = _run(sub, tmp / f"wh_sub{j}", j, engine)
         err_console.print(f"full run: {participants} participants, {jobs} workers …")
+        before_run()
         full = _run(inbox, tmp / "wh", jobs, engine)
         n, stages = _ledger(tmp / "wh")
         pdays = participants * hours / 24.0
@@ -226,7 +247,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             "wall_s_per_recorded_day": full["wall_s"] / pdays,
             "samples_per_s": n / full["wall_s"], "peak_rss_mb": full["peak_rss_mb"],
             "coordinator_cpu_s": full["coordinator_cpu_s"], "workers_cpu_s": full["workers_cpu_s"],
-            "stages": stages, "failed": full["failed"],
+            "stages": stages, "failed": full["failed"], "page_cache_dropped": drop_caches,
         }
         if compare_engines:
             other = "dask" if engine == "local" else "local"
@@ -236,6 +257,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             # recordings and 8.2 GB of series, on a 24 GB machine)
             shutil.rmtree(tmp / "wh" / "series", ignore_errors=True)
             err_console.print(f"full run on the {other} engine: {participants} participants, {jobs} workers …")
+            before_run()
             alt = _run(inbox, tmp / "wh_other", jobs, other)
             out["engines"] = {engine: {"run_wall_s": full["wall_s"], "cpu_s": full["cpu_s"],
                                        "peak_rss_mb": full["peak_rss_mb"]},
