@@ -7,13 +7,13 @@ Allocator.
 A task allocates and drops arrays of tens to hundreds of MB (a 24 h, 100 Hz day is 8.64 M samples:
 69 MB per float64 column). glibc serves each allocation above its mmap threshold with a fresh
 ``mmap`` and returns it with ``munmap`` when freed, so every such array costs a page fault and a
-zeroed page per 4 KiB touched; its adaptive threshold tops out at 32 MiB, below these arrays.
-Measured on one 24 h chest day (``classify_recording``, 2 cores): 3.7-3.9 s wall with 1.1-1.3 s of
-it kernel time and 145 k page faults by default; 2.7-2.8 s, no kernel time and < 10 faults with the
-settings below.
+zeroed page per 4 KiB touched (and, with the page cache full, reclaim); its adaptive threshold tops
+out at 32 MiB, below these arrays. Measured on 24 h chest days (``classify_recording``) in a pool of
+2 workers: 3.85 s per day, 1.05 s of it kernel time, by default; 2.9-3.0 s, 0.25 s kernel time, with
+the settings below (docs/operations.md: the whole night, and the variant without the trim).
 
-:func:`tune_allocator` (run by :func:`run_task` before a worker process's first task) serves all allocations from the heap
-(``M_MMAP_MAX = 0``) and stops glibc trimming it on every free (``M_TRIM_THRESHOLD``), so freed
+:func:`tune_allocator` (run by :func:`run_task` before a worker process's first task) serves all
+allocations from the heap (``M_MMAP_MAX = 0``) and stops glibc trimming it on every free (``M_TRIM_THRESHOLD``), so freed
 arrays are reused in place. :func:`release_memory` (after every task) returns the free pages to the
 operating system with ``malloc_trim(0)``, so what a worker holds between tasks is only what it
 uses, and one task's peak is not carried into the next. Elsewhere (macOS, musl) both do nothing.
