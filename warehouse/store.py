@@ -20,6 +20,8 @@ _SAFE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")     # whole string (full
 TMP_PREFIX = ".tmp-"
 #: uncompressed bytes handed to a series file between two background flushes to the disk (fdatasync)
 WRITEBACK_BYTES = 64 << 20
+#: a committed series file at least this large leaves the page cache once it is on the disk (see commit)
+UNCACHE_BYTES = 64 << 20
 
 
 def check_identifier(value: str, what: str) -> str:
@@ -115,7 +117,14 @@ class SeriesWriter:
                     last.result()
 
     def commit(self, relpath: str | None = None) -> str:
-        """Close and move into place, at ``relpath`` if given (e.g. a name known only at the end)."""
+        """Close and move into place, at ``relpath`` if given (e.g. a name known only at the end).
+
+        A file of at least :data:`UNCACHE_BYTES` is dropped from the page cache once it is on the disk
+        (``POSIX_FADV_DONTNEED``): a night writes ~420 MB per 24 h chest day, read back once by one stage, and
+        keeping it cached grows the page cache by the whole night's output, each page new memory. Dropped, its
+        pages are reused by the next file's writes; on the reference VM (free memory goes back to the host,
+        and a new page costs ~2-3 CPU-s per GB) the 20-participant night fell from ~213 to ~195 CPU-s
+        (docs/operations.md, "Page cache"). The one later read comes from the disk."""
         self._drain()
         self._w.close()
         if relpath is not None:
@@ -123,6 +132,8 @@ class SeriesWriter:
             self.final.parent.mkdir(parents=True, exist_ok=True)
         with open(self.tmp, "rb") as f:
             os.fsync(f.fileno())
+            if hasattr(os, "posix_fadvise") and os.fstat(f.fileno()).st_size >= UNCACHE_BYTES:
+                os.posix_fadvise(f.fileno(), 0, 0, os.POSIX_FADV_DONTNEED)
         os.replace(self.tmp, self.final)
         return self.relpath
 

@@ -26,6 +26,7 @@ import json
 import os
 import struct
 from collections import deque
+from contextlib import ExitStack
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +40,7 @@ from mcap.records import Channel, Metadata, Schema, Statistics
 from numba import njit
 
 from pipeline.formats import ros2_cdr
+from pipeline.formats.direct_read import SequentialReader
 
 try:                                   # ISA-L's CRC32 is ~4x faster than zlib's; same polynomial
     from isal.isal_zlib import crc32
@@ -606,12 +608,14 @@ def iter_blocks(path: str | Path, result: ReadResult, threads: int | None = None
 
 def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend_crc, result,
                  on_block=None) -> Iterator[Block]:
-    with open(path, "rb") as f:
+    with open(path, "rb") as f, ExitStack() as stack:
         summ = _read_summary(f, size)
         for op, rec in summ.registry_defs:
             (reg.add_schema if op == OP_SCHEMA else reg.add_channel)(rec)
         result.statistics = summ.statistics
         f.seek(0)
+        seq = SequentialReader(path, size)
+        stack.callback(seq.close)
 
         def finish(piece: _Piece) -> Iterator[Block]:
             for op, rec in piece.defs:
@@ -648,7 +652,7 @@ def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend
                 group.clear()
                 group_bytes[0] = 0
 
-        for kind, payload, nbytes in _top_level(f, size, summ, hasher, reg, result, dataend_crc):
+        for kind, payload, nbytes in _top_level(seq, size, summ, hasher, reg, result, dataend_crc):
             if kind == "chunk":
                 group.append(payload)
                 group_bytes[0] += nbytes
