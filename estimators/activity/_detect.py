@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
+from estimators.activity._sosfilt import sosfilt
 from estimators.activity._signals import (chest_height_change_m, cumulative_svm_sign, runs, vertical_acc_g)
 from estimators.activity._types import (DOWN, LEVEL, LYSI, SILY, SIST, STSI, UP, ActivityParams, Bouts,
                                         Transitions)
@@ -194,7 +195,7 @@ def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
         mag = np.sqrt(np.einsum("ij,ij->i", acc_g, acc_g)) - 1.0
     sos = signal.butter(2, min(p.step_lowpass_hz, 0.45 * fs), fs=fs, output="sos")
     zi = signal.sosfilt_zi(sos) * (mag[0] if mag.size else 0.0)
-    return signal.sosfilt(sos, mag, zi=zi)[0] if mag.size else mag
+    return sosfilt(sos, mag, zi=zi)[0] if mag.size else mag
 
 
 def step_threshold(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray | float:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from estimators.activity._sosfilt import sosfilt, sosfiltfilt
 from estimators.activity._types import AccCalibration
 
 
@@ -31,9 +32,9 @@ def gravitational_component(acc_g: np.ndarray, sampling_rate_hz: float, *, mode:
     if mode == "filtfilt":
         if x.shape[0] <= 3 * 6:
             return np.repeat(x.mean(axis=0, keepdims=True), x.shape[0], axis=0)
-        return signal.sosfiltfilt(sos, x, axis=0)
+        return sosfiltfilt(sos, x)
     zi = signal.sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]   # (n_sections, 2, 3)
-    return signal.sosfilt(sos, x, axis=0, zi=zi)[0]
+    return sosfilt(sos, x, zi=zi)[0]
 
 
 def ga_dc_gain(sampling_rate_hz: float, cutoff_hz: float = 0.25, ripple_db: float = 0.01,
