@@ -122,9 +122,10 @@ class SeriesWriter:
         A file of at least :data:`UNCACHE_BYTES` is dropped from the page cache once it is on the disk
         (``POSIX_FADV_DONTNEED``): a night writes ~420 MB per 24 h chest day, read back once by one stage, and
         keeping it cached grows the page cache by the whole night's output, each page new memory. Dropped, its
-        pages are reused by the next file's writes; on the reference VM (free memory goes back to the host,
-        and a new page costs ~2-3 CPU-s per GB) the 20-participant night fell from ~213 to ~195 CPU-s
-        (docs/operations.md, "Page cache"). The one later read comes from the disk."""
+        pages are reused by the next file's writes (on the reference VM, whose free memory goes back to the
+        host, a new page costs ~2-3 CPU-s per GB). With the uncached reads of pipeline/formats/direct_read.py the
+        20-participant night went from 116 to 103 s (docs/operations.md, "Page cache"). The one later read comes
+        from the disk."""
         self._drain()
         self._w.close()
         if relpath is not None:
