@@ -29,9 +29,9 @@ import threading
 
 #: bytes per O_DIRECT read (a multiple of any block size); two such blocks are in flight
 BLOCK = 8 << 20
-#: read with O_DIRECT when less than this fraction of the file is in the page cache
+#: read with O_DIRECT when less than this fraction of the file is in the page cache (a file is either just copied
+#: or written, ~100 % cached, or long evicted, ~0 %: any value between serves; half is the neutral choice)
 CACHED_FRACTION = 0.5
-_ALIGN = 4096
 _SYS_CACHESTAT = {"x86_64": 451, "aarch64": 451}.get(os.uname().machine)
 
 
@@ -79,9 +79,10 @@ class SequentialReader:
         if want is None:
             frac = cached_fraction(self._f.fileno(), size)
             want = frac is None or frac < CACHED_FRACTION
-        if want and size >= 2 * BLOCK:
+        o_direct = getattr(os, "O_DIRECT", 0)             # not on macOS: always buffered there
+        if want and o_direct and size >= 2 * BLOCK:
             try:
-                self._fd = os.open(path, os.O_RDONLY | os.O_DIRECT | getattr(os, "O_CLOEXEC", 0))
+                self._fd = os.open(path, os.O_RDONLY | o_direct | getattr(os, "O_CLOEXEC", 0))
             except OSError:
                 return                                      # no O_DIRECT here: buffered
             self.direct = True
