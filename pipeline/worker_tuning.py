@@ -10,13 +10,19 @@ A task allocates and drops arrays of tens to hundreds of MB (a 24 h, 100 Hz day 
 zeroed page per 4 KiB touched (and, with the page cache full, reclaim); its adaptive threshold tops
 out at 32 MiB, below these arrays. Measured on 24 h chest days (``classify_recording``) in a pool of
 2 workers: 3.85 s per day, 1.05 s of it kernel time, by default; 2.9-3.0 s, 0.25 s kernel time, with
-the settings below (docs/operations.md: the whole night, and the variant without the trim).
+the heap-only settings below (docs/operations.md: the whole night).
 
 :func:`tune_allocator` (run by :func:`run_task` before a worker process's first task) serves all
-allocations from the heap (``M_MMAP_MAX = 0``) and stops glibc trimming it on every free (``M_TRIM_THRESHOLD``), so freed
-arrays are reused in place. :func:`release_memory` (after every task) returns the free pages to the
-operating system with ``malloc_trim(0)``, so what a worker holds between tasks is only what it
-uses, and one task's peak is not carried into the next. Elsewhere (macOS, musl) both do nothing.
+allocations from the heap (``M_MMAP_MAX = 0``), stops glibc trimming it on every free
+(``M_TRIM_THRESHOLD``), and keeps one heap for all threads (``M_ARENA_MAX = 1``), so freed arrays are
+reused in place whichever thread (Arrow's and the MCAP reader's I/O threads) allocated them. One arena is
+what keeps the untrimmed heap small: with glibc's default of one arena per thread a worker's heaps grew to
+1.9 GB over a night, with one 1.36-1.39 GB (docs/operations.md). Memory is not given back between tasks: on
+the reference machine (a VM whose free memory returns to its host seconds after it is freed) re-touching
+returned pages costs ~2-3 CPU-s per GB in the kernel, and a ``malloc_trim`` after every task cost the night
+~10 % of its time. :func:`release_memory` (after every task) gives the free pages back only when the
+worker holds more than :data:`RELEASE_ABOVE_BYTES`, so a fragmented heap cannot carry more than that into the
+next task. Elsewhere (macOS, musl) all of this does nothing.
 
 BLAS threads. A worker runs one task on one core beside the other workers, so OpenBLAS's own thread
 pools (NumPy's and SciPy's, one thread per core each) only spin-wait after every BLAS call, taking
@@ -35,12 +41,17 @@ from __future__ import annotations
 import atexit
 import ctypes
 import gc
+import os
 import sys
 from typing import Callable
 
 M_TRIM_THRESHOLD = -1   # <malloc.h>
 M_MMAP_MAX = -4
+M_ARENA_MAX = -8
 TRIM_THRESHOLD_BYTES = 2_000_000_000    # an int for mallopt; above any single task's free memory
+#: a worker holding more than this (resident) after a task gives its heap's free pages back (issue 19's
+#: memory budget per worker)
+RELEASE_ABOVE_BYTES = 1_500_000_000
 
 _libc = None
 _tuned = False
@@ -61,18 +72,35 @@ def _glibc():
 
 
 def tune_allocator() -> bool:
-    """Heap-only allocation without trimming in this process; True when the settings took effect."""
+    """Heap-only allocation in one arena without trimming in this process; True when the settings took
+    effect."""
     lib = _glibc()
     if not lib:
         return False
-    return bool(lib.mallopt(M_MMAP_MAX, 0)) and bool(lib.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES))
+    return (bool(lib.mallopt(M_MMAP_MAX, 0)) and bool(lib.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES))
+            and bool(lib.mallopt(M_ARENA_MAX, 1)))
 
 
-def release_memory() -> None:
-    """Give the heap's free pages back to the operating system."""
+def resident_bytes() -> int | None:
+    """This process's resident set size (Linux ``/proc/self/statm``), None where unavailable."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def release_memory(above: int = RELEASE_ABOVE_BYTES) -> bool:
+    """Give the heap's free pages back to the operating system when this process holds more than ``above``
+    bytes; True when it did."""
     lib = _glibc()
-    if lib:
-        lib.malloc_trim(0)
+    if not lib:
+        return False
+    rss = resident_bytes()
+    if rss is not None and rss <= above:
+        return False
+    lib.malloc_trim(0)
+    return True
 
 
 def limit_blas_threads() -> None:
@@ -92,7 +120,8 @@ def settle_objects() -> None:
 
 def run_task(fn: Callable, *args):
     """``fn(*args)`` in a worker process: allocator and BLAS threads set before the first task, and after
-    each task (also when it raises) its garbage collected and its freed memory given back."""
+    each task (also when it raises) its garbage collected, and its freed memory given back when the worker
+    holds more than :data:`RELEASE_ABOVE_BYTES`."""
     global _tuned
     if not _tuned:
         tune_allocator()
