@@ -8,7 +8,8 @@ import duckdb
 import numpy as np
 
 from warehouse.catalog import first, LATEST, SNAPSHOT_DIR
-from warehouse.store import read_table
+from warehouse.direct_io import open_for_read
+from warehouse.store import UNCACHE_BYTES, read_table
 
 
 def latest_snapshot(root: str | Path) -> Path | None:
@@ -86,7 +87,15 @@ def read_column_range(root, relpath: str, columns: tuple[str, ...], start: int =
     """Rows [start, stop) of ``columns`` of a series file as ``dtype`` ((n,) for one column, else (n, k)),
     reading only the row groups that overlap, so a slice of a week-long series costs the slice, not the week."""
     import pyarrow.parquet as pq
-    f = pq.ParquetFile(Path(root) / relpath)
+    src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
+    try:
+        return _read_column_range(pq.ParquetFile(src), columns, start, stop, dtype)
+    finally:
+        if not isinstance(src, Path):
+            src.close()
+
+
+def _read_column_range(f, columns, start, stop, dtype) -> np.ndarray:
     n = f.metadata.num_rows
     stop = n if stop is None else min(int(stop), n)
     start = max(0, int(start))

@@ -9,8 +9,8 @@ the copy to the reader can run (``perf`` over a 20-participant night: ``_copy_to
 cache").
 
 How: :class:`SequentialReader` asks the kernel which fraction of the file is in the page cache (``cachestat``,
-Linux 6.5+). A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as
-before; otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two
+Linux 6.5+; :func:`warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
+A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as before; otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two
 blocks ahead of the consumer, so the disk works while the decoder does. Files under two blocks are always
 read buffered. Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` on the first read: some network
 and FUSE file systems) the reader goes on buffered from the same position. A file truncated while it is read
@@ -19,49 +19,16 @@ caller's "truncated MCAP" check still holds.
 """
 from __future__ import annotations
 
-import ctypes
 import errno
 import mmap
 import os
 import queue
-import struct
 import threading
+
+from warehouse.direct_io import CACHED_FRACTION, cached_fraction
 
 #: bytes per O_DIRECT read (a multiple of any block size); two such blocks are in flight
 BLOCK = 8 << 20
-#: read with O_DIRECT when less than this fraction of the file is in the page cache (a file is either just copied
-#: or written, ~100 % cached, or long evicted, ~0 %: any value between serves; half is the neutral choice)
-CACHED_FRACTION = 0.5
-_SYS_CACHESTAT = {"x86_64": 451, "aarch64": 451}.get(os.uname().machine)
-
-
-_LIBC = []
-
-
-def _libc():
-    if not _LIBC:
-        try:
-            lib = ctypes.CDLL(None, use_errno=True)
-            lib.syscall.restype = ctypes.c_long
-        except (OSError, AttributeError):                   # pragma: no cover - no libc
-            lib = None
-        _LIBC.append(lib)
-    return _LIBC[0]
-
-
-def cached_fraction(fd: int, size: int) -> float | None:
-    """Fraction of a file's pages that are in the page cache (``cachestat(2)``), None where unavailable."""
-    if _SYS_CACHESTAT is None or size <= 0:
-        return None
-    libc = _libc()
-    if libc is None:
-        return None
-    rng = ctypes.create_string_buffer(struct.pack("QQ", 0, 0))     # whole file
-    out = ctypes.create_string_buffer(5 * 8)
-    if libc.syscall(ctypes.c_long(_SYS_CACHESTAT), ctypes.c_int(fd), rng, out, ctypes.c_uint(0)) != 0:
-        return None
-    nr_cache = struct.unpack("5Q", out.raw)[0]
-    return min(1.0, nr_cache * mmap.PAGESIZE / size)
 
 
 class SequentialReader:

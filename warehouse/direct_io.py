@@ -1,0 +1,170 @@
+"""Positional reads of a large series file that bypass the page cache when the file is not cached already.
+
+Why: a committed series file of :data:`warehouse.store.UNCACHE_BYTES` or more is dropped from the page cache
+once it is on the disk, and is read back once, by one stage (the ``activity`` stage reads the accelerometer
+columns of a 24 h chest day: ~210 MB). A buffered read of it puts every byte into new page-cache pages first,
+which on the reference machine (a VM that hands free memory back to its host) costs ~0.5 CPU-s of kernel time
+per chest day (docs/operations.md, "Page cache"). With ``O_DIRECT`` the disk writes straight into the
+reader's own buffer, which Arrow then decodes without a further copy.
+
+How: :func:`open_for_read` gives pyarrow a path (buffered, as before) when the file is small, mostly cached,
+or the platform has no ``O_DIRECT``; otherwise a :class:`DirectFile`, a read-only file object whose reads are
+widened to whole aligned blocks, read with one ``preadv`` each into a fresh aligned buffer, and returned as a
+view of the requested bytes (Arrow keeps the buffer alive for as long as it uses it). Where the file system
+refuses ``O_DIRECT`` (``open`` fails, or ``EINVAL`` at a read: some network and FUSE file systems) the reads go
+on buffered. The cached-fraction test is :func:`cached_fraction` (``cachestat(2)``).
+"""
+from __future__ import annotations
+
+import ctypes
+import errno
+import io
+import mmap
+import os
+import struct
+
+import numpy as np
+
+#: O_DIRECT offsets, lengths and buffer addresses are multiples of this (any logical block size up to 4 KiB)
+ALIGN = 4096
+#: read with O_DIRECT when less than this fraction of the file is in the page cache (a file is either just
+#: copied or written, ~100 % cached, or dropped or long evicted, ~0 %: any value between serves; half is the
+#: neutral choice). Also the inbox reader's threshold (pipeline/formats/direct_read.py)
+CACHED_FRACTION = 0.5
+_SYS_CACHESTAT = {"x86_64": 451, "aarch64": 451}.get(os.uname().machine)
+_LIBC = []
+
+
+def _libc():
+    if not _LIBC:
+        try:
+            lib = ctypes.CDLL(None, use_errno=True)
+            lib.syscall.restype = ctypes.c_long
+        except (OSError, AttributeError):                   # pragma: no cover - no libc
+            lib = None
+        _LIBC.append(lib)
+    return _LIBC[0]
+
+
+def cached_fraction(fd: int, size: int) -> float | None:
+    """Fraction of a file's pages that are in the page cache (``cachestat(2)``, Linux 6.5+), None where
+    unavailable."""
+    if _SYS_CACHESTAT is None or size <= 0:
+        return None
+    libc = _libc()
+    if libc is None:
+        return None
+    rng = ctypes.create_string_buffer(struct.pack("QQ", 0, 0))     # whole file
+    out = ctypes.create_string_buffer(5 * 8)
+    if libc.syscall(ctypes.c_long(_SYS_CACHESTAT), ctypes.c_int(fd), rng, out, ctypes.c_uint(0)) != 0:
+        return None
+    nr_cache = struct.unpack("5Q", out.raw)[0]
+    return min(1.0, nr_cache * mmap.PAGESIZE / size)
+
+
+def aligned_buffer(n: int) -> np.ndarray:
+    """``n`` writable bytes at an address that is a multiple of :data:`ALIGN`."""
+    raw = np.empty(n + ALIGN, np.uint8)
+    a = (-raw.ctypes.data) % ALIGN
+    return raw[a:a + n]
+
+
+class DirectFile(io.RawIOBase):
+    """A read-only, seekable file object over an ``O_DIRECT`` descriptor (see the module docstring).
+
+    ``read(n)`` returns a read-only ``memoryview`` of the bytes at the current position (fewer only at the end
+    of the file); ``direct`` is False once the reads went buffered."""
+
+    def __init__(self, path: str | os.PathLike, fd: int):
+        super().__init__()
+        self.name = str(path)
+        self._fd = fd
+        self._size = os.fstat(fd).st_size
+        self._pos = 0
+        self.direct = True
+
+    # ---- io.RawIOBase -----------------------------------------------------------------------------
+    def readable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def tell(self) -> int:
+        return self._pos
+
+    def seek(self, offset: int, whence: int = io.SEEK_SET) -> int:
+        base = {io.SEEK_SET: 0, io.SEEK_CUR: self._pos, io.SEEK_END: self._size}[whence]
+        self._pos = max(0, base + int(offset))
+        return self._pos
+
+    def size(self) -> int:                  # pyarrow.PythonFile asks for it
+        return self._size
+
+    def read(self, n: int = -1) -> memoryview:
+        if n is None or n < 0:
+            n = self._size - self._pos
+        n = max(0, min(n, self._size - self._pos))
+        out = self._pread(self._pos, n)
+        self._pos += len(out)
+        return out
+
+    def readinto(self, b) -> int:
+        v = self.read(len(memoryview(b)))
+        memoryview(b).cast("B")[:len(v)] = v
+        return len(v)
+
+    def close(self) -> None:
+        if not self.closed:
+            os.close(self._fd)
+        super().close()
+
+    # ---- the read itself ----------------------------------------------------------------------------
+    def _pread(self, off: int, n: int) -> memoryview:
+        if n == 0:
+            return memoryview(b"")
+        if self.direct:
+            lo = off - off % ALIGN
+            hi = -(-(off + n) // ALIGN) * ALIGN
+            buf = aligned_buffer(hi - lo)
+            try:
+                got = os.preadv(self._fd, [buf], lo)
+            except OSError as e:
+                if e.errno != errno.EINVAL:
+                    raise
+                self._go_buffered()
+            else:
+                got = max(0, min(got - (off - lo), n))
+                return memoryview(buf[off - lo:off - lo + got]).toreadonly()
+        buf = np.empty(n, np.uint8)
+        got = os.preadv(self._fd, [buf], off)
+        return memoryview(buf[:got]).toreadonly()
+
+    def _go_buffered(self) -> None:
+        """O_DIRECT refused at read time: reopen the file for buffered reads."""
+        fd = os.open(self.name, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
+        os.close(self._fd)
+        self._fd, self.direct = fd, False
+
+
+def open_for_read(path: str | os.PathLike, min_bytes: int):
+    """What to hand pyarrow for reading ``path``: the path itself (buffered reads), or a :class:`DirectFile`
+    when the file has at least ``min_bytes``, is mostly not in the page cache and ``O_DIRECT`` is available."""
+    o_direct = getattr(os, "O_DIRECT", 0)            # not on macOS: always buffered there
+    if not o_direct:
+        return path
+    try:
+        size = os.stat(path).st_size
+    except OSError:
+        return path                                  # pyarrow reports the missing file
+    if size < min_bytes:
+        return path
+    with open(path, "rb", buffering=0) as f:
+        frac = cached_fraction(f.fileno(), size)
+    if frac is not None and frac >= CACHED_FRACTION:
+        return path
+    try:
+        fd = os.open(path, os.O_RDONLY | o_direct | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return path                                  # no O_DIRECT on this file system: buffered
+    return DirectFile(path, fd)
