@@ -79,6 +79,19 @@ def test_local_engine_workers_serve_large_arrays_from_the_heap():
     assert out == {0: True, 1: True}        # M_MMAP_MAX = 0: no mmap of their own
 
 
+def test_dask_workers_task_thread_serves_large_arrays_from_the_heap():
+    """A Dask worker's task thread exists before its first task: only MALLOC_ARENA_MAX at the worker's
+    start keeps it on the main heap (pipeline/engines.py)."""
+    from pipeline.engines import DaskEngine
+    out = []
+    eng = DaskEngine(1)
+    try:
+        eng.run_all(probe, [("alloc",), ("alloc",)], lambda it, r: out.append(r))
+    finally:
+        eng.close()
+    assert out == [True, True]
+
+
 def test_without_tuning_a_large_array_is_a_separate_mapping():
     """The control: in a plain process glibc maps an array of this size on its own."""
     a = np.ones(BIG // 8)
