@@ -3,8 +3,8 @@
 Why: a committed series file of :data:`warehouse.store.UNCACHE_BYTES` or more is dropped from the page cache
 once it is on the disk, and is read back once, by one stage (the ``activity`` stage reads the accelerometer
 columns of a 24 h chest day: ~210 MB). A buffered read of it puts every byte into new page-cache pages first,
-which on the reference machine (a VM that hands free memory back to its host) costs ~0.5 CPU-s of kernel time
-per chest day (docs/operations.md, "Page cache"). With ``O_DIRECT`` the disk writes straight into the
+which on the reference machine (a VM that hands free memory back to its host) cost ~0.9 CPU-s per chest day
+over a 20-participant night, most of it kernel time (docs/operations.md, "Page cache"). With ``O_DIRECT`` the disk writes straight into the
 reader's own buffer, which Arrow then decodes without a further copy.
 
 How: :func:`open_for_read` gives pyarrow a path (buffered, as before) when the file is small, mostly cached,

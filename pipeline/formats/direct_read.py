@@ -10,8 +10,9 @@ cache").
 
 How: :class:`SequentialReader` asks the kernel which fraction of the file is in the page cache (``cachestat``,
 Linux 6.5+; :func:`warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
-A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as before; otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two
-blocks ahead of the consumer, so the disk works while the decoder does. Files under two blocks are always
+A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as before;
+otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two blocks
+ahead of the consumer, so the disk works while the decoder does. Files under two blocks are always
 read buffered. Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` on the first read: some network
 and FUSE file systems) the reader goes on buffered from the same position. A file truncated while it is read
 gives a short read, exactly as a buffered read does (never a ``SIGBUS``, as a memory map would), so the
