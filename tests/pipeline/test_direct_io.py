@@ -14,17 +14,9 @@ import pytest
 
 from warehouse import direct_io, read
 from warehouse.direct_io import ALIGN, DirectFile, cached_fraction, open_for_read
+from tests.pipeline._page_cache import uncache as _uncache
 
 pytestmark = pytest.mark.skipif(not getattr(os, "O_DIRECT", 0), reason="the platform has no O_DIRECT")
-
-
-def _uncache(p: Path) -> None:
-    fd = os.open(p, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-        os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
-    finally:
-        os.close(fd)
 
 
 @pytest.fixture

@@ -18,6 +18,7 @@ from pipeline.formats.mcap_read import ReadResult, iter_blocks
 from pipeline.formats.mcap_write import write_recording
 from warehouse import store
 from tests.corpus import small_recording
+from tests.pipeline._page_cache import uncache as _uncache
 
 SMALL_BLOCK = 64 << 10
 
@@ -30,15 +31,6 @@ def _odirect_works(d: Path) -> bool:
         return True
     except OSError:
         return False
-
-
-def _uncache(p: Path) -> None:
-    fd = os.open(p, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-        os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
-    finally:
-        os.close(fd)
 
 
 @pytest.fixture
