@@ -159,12 +159,12 @@ def open_for_read(path: str | os.PathLike, min_bytes: int):
         return path                                  # pyarrow reports the missing file
     if size < min_bytes:
         return path
-    with open(path, "rb", buffering=0) as f:
-        frac = cached_fraction(f.fileno(), size)
-    if frac is not None and frac >= CACHED_FRACTION:
-        return path
     try:
         fd = os.open(path, os.O_RDONLY | o_direct | getattr(os, "O_CLOEXEC", 0))
     except OSError:
         return path                                  # no O_DIRECT on this file system: buffered
+    frac = cached_fraction(fd, size)
+    if frac is not None and frac >= CACHED_FRACTION:
+        os.close(fd)
+        return path
     return DirectFile(path, fd)
