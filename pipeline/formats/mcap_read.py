@@ -25,6 +25,7 @@ import io
 import json
 import os
 import struct
+import threading
 from collections import deque
 from contextlib import ExitStack
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -39,7 +40,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Metadata, Schema, Statistics
 from numba import njit
 
-from pipeline.formats import ros2_cdr
+from pipeline.formats import mcap_fast, ros2_cdr
 from pipeline.formats.direct_read import SequentialReader
 
 try:                                   # ISA-L's CRC32 is ~4x faster than zlib's; same polynomial
@@ -60,6 +61,9 @@ MAX_IN_FLIGHT_BYTES = 96 << 20
 #: group leave as one block, so everything downstream runs in Python once per ~8 MiB instead of once per
 #: 1 MiB chunk (the default of the ROS 2 writers)
 GROUP_BYTES = 8 << 20
+#: decode groups of fixed-layout messages by :mod:`pipeline.formats.mcap_fast` (False: always the general path;
+#: the tests compare the two)
+FAST_PATH = True
 
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 OP_METADATA, OP_DATA_END, OP_STATISTICS = 0x0C, 0x0F, 0x0B
@@ -135,9 +139,10 @@ class ReadResult:
 
 @njit(cache=True, nogil=True)
 def _u64(buf, p):
+    q = np.uint64(p)                     # unsigned: no wraparound per byte, one 8-byte load (mcap_fast._u64)
     v = np.uint64(0)
     for b in range(8):
-        v |= np.uint64(buf[p + b]) << np.uint64(8 * b)
+        v |= np.uint64(buf[q + np.uint64(b)]) << np.uint64(8 * b)
     return v
 
 
@@ -388,13 +393,24 @@ def _decode_records(recs: _Records, snap, with_defs: bool, on_block=None) -> _Pi
     return _Piece(blocks, defs, counts, pend)
 
 
+_LOCAL = threading.local()
+
+
+def _zstd() -> zstandard.ZstdDecompressor:
+    """This thread's zstd decompressor (a new one per chunk re-initialised its context every time)."""
+    d = getattr(_LOCAL, "zstd", None)
+    if d is None:
+        d = _LOCAL.zstd = zstandard.ZstdDecompressor()
+    return d
+
+
 def _decompress(compression: str, data, size: int) -> bytes:
     """Decompress at most ``size`` bytes (a zip bomb cannot make it allocate more)."""
     if compression == "zstd":
         declared = zstandard.frame_content_size(data)
         if declared not in (-1, size):
             raise McapFormatError(f"a zstd chunk declares {declared} bytes but its header says {size}; {_FIX}")
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+        return _zstd().decompress(data, max_output_size=size)
     if compression == "lz4":
         d = lz4.frame.LZ4FrameDecompressor()
         return d.decompress(data, max_length=size + 1)
@@ -404,8 +420,8 @@ def _decompress(compression: str, data, size: int) -> bytes:
                           f"`mcap compress --compression zstd`")
 
 
-def _chunk_task(body: memoryview, snap, on_block=None) -> _Piece:
-    """Decompress, verify and decode one chunk record (runs on a pool thread)."""
+def _chunk_raw(body: memoryview) -> bytes:
+    """The decompressed records of one chunk record, its sizes and CRC verified."""
     if len(body) < 40:
         raise McapFormatError(f"a Chunk record is shorter than its fixed fields; {_FIX}")
     size, crc = struct.unpack_from("<QI", body, 16)
@@ -430,7 +446,17 @@ def _chunk_task(body: memoryview, snap, on_block=None) -> _Piece:
         raise McapFormatError(f"a chunk decompresses to a size other than the one its header declares; {_FIX}")
     if crc and crc32(raw) != crc:
         raise McapFormatError(f"chunk CRC mismatch (data changed after writing); {_FIX}")
-    buf = np.frombuffer(raw, dtype=np.uint8)
+    return raw
+
+
+def _chunk_size(body: memoryview) -> int:
+    """Uncompressed size a chunk record declares (0 for a record too short to say)."""
+    return struct.unpack_from("<Q", body, 16)[0] if len(body) >= 24 else 0
+
+
+def _chunk_task(body: memoryview, snap, on_block=None, raw: bytes | None = None) -> _Piece:
+    """Decompress, verify and decode one chunk record (runs on a pool thread); ``raw``: already decompressed."""
+    buf = np.frombuffer(_chunk_raw(body) if raw is None else raw, dtype=np.uint8)
     recs = _scan(buf, 0, len(buf), False)
     if recs.end != len(buf):
         raise McapFormatError(f"the records inside a chunk do not fill it exactly; {_FIX}")
@@ -452,12 +478,66 @@ def _merge_blocks(blocks: list[Block]) -> Block:
     return Block(b0.topic, b0.kind, t, log, vals)
 
 
-def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:
-    """Decode consecutive chunks (each as :func:`_chunk_task`) and join each channel's blocks across them.
+_PLANS: dict = {}
 
-    Pieces that define schemas/channels or hold messages of a channel not known yet are kept apart (and
-    in order), so that definitions are registered exactly as without grouping."""
-    pieces = [_chunk_task(b, snap, None) for b in bodies]
+
+def _fast_plan(snap) -> tuple[dict, mcap_fast.Plan | None]:
+    """(topics, the fast path's plan) of a registry snapshot; the plan is None when no channel suits it. Kept
+    for the last few snapshots (a file has one or a few), keyed by identity with the snapshot held alive."""
+    hit = _PLANS.get(id(snap))
+    if hit is not None and hit[0] is snap:
+        return hit[1], hit[2]
+    _, topics = snap
+    channels = {}
+    for cid, ti in topics.items():
+        if ti.kind is None:
+            channels[cid] = None
+        elif ti.kind in _FIELDS:
+            channels[cid] = (_N_DOUBLES[ti.kind], _FIELDS[ti.kind])
+        else:
+            channels[cid] = "locate"
+    plan = mcap_fast.make_plan(channels) if channels else None
+    if len(_PLANS) > 8:
+        _PLANS.clear()
+    _PLANS[id(snap)] = (snap, topics, plan)
+    return topics, plan
+
+
+def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:
+    """Decode consecutive chunks and join each channel's blocks across them.
+
+    The common case (every record of every chunk a Message on a known channel of a fixed-layout type) takes
+    :mod:`pipeline.formats.mcap_fast`: two kernel passes per chunk straight into the group's arrays. Anything
+    else (definitions or other records inside a chunk, annotations, ranges, a message that does not fit its
+    schema) decodes each chunk as :func:`_chunk_task` does, whose errors name what is wrong; pieces that define
+    schemas/channels or hold messages of a channel not known yet are then kept apart (and in order), so that
+    definitions are registered exactly as without grouping."""
+    topics, plan = _fast_plan(snap) if FAST_PATH else ({}, None)
+    dec = None
+    if plan is not None:
+        dec = mcap_fast.GroupDecoder(plan, sum(_chunk_size(b) for b in bodies))
+    raws = []
+    for b in bodies:                     # each chunk decoded right after its decompression, still in the cache
+        raws.append(_chunk_raw(b))
+        if dec is not None:
+            dec.add(raws[-1])
+    fast = dec.result() if dec is not None else None
+    if fast is not None:
+        decoded, located = fast
+        by_topic: dict[str, list[Block]] = {}
+        for slot, (t, log, vals) in decoded.items():
+            ti = topics[int(plan.channel_ids[slot])]
+            by_topic[ti.topic] = [Block(ti.topic, ti.kind, t, log, vals)]
+        for buf, slots, starts, lengths, logs in located:       # annotations, ranges: the general decoders
+            for slot in np.unique(slots).tolist():
+                sel = slots == slot
+                ti = topics[int(plan.channel_ids[slot])]
+                by_topic.setdefault(ti.topic, []).append(_decode(ti, buf, starts[sel], lengths[sel], logs[sel]))
+        blocks = [_merge_blocks(v) for v in by_topic.values()]
+        counts = {c: n for c, n in zip(plan.channel_ids.tolist(), dec.counts.tolist()) if n}
+        return [_Piece([on_block(b) if on_block is not None else b for b in blocks], [], counts)]
+    pieces = [_chunk_task(b, snap, None, raw) for b, raw in zip(bodies, raws)]
+    del raws
     out: list[_Piece] = []
     run: list[_Piece] = []
 
