@@ -378,11 +378,6 @@ def known_hash(wh: Warehouse, path: Path) -> str | None:
     return r[0] if r else None
 
 
-def _has_sample_hash(con) -> bool:
-    return bool(con.execute("SELECT 1 FROM information_schema.columns WHERE table_name = 'recordings' "
-                            "AND column_name = 'sample_hash'").fetchall())
-
-
 def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
     """Write one prepared file's catalog rows in a single transaction (idempotent by content hash).
 
@@ -399,7 +394,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             prev = None
         if prev is not None:
             return CommitResult("duplicate", f"{p.file_name}: already {prev[0]} (same content), nothing changed")
-        if not _has_sample_hash(con):
+        if not wh.has_column("recordings", "sample_hash"):
             p.sample_hash = ""          # a catalog before migration 009 (only tests open one without migrating)
         old = supersede.previous_versions(con, p) if p.status == "ingested" and replace else []
         if p.status == "ingested" and not replace and p.sample_hash:

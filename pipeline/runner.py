@@ -341,7 +341,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
                 with wh.transaction() as con:
                     for t in stage.tables:
                         rows = out.rows.get(t, [])
-                        if _has_column(con, t, "producer"):      # a table several stages write
+                        if wh.has_column(t, "producer"):      # a table several stages write
                             con.execute(f'DELETE FROM "{t}" WHERE session_id = ? AND producer = ?', [sid, stage.name])
                             rows = [dict(r, producer=stage.name) for r in rows]
                         else:
@@ -361,11 +361,6 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
         on_phase(stage.name, len(items))
         ex.run_all(_stage_task_4, items, done)
         publisher.flush()
-
-
-def _has_column(con, table: str, column: str) -> bool:
-    return bool(con.execute("SELECT 1 FROM information_schema.columns WHERE table_name = ? AND column_name = ?",
-                            [table, column]).fetchall())
 
 
 def _stage_task_4(stage_name, inp, params, st):

@@ -64,6 +64,16 @@ class Warehouse:
     def __init__(self, root: Path, con: duckdb.DuckDBPyConnection):
         self.root = Path(root)
         self.con = con
+        self._columns: set[tuple[str, str]] | None = None
+
+    def has_column(self, table: str, column: str) -> bool:
+        """Whether ``table`` has ``column``: read once from ``information_schema`` per handle (the schema changes
+        only by migrations, which :meth:`open` applies before it returns). A query per call cost a night's
+        coordinator ~2 s: the runner asks for every table of every committed stage."""
+        if self._columns is None:
+            self._columns = {(t, c) for t, c in self.con.execute(
+                "SELECT table_name, column_name FROM information_schema.columns WHERE table_schema = 'main'").fetchall()}
+        return (table, column) in self._columns
 
     @classmethod
     def open(cls, root: str | os.PathLike, *, migrate_upto: int | None = None) -> "Warehouse":
