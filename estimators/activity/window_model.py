@@ -29,8 +29,8 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 
 import numpy as np
-from scipy import signal
 
+from estimators.activity._resample import resample_poly_axis0
 from estimators.activity._types import DOWN, LEVEL, LYING, NON_WEAR, SITTING, STANDING, UP, ActivityResult
 from estimators.activity.windows import FEATURE_NAMES, add_context, window_features
 
@@ -109,11 +109,12 @@ class WindowModel:
 
 
 def resample_to_model_rate(acc: np.ndarray, fs: float) -> np.ndarray:
-    """Polyphase resampling (anti-aliased, ``scipy.signal.resample_poly``) of (N, 3) from ``fs`` to ``RATE_HZ``."""
+    """Polyphase resampling (anti-aliased, ``scipy.signal.resample_poly``; its numba twin ``resample_poly_axis0``,
+    bit for bit) of (N, 3) from ``fs`` to ``RATE_HZ``."""
     r = Fraction(RATE_HZ / float(fs)).limit_denominator(1000)
     if r == 1:
         return np.asarray(acc, np.float64)
-    return signal.resample_poly(np.asarray(acc, np.float64), r.numerator, r.denominator, axis=0)
+    return resample_poly_axis0(np.asarray(acc, np.float64), r.numerator, r.denominator)
 
 
 def model_features(acc_m_s2: np.ndarray, fs: float, feature_set: str, context: tuple):
