@@ -300,67 +300,106 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
         sessions = [s for s in sessions if s[0] in only_sessions]
     failed_sessions: dict[str, str] = {}
     stages = registry()
-    for stage in stages:
-        items, why = [], {}
-        for session_id, study, kind in sessions:
-            wanted = why_wanted(stage, kind, study, stages)
-            if wanted is None:
+    for level in stage_levels(stages):
+        batch, dispatch = [], {}
+        for stage in level:
+            items, why = _plan_stage(wh, stage, stages, sessions, failed_sessions, summary)
+            if not items:
                 continue
-            if session_id in failed_sessions and stage.needs:
-                continue
-            params = stage_params(study, stage.name, stage.default_params())
-            ih = _input_hash(wh, session_id, stage)
-            st = stamp(stage, params, ih)
-            cur = first(wh.con.execute("SELECT stamp FROM stage_state WHERE session_id = ? AND stage = ?",
-                                 [session_id, stage.name]))
-            if cur is not None and cur[0] == st:
-                summary.skipped_fresh += 1
-                continue
-            why[session_id] = (ih, f"{wanted}; {_why_stale(wh, session_id, stage, params, ih, cur is not None)}")
-            items.append((stage.name, _session_inputs(wh, session_id, stage), params, st))
 
-        def done(item, res, stage=stage, why=why):
-            _, inp, params, st = item
-            sid = inp.session["session_id"]
-            started = _now()
-            ph = params_hash(params)
-            if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
-                raise StorageError(f"cannot write the warehouse ({stage.name} {sid}): {res}")
-            if isinstance(res, Exception):
-                failed_sessions[sid] = str(res)
-                summary.failed.append(f"{stage.name} {sid}: {res}")
-                with wh.transaction():
-                    wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
-                                              "stage_version": stage.version, "params_hash": ph, "stamp": st,
-                                              "input_hash": why[sid][0], "reason": why[sid][1],
-                                              "status": "failed", "started_at": started, "duration_s": None,
-                                              "error": str(res)}])
-                on_progress(f"{stage.name} {sid}: FAILED: {res}")
-            else:
-                out, secs = res
-                with wh.transaction() as con:
-                    for t in stage.tables:
-                        rows = out.rows.get(t, [])
-                        if wh.has_column(t, "producer"):      # a table several stages write
-                            con.execute(f'DELETE FROM "{t}" WHERE session_id = ? AND producer = ?', [sid, stage.name])
-                            rows = [dict(r, producer=stage.name) for r in rows]
-                        else:
-                            con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
-                        _fault_injection("STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT")
-                        wh.insert(t, rows)
-                    con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
-                    wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
-                                              "stage_version": stage.version, "params_hash": ph, "stamp": st,
-                                              "input_hash": why[sid][0], "reason": why[sid][1],
-                                              "status": out.status, "started_at": started, "duration_s": secs,
-                                              "note": out.note or None}])
-                summary.stage_runs += 1
-                on_progress(f"{stage.name} {sid}: {out.status} in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
-            publisher.due()
+            def done(item, res, stage=stage, why=why):
+                _commit_stage_result(wh, run_id, stage, why, item, res, failed_sessions, summary, on_progress)
+                publisher.due()
 
-        on_phase(stage.name, len(items))
-        ex.run_all(_stage_task_4, items, done)
+            batch += items
+            dispatch[stage.name] = done
+        # one pool pass per level: the stages of a level need nothing of each other, so a session's long
+        # activity day and other sessions' lab stages share the workers without a barrier between stages
+        on_phase(" + ".join(dispatch), len(batch))
+        ex.run_all(_stage_task_4, _longest_first(batch), lambda item, res: dispatch[item[0]](item, res))
         publisher.flush()
+
+
+def stage_levels(stages: list[Stage]) -> list[list[Stage]]:
+    """Stages grouped by dependency depth (0: needs nothing; k: needs a stage of depth k − 1 at most), each
+    group in registry order."""
+    depth: dict[str, int] = {}
+    for st in stages:
+        depth[st.name] = 1 + max((depth[n] for n in st.needs), default=-1)
+    return [[st for st in stages if depth[st.name] == d] for d in range(max(depth.values(), default=-1) + 1)]
+
+
+#: stages whose tasks run first within a level (a 24 h activity day takes seconds, a lab stage a fraction of
+#: one): the pool's last tasks are then short ones, and no worker waits on a long task at the level's end
+_LONG_STAGES = ("activity",)
+
+
+def _longest_first(items: list) -> list:
+    return sorted(items, key=lambda it: it[0] not in _LONG_STAGES)
+
+
+def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, failed_sessions: dict,
+                summary: RunSummary) -> tuple[list, dict]:
+    """Tasks of ``stage`` for the sessions that want it and are stale, and why each runs."""
+    items, why = [], {}
+    for session_id, study, kind in sessions:
+        wanted = why_wanted(stage, kind, study, stages)
+        if wanted is None:
+            continue
+        if session_id in failed_sessions and stage.needs:
+            continue
+        params = stage_params(study, stage.name, stage.default_params())
+        ih = _input_hash(wh, session_id, stage)
+        st = stamp(stage, params, ih)
+        cur = first(wh.con.execute("SELECT stamp FROM stage_state WHERE session_id = ? AND stage = ?",
+                                   [session_id, stage.name]))
+        if cur is not None and cur[0] == st:
+            summary.skipped_fresh += 1
+            continue
+        why[session_id] = (ih, f"{wanted}; {_why_stale(wh, session_id, stage, params, ih, cur is not None)}")
+        items.append((stage.name, _session_inputs(wh, session_id, stage), params, st))
+    return items, why
+
+
+def _commit_stage_result(wh: Warehouse, run_id: str, stage: Stage, why: dict, item, res, failed_sessions: dict,
+                         summary: RunSummary, on_progress: Callable[[str], None]) -> None:
+    """Record one task's outcome: its rows and stage state in one transaction, or the failure in the ledger."""
+    _, inp, params, st = item
+    sid = inp.session["session_id"]
+    started = _now()
+    ph = params_hash(params)
+    if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
+        raise StorageError(f"cannot write the warehouse ({stage.name} {sid}): {res}")
+    if isinstance(res, Exception):
+        failed_sessions[sid] = str(res)
+        summary.failed.append(f"{stage.name} {sid}: {res}")
+        with wh.transaction():
+            wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
+                                      "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                      "input_hash": why[sid][0], "reason": why[sid][1],
+                                      "status": "failed", "started_at": started, "duration_s": None,
+                                      "error": str(res)}])
+        on_progress(f"{stage.name} {sid}: FAILED: {res}")
+    else:
+        out, secs = res
+        with wh.transaction() as con:
+            for t in stage.tables:
+                rows = out.rows.get(t, [])
+                if wh.has_column(t, "producer"):      # a table several stages write
+                    con.execute(f'DELETE FROM "{t}" WHERE session_id = ? AND producer = ?', [sid, stage.name])
+                    rows = [dict(r, producer=stage.name) for r in rows]
+                else:
+                    con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
+                _fault_injection("STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT")
+                wh.insert(t, rows)
+            con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
+            wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
+                                      "stage_version": stage.version, "params_hash": ph, "stamp": st,
+                                      "input_hash": why[sid][0], "reason": why[sid][1],
+                                      "status": out.status, "started_at": started, "duration_s": secs,
+                                      "note": out.note or None}])
+        summary.stage_runs += 1
+        on_progress(f"{stage.name} {sid}: {out.status} in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))
 
 
 def _stage_task_4(stage_name, inp, params, st):
