@@ -204,10 +204,11 @@ def step_threshold(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray 
     √2 · RMS(step signal) over ``step_rms_window_s`` — adapts to a slow, weak or asymmetric gait."""
     if p.step_relative <= 0 or svm.size == 0:
         return p.step_threshold_g
-    from scipy.ndimage import uniform_filter1d
+    from estimators.activity._kernels import step_threshold_kernel
     w = max(3, int(round(p.step_rms_window_s * fs)))
-    rms = np.sqrt(np.maximum(uniform_filter1d(svm * svm, w, mode="nearest"), 0.0))
-    return np.maximum(p.step_threshold_g, p.step_relative * np.sqrt(2.0) * rms)
+    # np.maximum(thr, k·√max(uniform_filter1d(svm², w, mode="nearest"), 0)) with k = step_relative·√2, in one pass
+    return step_threshold_kernel(np.ascontiguousarray(svm, dtype=np.float64), w, float(p.step_threshold_g),
+                                 float(p.step_relative * np.sqrt(2.0)))
 
 
 def detect_steps(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray:
@@ -215,10 +216,12 @@ def detect_steps(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray:
     ``step_min_interval_s`` apart (sample indices)."""
     if svm.size < 3:
         return np.zeros(0, dtype=np.int64)
+    from estimators.activity._kernels import prominent_peaks
     h = step_threshold(svm, fs, p)
-    pk, _ = signal.find_peaks(svm, height=h, distance=max(1, int(p.step_min_interval_s * fs)),
-                              prominence=0.5 * p.step_threshold_g)
-    return pk.astype(np.int64)
+    pk, _ = signal.find_peaks(svm, height=h, distance=max(1, int(p.step_min_interval_s * fs)))
+    # find_peaks(prominence=...) applies the prominence last, after height and distance: the same selection
+    pk = pk.astype(np.int64)
+    return pk[prominent_peaks(np.ascontiguousarray(svm, dtype=np.float64), pk, 0.5 * p.step_threshold_g)]
 
 
 def group_bouts(peaks: np.ndarray, fs: float, p: ActivityParams) -> list[np.ndarray]:
@@ -252,7 +255,9 @@ def classify_bouts(groups: list[np.ndarray], theta_deg: np.ndarray, ga: np.ndarr
                   *(np.zeros(0) for _ in range(3)))
     if not kept:
         return empty, np.zeros(0, np.int64), np.zeros(0, np.int8)
-    lean = np.degrees(np.arctan2(-ga[:, 0], ga[:, 1]))         # forward lean + (spec §4.2: GA_f = −g sin θ)
+    def lean(a: int, b: int) -> np.ndarray:                    # forward lean + (spec §4.2: GA_f = −g sin θ),
+        return np.degrees(np.arctan2(-ga[a:b, 0], ga[a:b, 1]))  # only where there are bouts (not the whole day)
+
     pieces = []                                                # (peaks, modality)
     if p.stairs_mode == "thesis":
         for g in kept:
@@ -264,14 +269,14 @@ def classify_bouts(groups: list[np.ndarray], theta_deg: np.ndarray, ga: np.ndarr
     else:
         all_int = np.concatenate([np.diff(g) for g in kept]) / fs
         ref_int = float(np.median(all_int))
-        ref_lean = float(np.median(np.concatenate([lean[g[0]:g[-1] + 1] for g in kept])))
+        ref_lean = float(np.median(np.concatenate([lean(g[0], g[-1] + 1) for g in kept])))
         for g in kept:
             d = np.diff(g) / fs
             dd = np.concatenate([d[:1], d])                  # interval ending at each step (first: next one)
             k = min(5, dd.size)
             loc = _rolling_median(dd, k)
             stairs = ref_int / loc < p.stairs_cadence_ratio
-            cl = np.concatenate([[0.0], np.cumsum(lean[g[0]:g[-1] + 1])])
+            cl = np.concatenate([[0.0], np.cumsum(lean(g[0], g[-1] + 1))])
             j = g - g[0]                                      # mean lean over each step interval (not at the
             ls = (cl[j[1:]] - cl[j[:-1]]) / np.maximum(np.diff(j), 1)   # peak: the lean oscillates per step)
             lean_loc = _rolling_median(np.concatenate([ls[:1], ls]), k)

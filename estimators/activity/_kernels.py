@@ -166,3 +166,68 @@ def acf_at_lag(v, lag, eps):
             num += (v[r, i] - m) * (v[r, i + k] - m)
         out[r] = num / max(den, eps)
     return out
+
+
+@njit(cache=True)
+def step_threshold_kernel(svm, w, floor_g, scale):
+    """``max(floor_g, scale · √max(uniform_filter1d(svm², w, mode="nearest"), 0))`` per sample, in one pass and with
+    SciPy's operations: ``ndimage.uniform_filter1d``'s running sum of the squares (kept undivided, ``sum +=
+    entering − leaving``, each output that sum / w; edges repeat the first and last sample), then NumPy's
+    ``maximum`` (``a if a >= b else b``) and ``sqrt``. Equal bit for bit to the NumPy/SciPy expression (tested)."""
+    n = svm.shape[0]
+    out = np.empty(n)
+    if n == 0:
+        return out
+    s1 = w // 2
+    s2 = w - s1 - 1
+    tmp = 0.0
+    for k in range(w):
+        j = min(max(k - s1, 0), n - 1)
+        tmp += svm[j] * svm[j]
+    for i in range(n):
+        if i > 0:
+            a = svm[min(i + s2, n - 1)]
+            b = svm[max(i - 1 - s1, 0)]
+            tmp += a * a - b * b
+        v = tmp / w
+        v = v if v >= 0.0 else 0.0
+        y = scale * np.sqrt(v)
+        out[i] = floor_g if floor_g >= y else y
+    return out
+
+
+@njit(cache=True)
+def prominent_peaks(x, peaks, pmin):
+    """Which ``peaks`` have a topographic prominence of at least ``pmin`` (``scipy.signal.peak_prominences`` with
+    no window, then ``pmin <= prominence``, as ``find_peaks(prominence=pmin)`` selects). Each side's search for the
+    lowest point stops as soon as it is low enough, instead of running to the next higher sample (for the
+    day's highest peaks, the whole day): the same answer, since the prominence only grows along the search."""
+    keep = np.zeros(peaks.shape[0], dtype=np.bool_)
+    n = x.shape[0]
+    for r in range(peaks.shape[0]):
+        pk = peaks[r]
+        v = x[pk]
+        ok = False
+        m = v
+        i = pk
+        while i >= 0 and x[i] <= v:
+            if x[i] < m:
+                m = x[i]
+                if pmin <= v - m:
+                    ok = True
+                    break
+            i -= 1
+        if not ok and not (pmin <= v - m):
+            continue
+        ok = False
+        m = v
+        i = pk
+        while i < n and x[i] <= v:
+            if x[i] < m:
+                m = x[i]
+                if pmin <= v - m:
+                    ok = True
+                    break
+            i += 1
+        keep[r] = ok or (pmin <= v - m)
+    return keep
