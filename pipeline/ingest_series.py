@@ -278,6 +278,11 @@ class TopicSeries:
             self._pending.pop(0).result()          # re-raises a SeriesRejected of an earlier slice
         if not pieces and not final:
             return
+        if final and self._pool is None:
+            # the whole topic in one slice (a lab trial's topics; 28 of them per file): written here, without
+            # the two writing threads of a long series (a thread pool per topic and one per Parquet file)
+            self._write(pieces, final)
+            return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix="series")
         self._pending.append(self._pool.submit(self._write, pieces, final))
@@ -369,7 +374,7 @@ class TopicSeries:
             # a staging name: the final path (study/participant/session/placement + content hash) is
             # known only after the whole file was read; commit() moves it there
             self.writer = SeriesWriter(self.root, f"series/_staging/{uuid.uuid4().hex}.parquet", schema)
-        self.writer.write(pa.Table.from_arrays(cols, schema=schema))
+        self.writer.write(pa.Table.from_arrays(cols, schema=schema), last=final)
 
     def _dedupe(self, t, log, v):
         n = len(t)

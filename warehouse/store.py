@@ -73,16 +73,24 @@ class SeriesWriter:
                                    use_dictionary=dict_cols or False, column_encoding=delta or None,
                                    write_statistics=["t_ns"] if "t_ns" in schema.names else True)
         self.n_rows = 0
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="parquet")
+        self._pool: ThreadPoolExecutor | None = None
         self._pending: list[Future] = []
         self._unsynced = 0
         self._sync_fd: int | None = None
         self._sync_pool: ThreadPoolExecutor | None = None
         self._sync: Future | None = None
 
-    def write(self, table: pa.Table) -> None:
+    def write(self, table: pa.Table, last: bool = False) -> None:
+        """Encode ``table`` on the writer thread; ``last=True`` for a file's only table writes it here (no thread
+        for a small series)."""
+        if last and self._pool is None:
+            self._write(table)
+            self.n_rows += table.num_rows
+            return
         while len(self._pending) >= 2:
             self._pending.pop(0).result()
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix="parquet")
         self._pending.append(self._pool.submit(self._write, table))
         self.n_rows += table.num_rows
 
@@ -108,7 +116,8 @@ class SeriesWriter:
                 f.result()
         finally:
             self._pending = []
-            self._pool.shutdown(wait=True)
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
             if self._sync_pool is not None:
                 self._sync_pool.shutdown(wait=True)       # a flush in progress finishes first
                 os.close(self._sync_fd)
@@ -156,7 +165,7 @@ def write_table(root: Path, relpath: str, table: pa.Table) -> str:
     """Write a whole table atomically; returns ``relpath``."""
     w = SeriesWriter(root, relpath, table.schema)
     try:
-        w.write(table)
+        w.write(table, last=True)
     except BaseException:
         w.abort()
         raise
