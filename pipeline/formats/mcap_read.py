@@ -11,9 +11,13 @@ a one-line reason (what is wrong and what to do); no low-level exception leaks o
 How it is fast: the file is read in large blocks; a numba kernel splits a block (or a decompressed
 chunk) into records, so Python runs once per chunk, never once per message; chunks are decompressed,
 checked and decoded by a small thread pool (zstandard, lz4, the CRC and the numba kernels release the
-GIL), and the CDR decoders of :mod:`pipeline.formats.ros2_cdr` turn a whole channel of a chunk into
-arrays at once. Consecutive chunks (up to :data:`GROUP_BYTES`) form one task whose blocks are joined per
-channel, so the consumer runs once per ~8 MiB whatever chunk size the writer chose. Blocks are yielded
+GIL). Consecutive chunks (up to :data:`GROUP_BYTES`) form one task, so the consumer runs once per ~8 MiB
+whatever chunk size the writer chose. A group whose chunks hold only Message records of fixed-layout types
+(Imu, MagneticField, PoseStamped; annotations and ranges located for their own decoders) is decoded by
+:mod:`pipeline.formats.mcap_fast`, one kernel pass per chunk right after its decompression, straight into the
+group's arrays; any other group (definitions inside a chunk, a message that does not fit its schema) takes
+the general path: record tables, the CDR decoders of :mod:`pipeline.formats.ros2_cdr` per channel and chunk,
+and a join of each channel's blocks, whose errors say what is wrong. Blocks are yielded
 in file order while at most a bounded number of chunks is in flight, so memory does not grow with the
 length of the recording. The file's SHA-256 and the data-section CRC
 are computed on the same pass, on a separate thread.
