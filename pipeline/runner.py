@@ -14,6 +14,7 @@ import hashlib
 import json
 import os
 import socket
+import threading
 import time
 import traceback
 import uuid
@@ -436,6 +437,14 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                                              "status": "running", "jobs": jobs, "version": _version(),
                                              "host": socket.gethostname(), "pid": os.getpid()}])
             wh.gc()
+            # the coordinator runs small statements one after another: DuckDB's own worker threads only add
+            # scheduling to each (~20 % of a commit's CPU), and the cores belong to the pipeline's workers
+            wh.con.execute("SET threads = 1")
+            # the stage modules (and the SciPy/estimators modules they import: ~0.8 CPU-s) load while the files
+            # ingest, not between the ingest and the first stages, when the workers would wait for them
+            preload = threading.Thread(target=registry, name="stridelab-stage-import", daemon=True)
+            if stages:
+                preload.start()
             ex = make_engine(engine, jobs, scheduler)
             try:
                 todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
@@ -445,6 +454,7 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
                 ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or (),
                              publisher=publisher)
                 if stages:
+                    preload.join()
                     run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase, publisher=publisher)
                 if stages and build_report is not None and reports_dir is not None:
                     # on the local engine's workers (already started, imports done); a Dask cluster's
