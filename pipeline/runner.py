@@ -420,7 +420,8 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
     missing or stale (pipeline/reports.py); a report that fails counts as a failure of the run.
 
     ``replace``: files that supersede the recordings they correct (same samples or same file name).
-    ``on_phase(name, total)`` announces a phase (ingest, then each stage) and its number of tasks;
+    ``on_phase(name, total)`` announces a phase (ingest, then each level of stages, named "gait + activity"
+    etc.: ``stage_levels``) and its number of tasks;
     ``on_progress(message)`` reports each completed task (a committed file or session).
     ``ingest_options``: ``{"session": {...}, "topic_map": {...}}`` for every recording (see ingest.IngestOptions).
     """

@@ -114,7 +114,7 @@ def exit_code(summary) -> int:
 
 
 def _run_with_progress(**kw):
-    """Run the pipeline with a progress bar per phase (ingest, then each stage) on stderr."""
+    """Run the pipeline with a progress bar per phase (ingest, then each level of stages) on stderr."""
     import duckdb
     from pipeline import runner
     from pipeline.console import UserError, err_console, progress
