@@ -2,20 +2,22 @@
 straight into one set of arrays per channel.
 
 What most recordings are made of: chunks whose records are all Message records on channels of the all-double
-ROS 2 types (``sensor_msgs/msg/Imu``, ``MagneticField``, ``geometry_msgs/msg/PoseStamped``) or on channels
-StrideLab ignores. For those, two passes of a numba kernel per chunk replace the general path's record tables,
-per-chunk decoding and the join of the chunks' blocks (:func:`pipeline.formats.mcap_read._group_task`):
+ROS 2 types (``sensor_msgs/msg/Imu``, ``MagneticField``, ``geometry_msgs/msg/PoseStamped``), on channels StrideLab
+ignores, or on annotation and range channels (a few messages among the samples). For those, one pass of a numba
+kernel per chunk replaces the general path's record tables, per-chunk decoding and the join of the chunks' blocks
+(:func:`pipeline.formats.mcap_read._group_task`), in :class:`GroupDecoder`:
 
-1. :func:`_count_kernel` walks the records, refuses the chunk (general path) at the first record that is not
-   a Message on a planned channel or that is malformed, and counts each channel's messages;
-2. the arrays of the whole group are allocated once from those counts, and :func:`_decode_kernel` walks the
-   records again, writing every message's ``header.stamp``, ``log_time`` and selected doubles (bit for bit,
-   as 64-bit words) at its channel's next row; it refuses the group at the first message that does not fit
-   its schema.
+1. the group's arrays are allocated once, sized from the first chunk's messages per channel (counted by
+   :func:`_count_kernel`) scaled to the group's declared bytes, with slack;
+2. each chunk, right after its decompression (still in the core's cache), is walked by :func:`_decode_kernel`,
+   which checks every record as the general path would and writes every message's ``header.stamp``,
+   ``log_time`` and selected doubles (bit for bit, as 64-bit words) at its channel's next row; annotation and
+   range messages are only located, for the general decoders.
 
-A refused chunk or group is decoded again by the general path, which raises the precise one-line error, so
+A chunk the kernel refuses (any other record, a malformed record, a message that does not fit its schema, a
+channel out of room) sends the whole group to the general path, which raises the precise one-line error, so
 the fast path never decides what is an error. The decoded values are those of
-:func:`pipeline.formats.ros2_cdr.decode_doubles`, in file order per channel, Fortran-ordered.
+:func:`pipeline.formats.ros2_cdr.decode_doubles`, in file order per channel, each column contiguous.
 """
 from __future__ import annotations
 
