@@ -20,7 +20,8 @@ from scipy import fft as sfft
 from scipy import signal
 
 from estimators.activity._kernels import acf_at_lag
-from estimators.activity._signals import autocalibrate
+from estimators.activity import _window_kernels as WK
+from estimators.activity._signals import autocalibrate, calibration_from_windows
 from estimators.activity._sosfilt import sosfiltfilt
 
 __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows", "walking_reference",
@@ -79,11 +80,28 @@ class WindowFeatures:
 def calibrated_g(acc_m_s2: np.ndarray, fs: float) -> tuple[np.ndarray, str]:
     """Acc in g after the estimators' auto-calibration from still 10-s windows (sphere fit when the still
     orientations cover the sphere, else a common gain so that still windows read 1 g). Unlabelled."""
-    a = np.asarray(acc_m_s2, dtype=np.float64) / G
-    cal = autocalibrate(a, fs)
+    a, cal, _ = _calibrated_g(acc_m_s2, fs, None)
+    return a, cal
+
+
+def _calibrated_g(acc_m_s2: np.ndarray, fs: float, w: int | None):
+    """``calibrated_g`` (``autocalibrate`` on its 10-s windows, bit for bit), and with ``w`` also the means of the
+    calibrated acc over windows of ``w`` samples (None without)."""
+    acc = np.ascontiguousarray(acc_m_s2, dtype=np.float64)
+    wc = int(round(10.0 * fs))          # autocalibrate's windows (its default window_s)
+    if acc.ndim != 2 or acc.shape[1] != 3 or wc <= 0 or acc.shape[0] < wc:
+        a = acc / G
+        cal = autocalibrate(a, fs)
+        if cal.status != "none":
+            a = (a - cal.offset_g) * cal.gain
+        return a, cal.status, (None if w is None else _windows(a, w).mean(axis=1))
+    a, m_w, s_w = WK.scaled_window_mean_std(acc, G, wc)
+    cal = calibration_from_windows(m_w, s_w)
     if cal.status == "none":
-        return a, cal.status
-    return (a - cal.offset_g) * cal.gain, cal.status
+        return a, cal.status, (None if w is None else (m_w if w == wc else WK.window_mean(a, w)))
+    c, m = WK.affine_window_mean(a, np.asarray(cal.offset_g, np.float64), np.asarray(cal.gain, np.float64),
+                                 w if w is not None else wc)
+    return c, cal.status, (None if w is None else m)
 
 
 def _windows(x: np.ndarray, w: int) -> np.ndarray:
@@ -197,7 +215,7 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     w = int(round(window_s * fs))
     if w < 8 or acc.shape[0] < w:
         raise ValueError(f"window_features: need at least one {window_s} s window ({w} samples), got {acc.shape[0]}")
-    a, cal_status = calibrated_g(acc, fs)
+    a, cal_status, mean = _calibrated_g(acc, fs, w)
     hi_cut = min(20.0, 0.45 * fs)
     sos_hp = signal.butter(2, [0.3, hi_cut], "bandpass", fs=fs, output="sos")
     sos_lp1 = signal.butter(2, 1.0, "lowpass", fs=fs, output="sos")
@@ -207,16 +225,16 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     A = _windows(a, w)                                 # (W, w, 3)
     D = _windows(dyn_full, w)
     LP = _windows(lp_full, w)
-    mean = A.mean(axis=1)
-    u = _unit(mean)                                    # window gravity direction
+    u = _unit(mean)                                    # window gravity direction (mean = A.mean(axis=1))
     vert = np.einsum("wnk,wk->wn", D, u)               # vertical dynamic acc (g)
-    horiz = D - vert[:, :, None] * u[:, None, :]
-    dyn_rms = np.sqrt((D ** 2).sum(axis=2).mean(axis=1))
+    # mean squares per window of the dynamic, horizontal (D − vert u) and vertical acc and of the jerk of ‖A‖
+    dyn_ms, horiz_ms, vert_ms, jerk_ms = WK.window_mean_squares(a, dyn_full, vert, u, w, fs)
+    dyn_rms = np.sqrt(dyn_ms)
     log_dyn = np.log10(dyn_rms + _EPS)
 
     nfft = max(w, int(2 ** np.ceil(np.log2(fs / 0.05))))
     f, P = _periodogram(vert, fs, nfft, "constant")
-    vert_lp = np.einsum("wnk,wk->wn", _windows(a, w), u)   # for the slow band (includes < 0.3 Hz)
+    vert_lp = np.einsum("wnk,wk->wn", A, u)            # for the slow band (includes < 0.3 Hz)
     f2, P2 = _periodogram(vert_lp, fs, nfft, "linear")
     df = f[1] - f[0]
     rms = lambda p: np.log10(np.sqrt(p * df) + _EPS)  # noqa: E731  (one-sided PSD summed over a band -> RMS)
@@ -231,9 +249,8 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     lag = np.round(fs / np.maximum(cadence, 0.5)).astype(int)
     step_reg = _acf_at(vert, lag)
     stride_reg = _acf_at(vert, 2 * lag)
-    vh = np.log10((np.sqrt((vert ** 2).mean(axis=1)) + _EPS) / (np.sqrt((horiz ** 2).sum(axis=2).mean(axis=1)) + _EPS))
-    nrm = np.linalg.norm(A, axis=2)
-    log_jerk = np.log10(np.sqrt(((np.diff(nrm, axis=1) * fs) ** 2).mean(axis=1)) + _EPS)
+    vh = np.log10((np.sqrt(vert_ms) + _EPS) / (np.sqrt(horiz_ms) + _EPS))
+    log_jerk = np.log10(np.sqrt(jerk_ms) + _EPS)
     # postural sway: tilt of the 1 Hz low-passed direction against the window mean direction
     tilt = np.degrees(np.arccos(np.clip(np.einsum("wnk,wk->wn", _unit(LP), u), -1.0, 1.0)))
     log_sway = np.log10(tilt.std(axis=1) + 1e-3)
