@@ -22,9 +22,11 @@ def ga_filter_sos(sampling_rate_hz: float, cutoff_hz: float = 0.25, ripple_db: f
 
 
 def gravitational_component(acc_g: np.ndarray, sampling_rate_hz: float, *, mode: str = "lfilter",
-                            cutoff_hz: float = 0.25, ripple_db: float = 0.01, stop_db: float = 100.0) -> np.ndarray:
+                            cutoff_hz: float = 0.25, ripple_db: float = 0.01, stop_db: float = 100.0,
+                            order: str = "scipy") -> np.ndarray:
     """GA: the elliptic low-pass of each axis, started in steady state on the first sample (spec §4.2:
-    a zero-state start reads θ ≈ 90° for the first seconds). ``mode``: "lfilter" causal, "filtfilt" zero phase."""
+    a zero-state start reads θ ≈ 90° for the first seconds). ``mode``: "lfilter" causal, "filtfilt" zero phase.
+    ``order="C"``: the result C-ordered (the same values; see ``_sosfilt.sosfilt``)."""
     sos = ga_filter_sos(sampling_rate_hz, cutoff_hz, ripple_db, stop_db)
     x = np.asarray(acc_g, dtype=np.float64)
     if x.shape[0] == 0:
@@ -34,7 +36,7 @@ def gravitational_component(acc_g: np.ndarray, sampling_rate_hz: float, *, mode:
             return np.repeat(x.mean(axis=0, keepdims=True), x.shape[0], axis=0)
         return sosfiltfilt(sos, x)
     zi = signal.sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]   # (n_sections, 2, 3)
-    return sosfilt(sos, x, zi=zi)[0]
+    return sosfilt(sos, x, zi=zi, order=order)[0]
 
 
 def ga_dc_gain(sampling_rate_hz: float, cutoff_hz: float = 0.25, ripple_db: float = 0.01,

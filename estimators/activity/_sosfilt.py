@@ -39,9 +39,27 @@ def _sosfilt_columns(sos, x, zi, out):
             out[i, n] = x_cur
 
 
-def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None):
+@njit(cache=True, nogil=True)
+def _sosfilt_rows(sos, x, zi, out):
+    """:func:`_sosfilt_columns` writing ``out[n, i]`` ((N, k) C-ordered output)."""
+    n_sections = sos.shape[0]
+    k = x.shape[1]
+    for n in range(x.shape[0]):
+        for i in range(k):
+            x_cur = x[n, i]
+            for s in range(n_sections):
+                x_new = sos[s, 0] * x_cur + zi[i, s, 0]
+                zi[i, s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[i, s, 1]
+                zi[i, s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+                x_cur = x_new
+            out[n, i] = x_cur
+
+
+def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None, order: str = "scipy"):
     """``scipy.signal.sosfilt(sos, x, axis=0, zi=zi)`` for float64 ``x`` of shape (N,) or (N, k): ``y``, or
-    ``(y, zf)`` when ``zi`` is given (``zi`` shaped as SciPy wants it: (sections, 2) or (sections, 2, k))."""
+    ``(y, zf)`` when ``zi`` is given (``zi`` shaped as SciPy wants it: (sections, 2) or (sections, 2, k)).
+    ``order="C"``: ``y`` in C order (the same values; SciPy's layout is the transpose of a C-ordered (k, N), which
+    a caller walking the samples row by row would otherwise copy)."""
     sos = np.asarray(sos, dtype=np.float64)
     x = np.asarray(x)
     if x.dtype != np.float64 or x.ndim not in (1, 2) or sos.ndim != 2 or sos.shape[1] != 6:
@@ -56,10 +74,16 @@ def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None):
         want = (n_sections, 2) if x.ndim == 1 else (n_sections, 2, k)
         if zi.shape != want:
             raise ValueError(f"zi must be of shape {want}, got {zi.shape}")
-        z = np.ascontiguousarray(np.moveaxis(zi.reshape(n_sections, 2, -1), (0, 1), (-2, -1)))
-    out = np.empty((k, x2.shape[0]))
-    _sosfilt_columns(sos, x2, z, out)
-    y = out[0] if x.ndim == 1 else out.T
+        # a copy: the kernel updates the state in place, and the caller's zi must stay as it was (for one signal
+        # the moved view is already contiguous, and ascontiguousarray would hand the kernel the caller's array)
+        z = np.array(np.moveaxis(zi.reshape(n_sections, 2, -1), (0, 1), (-2, -1)), order="C", copy=True)
+    if order == "C" and x.ndim == 2:
+        y = np.empty((x2.shape[0], k))
+        _sosfilt_rows(sos, x2, z, y)
+    else:
+        out = np.empty((k, x2.shape[0]))
+        _sosfilt_columns(sos, x2, z, out)
+        y = out[0] if x.ndim == 1 else out.T
     if zi is None:
         return y
     zf = np.moveaxis(z, (-2, -1), (0, 1))

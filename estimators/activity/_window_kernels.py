@@ -3,8 +3,8 @@
 ``window_features`` reduces a day of windows with NumPy expressions that each walk the whole (W, w, 3) block and
 allocate one or two temporaries of its size (a 24 h day at the model's 26 Hz: 54 MB each): the window means and
 standard deviations of the auto-calibration, the calibrated copy, the window means, the RMS of the dynamic, the
-vertical and the horizontal acceleration and of the jerk of the acceleration norm. Together they were ~0.4 of the
-~0.8-1.0 s of a day's window features. These kernels compute the same numbers window by window, in the order
+vertical and the horizontal acceleration and of the jerk of the acceleration norm, the band powers of the two
+periodograms. Together they were ~0.4 of the ~0.8-1.0 s of a day's window features. These kernels compute the same numbers window by window, in the order
 NumPy adds them, so the features are unchanged to the last bit (``tests/estimators/activity/test_window_kernels.py``
 compares them with the NumPy expressions on real and random data):
 
@@ -14,7 +14,9 @@ compares them with the NumPy expressions on real and random data):
   (:func:`pairwise_sum`: blocks of at most 128 values summed with eight accumulators, longer runs split in two
   at a multiple of 8) started from 0;
 - the sum over the three axes is ``(0 + x₀) + x₁ + x₂``; a mean divides the sum by the count, a standard deviation
-  is NumPy's two-pass one (``sqrt(Σ (x − mean)² / n)``).
+  is NumPy's two-pass one (``sqrt(Σ (x − mean)² / n)``);
+- a band power of a periodogram, ``P[:, sel].sum(axis=1)``, adds bin after bin (the boolean selection is laid out
+  column-major); :func:`spectrum_bands` computes the bands and the peak bin from the spectra without the PSD array.
 
 No fused multiply-adds (numba's default), as in NumPy.
 """
@@ -203,3 +205,36 @@ def window_mean_squares(a, d, vert, u, w, fs):
             r1[i] = x * x
         jerk[j] = contiguous_mean(r1, 0, w - 1, stack, vals)
     return dyn, hor, ver, jerk
+
+
+@njit(cache=True, nogil=True)
+def spectrum_bands(X, scale, one_sided_end, starts, stops, peak_lo, peak_hi):
+    """Band powers and the peak bin of the one-sided periodograms whose spectra are the rows of ``X`` (W, bins),
+    as ``windows.window_features`` computed them from ``P = X.real ** 2 + X.imag ** 2``, ``P *= scale``,
+    ``P[:, 1:one_sided_end] *= 2``: ``bands[:, b] = P[:, starts[b]:stops[b]].sum(axis=1)`` and
+    ``peak = np.argmax(P[:, peak_lo:peak_hi], axis=1)`` (the first of equal maxima), without the (W, bins) P."""
+    nw, nb = X.shape
+    bands = np.empty((nw, starts.shape[0]))
+    peak = np.empty(nw, np.int64)
+    p = np.empty(nb)
+    for j in range(nw):
+        for i in range(nb):
+            re = X[j, i].real
+            im = X[j, i].imag
+            v = (re * re + im * im) * scale
+            if 1 <= i < one_sided_end:
+                v = v * 2.0
+            p[i] = v
+        for b in range(starts.shape[0]):
+            # P[:, sel] (a boolean column selection) is laid out column-major, so NumPy's sum over its rows adds
+            # bin after bin: sequential, not pairwise
+            acc = 0.0
+            for i in range(starts[b], stops[b]):
+                acc += p[i]
+            bands[j, b] = acc
+        best = peak_lo
+        for i in range(peak_lo + 1, peak_hi):
+            if p[i] > p[best]:
+                best = i
+        peak[j] = best - peak_lo
+    return bands, peak

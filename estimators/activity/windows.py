@@ -118,11 +118,6 @@ def lean_deg(directions: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(_unit(directions) @ _unit(ref), -1.0, 1.0)))
 
 
-def _band_power(f: np.ndarray, P: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    sel = (f >= lo) & (f < hi)
-    return P[:, sel].sum(axis=1)
-
-
 def gait_windows(step_frac: np.ndarray, log_step: np.ndarray, cadence_hz: np.ndarray, *,
                  min_frac: float = 0.4, min_log_rms: float = -1.3) -> np.ndarray:
     """Gait-like windows without labels: dominant vertical frequency inside ``GAIT_BAND_HZ``, at least
@@ -187,15 +182,27 @@ def _acf_at(v: np.ndarray, lag: np.ndarray) -> np.ndarray:
     return acf_at_lag(np.ascontiguousarray(v, dtype=np.float64), np.asarray(lag, dtype=np.int64), _EPS)
 
 
-def _periodogram(v: np.ndarray, fs: float, nfft: int, detrend: str) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided PSD of each row of ``v`` (W, n) with a boxcar window, zero-padded to ``nfft``: what
-    ``scipy.signal.periodogram(v, fs, nfft=nfft, axis=1, detrend=detrend)`` returns (equal to rounding), without
-    its general STFT machinery (a copy of the padded windows and of their spectra: 0.37 s per call for a day)."""
+def _bins(f: np.ndarray, lo: float, hi: float, closed: bool = False) -> tuple[int, int]:
+    """[start, stop) of the frequency bins with lo ≤ f < hi (≤ hi when ``closed``): ``f`` increases."""
+    idx = np.flatnonzero((f >= lo) & ((f <= hi) if closed else (f < hi)))
+    return (int(idx[0]), int(idx[-1]) + 1) if idx.size else (0, 0)
+
+
+def _band_spectrum(v: np.ndarray, fs: float, nfft: int, detrend: str, bands, peak: tuple | None = None):
+    """Powers in ``bands`` ((lo, hi) Hz, lo ≤ f < hi) of the one-sided PSD of each row of ``v`` (W, n), with a
+    boxcar window, zero-padded to ``nfft`` (what ``scipy.signal.periodogram(v, fs, nfft=nfft, axis=1,
+    detrend=detrend)`` returns, equal to rounding): (W, len(bands)); with ``peak`` = (lo, hi) also the frequency
+    of the largest PSD bin with lo ≤ f ≤ hi per row. The PSD itself is never stored (``_window_kernels.spectrum_bands``)."""
     X = sfft.rfft(signal.detrend(v, axis=1, type=detrend), n=nfft, axis=1)
-    P = X.real ** 2 + X.imag ** 2
-    P *= 1.0 / (fs * v.shape[1])
-    P[:, 1:(nfft + 1) // 2] *= 2.0              # one-sided: every bin but DC (and Nyquist for an even nfft)
-    return sfft.rfftfreq(nfft, 1.0 / fs), P
+    f = sfft.rfftfreq(nfft, 1.0 / fs)
+    rng = np.array([_bins(f, lo, hi) for lo, hi in bands], dtype=np.int64).reshape(-1, 2)
+    p0, p1 = _bins(f, *peak, closed=True) if peak is not None else (0, 1)
+    if p1 <= p0:
+        raise ValueError(f"window_features: no frequency bin in {peak} Hz at fs = {fs} Hz")
+    # one-sided: every bin but DC (and Nyquist for an even nfft) doubled
+    power, k = WK.spectrum_bands(X, 1.0 / (fs * v.shape[1]), (nfft + 1) // 2, rng[:, 0].copy(), rng[:, 1].copy(),
+                                 p0, p1)
+    return (power, f[p0:p1][k]) if peak is not None else power
 
 
 def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: float = 10.0) -> WindowFeatures:
@@ -233,19 +240,18 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     log_dyn = np.log10(dyn_rms + _EPS)
 
     nfft = max(w, int(2 ** np.ceil(np.log2(fs / 0.05))))
-    f, P = _periodogram(vert, fs, nfft, "constant")
+    bp, cadence = _band_spectrum(vert, fs, nfft, "constant", [(0.5, 1.4), GAIT_BAND_HZ, (2.4, 6.0), (0.3, 6.0)],
+                                 peak=(0.5, 3.5))  # cadence: dominant frequency in 0.5-3.5 Hz
     vert_lp = np.einsum("wnk,wk->wn", A, u)            # for the slow band (includes < 0.3 Hz)
-    f2, P2 = _periodogram(vert_lp, fs, nfft, "linear")
+    low = _band_spectrum(vert_lp, fs, nfft, "linear", [(0.1, 0.5)])[:, 0]
+    f = sfft.rfftfreq(nfft, 1.0 / fs)
     df = f[1] - f[0]
     rms = lambda p: np.log10(np.sqrt(p * df) + _EPS)  # noqa: E731  (one-sided PSD summed over a band -> RMS)
-    log_low = rms(_band_power(f2, P2, 0.1, 0.5))
-    log_mid = rms(_band_power(f, P, 0.5, 1.4))
-    log_step = rms(_band_power(f, P, *GAIT_BAND_HZ))
-    log_high = rms(_band_power(f, P, 2.4, 6.0))
-    tot = _band_power(f, P, 0.3, 6.0)
-    step_frac = _band_power(f, P, *GAIT_BAND_HZ) / np.maximum(tot, _EPS)
-    sel = (f >= 0.5) & (f <= 3.5)
-    cadence = f[sel][np.argmax(P[:, sel], axis=1)]
+    log_low = rms(low)
+    log_mid = rms(bp[:, 0])
+    log_step = rms(bp[:, 1])
+    log_high = rms(bp[:, 2])
+    step_frac = bp[:, 1] / np.maximum(bp[:, 3], _EPS)
     lag = np.round(fs / np.maximum(cadence, 0.5)).astype(int)
     step_reg = _acf_at(vert, lag)
     stride_reg = _acf_at(vert, 2 * lag)

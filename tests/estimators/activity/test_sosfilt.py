@@ -42,6 +42,11 @@ def _check(x: np.ndarray) -> None:
             yb, zb = fast.sosfilt(sos, v, zi=zi)
             _same(ya, yb)
             np.testing.assert_array_equal(za, zb, strict=True)
+            yc, zc = fast.sosfilt(sos, v, zi=zi, order="C")     # C-ordered output: the same values
+            if v.ndim == 2:
+                assert yc.flags.c_contiguous
+            _same(np.ascontiguousarray(ya), yc)
+            np.testing.assert_array_equal(za, zc, strict=True)
             _same(signal.sosfilt(sos, v, axis=0), fast.sosfilt(sos, v))
 
 

@@ -42,12 +42,38 @@ def _reference_moments(a: np.ndarray, d: np.ndarray, w: int, fs: float):
             (vert ** 2).mean(axis=1), ((np.diff(nrm, axis=1) * fs) ** 2).mean(axis=1))
 
 
+def _reference_bands(v: np.ndarray, fs: float, nfft: int, detrend: str):
+    """The periodogram and its band powers and peak as ``window_features`` computed them in NumPy."""
+    from scipy import fft as sfft
+    X = sfft.rfft(signal.detrend(v, axis=1, type=detrend), n=nfft, axis=1)
+    P = X.real ** 2 + X.imag ** 2
+    P *= 1.0 / (fs * v.shape[1])
+    P[:, 1:(nfft + 1) // 2] *= 2.0
+    f = sfft.rfftfreq(nfft, 1.0 / fs)
+    bands = [P[:, (f >= lo) & (f < hi)].sum(axis=1) for lo, hi in BANDS]
+    sel = (f >= 0.5) & (f <= 3.5)
+    return np.column_stack(bands), f[sel][np.argmax(P[:, sel], axis=1)]
+
+
+BANDS = [(0.5, 1.4), W.GAIT_BAND_HZ, (2.4, 6.0), (0.3, 6.0), (0.1, 0.5)]
+
+
+def _check_bands(v: np.ndarray, fs: float):
+    nfft = max(v.shape[1], int(2 ** np.ceil(np.log2(fs / 0.05))))
+    for detrend in ("constant", "linear"):
+        want_p, want_peak = _reference_bands(v, fs, nfft, detrend)
+        got_p, got_peak = W._band_spectrum(v, fs, nfft, detrend, BANDS, peak=(0.5, 3.5))
+        _same(got_p, want_p)
+        _same(got_peak, want_peak)
+
+
 def _check_moments(a: np.ndarray, fs: float, w: int):
     d = sosfiltfilt(signal.butter(2, [0.3, min(20.0, 0.45 * fs)], "bandpass", fs=fs, output="sos"), a)
     mean, vert, *ms = _reference_moments(a, d, w, fs)
     _same(WK.window_mean(np.ascontiguousarray(a), w), mean)
     for got, want in zip(WK.window_mean_squares(a, d, vert, W._unit(mean), w, fs), ms):
         _same(got, want)
+    _check_bands(vert, fs)
 
 
 @pytest.mark.parametrize("n", list(range(0, 40)) + [127, 128, 129, 130, 255, 256, 257, 259, 260, 1000, 4099, 100_003])

@@ -150,18 +150,22 @@ def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
 
 
 def test_periodogram_and_regularity_match_their_reference_definitions():
-    """The fast periodogram equals scipy.signal.periodogram (both detrends, even and odd nfft) and the
-    regularity kernel equals the direct normalised autocorrelation, including out-of-range lags."""
+    """The band powers and peak frequency of the fast periodogram equal those of scipy.signal.periodogram (both
+    detrends, even and odd nfft) and the regularity kernel equals the direct normalised autocorrelation,
+    including out-of-range lags."""
     from scipy import signal as sg
-    from estimators.activity.windows import _acf_at, _periodogram
+    from estimators.activity.windows import _acf_at, _band_spectrum
     rng = np.random.default_rng(3)
-    v = rng.standard_normal((40, 260)) + np.linspace(0, 2, 260)
+    v = rng.standard_normal((40, 260)) + np.linspace(0, 2, 260) + np.sin(2 * np.pi * 1.7 * np.arange(260) / 26.0)
+    bands = [(0.1, 0.5), (0.5, 1.4), (1.4, 2.4), (2.4, 6.0), (0.3, 6.0), (0.0, 13.1)]
     for nfft in (512, 515):
         for det in ("constant", "linear"):
             f0, p0 = sg.periodogram(v, fs=26.0, nfft=nfft, axis=1, detrend=det)
-            f1, p1 = _periodogram(v, 26.0, nfft, det)
-            np.testing.assert_allclose(f1, f0, rtol=1e-12)
-            np.testing.assert_allclose(p1, p0, rtol=1e-9, atol=1e-14 * p0.max())
+            want = np.column_stack([p0[:, (f0 >= lo) & (f0 < hi)].sum(axis=1) for lo, hi in bands])
+            sel = (f0 >= 0.5) & (f0 <= 3.5)
+            got, peak = _band_spectrum(v, 26.0, nfft, det, bands, peak=(0.5, 3.5))
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-14 * p0.max())
+            np.testing.assert_allclose(peak, f0[sel][np.argmax(p0[:, sel], axis=1)], rtol=1e-12)
     lag = rng.integers(-2, 265, size=40)
     ref = np.zeros(40)
     for i, k in enumerate(lag):
