@@ -30,6 +30,20 @@ class TaskLost(RuntimeError):
     """A task whose worker died more than the allowed number of times."""
 
 
+def _start_worker(parent_pid: int) -> None:
+    """A pool worker's start: die with the coordinator (kill -9, OOM killer) instead of lingering, then import
+    the ingest's modules (pyarrow, numba's cached kernels: ~1 s) before the first task arrives."""
+    die_with_parent(parent_pid)
+    try:
+        import pipeline.ingest  # noqa: F401
+    except Exception:  # noqa: BLE001 - the first task imports it again and reports the error as its own
+        pass
+
+
+def _ready() -> None:
+    return None
+
+
 class LocalEngine:
     name = "local"
 
@@ -39,9 +53,16 @@ class LocalEngine:
         self.pool: ProcessPoolExecutor | None = None
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        # workers die with this coordinator (kill -9, OOM killer) instead of lingering
-        return ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"), initializer=die_with_parent,
+        return ProcessPoolExecutor(self.jobs, mp_context=mp.get_context("spawn"), initializer=_start_worker,
                                    initargs=(os.getpid(),))
+
+    def start(self) -> None:
+        """Start the worker processes now (a pool starts one per task submitted while none is idle), so that they
+        start and import while the coordinator opens the warehouse and lists the inbox."""
+        if self.jobs > 1 and self.pool is None:
+            self.pool = self._new_pool()
+            for _ in range(self.jobs):
+                self.pool.submit(_ready)
 
     def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
         """Call ``fn(*item)`` for each item; ``on_done(item, result_or_exception)`` runs in the coordinator."""
@@ -157,10 +178,16 @@ class DaskEngine:
             on_done(items[k], r)
             fut.release()
 
+    def start(self) -> None:
+        """The cluster's workers started with it."""
+
     def close(self) -> None:
+        if self.client is None:
+            return
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+        self.client = self.cluster = None
 
 
 def make_engine(name: str, jobs: int, scheduler: str | None = None):

@@ -429,56 +429,69 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     with RunLock(root, command):
-        with Warehouse.open(root) as wh:
-            run_id = f"{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
-            summary = RunSummary(run_id)
-            with wh.transaction() as con:
-                con.execute("UPDATE pipeline_runs SET status = 'interrupted' WHERE status = 'running'")
-                wh.insert("pipeline_runs", [{"run_id": run_id, "command": command, "started_at": _now(),
-                                             "status": "running", "jobs": jobs, "version": _version(),
-                                             "host": socket.gethostname(), "pid": os.getpid()}])
-            wh.gc()
-            # the coordinator runs small statements one after another: DuckDB's own worker threads only add
-            # scheduling to each (~20 % of a commit's CPU), and the cores belong to the pipeline's workers
-            wh.con.execute("SET threads = 1")
-            # the stage modules (and the SciPy/estimators modules they import: ~0.8 CPU-s) load while the files
-            # ingest, not between the ingest and the first stages, when the workers would wait for them
-            preload = threading.Thread(target=registry, name="stridelab-stage-import", daemon=True)
+        todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
+        if inbox is not None and Path(inbox).is_dir():
+            todo += inbox_recordings(Path(inbox))
+        ex = make_engine(engine, jobs, scheduler)
+        try:
+            if todo:
+                ex.start()      # the workers start and import while the coordinator opens the warehouse
+            return _run_locked(root, todo, ex, t0, jobs=jobs, stages=stages, command=command,
+                               ingest_options=ingest_options, on_progress=on_progress, on_phase=on_phase,
+                               reports_dir=reports_dir, build_report=build_report, replace=replace)
+        finally:
+            ex.close()
+
+
+def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stages: bool, command: str,
+                ingest_options, on_progress, on_phase, reports_dir, build_report, replace) -> RunSummary:
+    """``run`` with the lock held, the engine made and the files to ingest listed (``todo``)."""
+    with Warehouse.open(root) as wh:
+        run_id = f"{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:6]}"
+        summary = RunSummary(run_id)
+        with wh.transaction() as con:
+            con.execute("UPDATE pipeline_runs SET status = 'interrupted' WHERE status = 'running'")
+            wh.insert("pipeline_runs", [{"run_id": run_id, "command": command, "started_at": _now(),
+                                         "status": "running", "jobs": jobs, "version": _version(),
+                                         "host": socket.gethostname(), "pid": os.getpid()}])
+        wh.gc()
+        # the coordinator runs small statements one after another: DuckDB's own worker threads only add
+        # scheduling to each (~20 % of a commit's CPU), and the cores belong to the pipeline's workers
+        wh.con.execute("SET threads = 1")
+        # the stage modules (and the SciPy/estimators modules they import: ~0.8 CPU-s) load while the files
+        # ingest, not between the ingest and the first stages, when the workers would wait for them
+        preload = threading.Thread(target=registry, name="stridelab-stage-import", daemon=True)
+        if stages:
+            preload.start()
+        try:
+            publisher = _Publisher(wh)
+            ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or (),
+                         publisher=publisher)
             if stages:
-                preload.start()
-            ex = make_engine(engine, jobs, scheduler)
+                preload.join()
+                run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase, publisher=publisher)
+            if stages and build_report is not None and reports_dir is not None:
+                # on the local engine's workers (already started, imports done); a Dask cluster's
+                # workers may not see the reports folder, so there they are built here
+                written, failed = write_reports(wh, run_id, Path(reports_dir), build_report, _version(),
+                                                on_progress, run_all=ex.run_all if ex.name == "local" else None)
+                summary.reports += written
+                summary.failed += failed
+            status = "failed" if summary.failed else "ok"
+        except BaseException:
+            status = "failed"
+            raise
+        finally:
+            ex.close()
+            summary.seconds = time.perf_counter() - t0
             try:
-                todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
-                if inbox is not None and Path(inbox).is_dir():
-                    todo += inbox_recordings(Path(inbox))
-                publisher = _Publisher(wh)
-                ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or (),
-                             publisher=publisher)
-                if stages:
-                    preload.join()
-                    run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase, publisher=publisher)
-                if stages and build_report is not None and reports_dir is not None:
-                    # on the local engine's workers (already started, imports done); a Dask cluster's
-                    # workers may not see the reports folder, so there they are built here
-                    written, failed = write_reports(wh, run_id, Path(reports_dir), build_report, _version(),
-                                                    on_progress, run_all=ex.run_all if ex.name == "local" else None)
-                    summary.reports += written
-                    summary.failed += failed
-                status = "failed" if summary.failed else "ok"
-            except BaseException:
-                status = "failed"
-                raise
-            finally:
-                ex.close()
-                summary.seconds = time.perf_counter() - t0
-                try:
-                    with wh.transaction() as con:
-                        con.execute("UPDATE pipeline_runs SET finished_at = ?, status = ?, n_ingested = ?, "
-                                    "n_quarantined = ?, n_stage_runs = ?, n_failed = ? WHERE run_id = ?",
-                                    [_now(), status, len(summary.ingested), len(summary.quarantined),
-                                     summary.stage_runs, len(summary.failed), run_id])
-                    wh.publish_snapshot()
-                except Exception:  # noqa: BLE001 - the original error (e.g. disk full) matters more
-                    if status == "ok":
-                        raise
+                with wh.transaction() as con:
+                    con.execute("UPDATE pipeline_runs SET finished_at = ?, status = ?, n_ingested = ?, "
+                                "n_quarantined = ?, n_stage_runs = ?, n_failed = ? WHERE run_id = ?",
+                                [_now(), status, len(summary.ingested), len(summary.quarantined),
+                                 summary.stage_runs, len(summary.failed), run_id])
+                wh.publish_snapshot()
+            except Exception:  # noqa: BLE001 - the original error (e.g. disk full) matters more
+                if status == "ok":
+                    raise
     return summary
