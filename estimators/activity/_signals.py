@@ -108,7 +108,11 @@ def per_second_std(x: np.ndarray, sec: np.ndarray, n_sec: int, counts: np.ndarra
 
 # ---- auto-calibration ----------------------------------------------------------------------
 
-def autocalibrate(acc_g: np.ndarray, sampling_rate_hz: float, *, window_s: float = 10.0,
+#: window of the auto-calibration's still periods (s)
+CALIBRATION_WINDOW_S = 10.0
+
+
+def autocalibrate(acc_g: np.ndarray, sampling_rate_hz: float, *, window_s: float = CALIBRATION_WINDOW_S,
                   still_std_g: float = 0.013, min_windows: int = 10, coverage_g: float = 0.3,
                   enabled: bool = True) -> AccCalibration:
     """Per-axis gain and offset from still periods (extension; van Hees et al. 2014,

@@ -39,22 +39,6 @@ def _sosfilt_columns(sos, x, zi, out):
             out[i, n] = x_cur
 
 
-@njit(cache=True, nogil=True)
-def _sosfilt_rows(sos, x, zi, out):
-    """:func:`_sosfilt_columns` writing ``out[n, i]`` ((N, k) C-ordered output)."""
-    n_sections = sos.shape[0]
-    k = x.shape[1]
-    for n in range(x.shape[0]):
-        for i in range(k):
-            x_cur = x[n, i]
-            for s in range(n_sections):
-                x_new = sos[s, 0] * x_cur + zi[i, s, 0]
-                zi[i, s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[i, s, 1]
-                zi[i, s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-                x_cur = x_new
-            out[n, i] = x_cur
-
-
 def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None, order: str = "scipy"):
     """``scipy.signal.sosfilt(sos, x, axis=0, zi=zi)`` for float64 ``x`` of shape (N,) or (N, k): ``y``, or
     ``(y, zf)`` when ``zi`` is given (``zi`` shaped as SciPy wants it: (sections, 2) or (sections, 2, k)).
@@ -79,7 +63,7 @@ def sosfilt(sos: np.ndarray, x: np.ndarray, zi: np.ndarray | None = None, order:
         z = np.array(np.moveaxis(zi.reshape(n_sections, 2, -1), (0, 1), (-2, -1)), order="C", copy=True)
     if order == "C" and x.ndim == 2:
         y = np.empty((x2.shape[0], k))
-        _sosfilt_rows(sos, x2, z, y)
+        _sosfilt_columns(sos, x2, z, y.T)         # out[i, n] is y[n, i]
     else:
         out = np.empty((k, x2.shape[0]))
         _sosfilt_columns(sos, x2, z, out)

@@ -21,7 +21,7 @@ from scipy import signal
 
 from estimators.activity._kernels import acf_at_lag
 from estimators.activity import _window_kernels as WK
-from estimators.activity._signals import autocalibrate, calibration_from_windows
+from estimators.activity._signals import CALIBRATION_WINDOW_S, autocalibrate, calibration_from_windows
 from estimators.activity._sosfilt import sosfiltfilt
 
 __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows", "walking_reference",
@@ -88,7 +88,7 @@ def _calibrated_g(acc_m_s2: np.ndarray, fs: float, w: int | None):
     """``calibrated_g`` (``autocalibrate`` on its 10-s windows, bit for bit), and with ``w`` also the means of the
     calibrated acc over windows of ``w`` samples (None without)."""
     acc = np.ascontiguousarray(acc_m_s2, dtype=np.float64)
-    wc = int(round(10.0 * fs))          # autocalibrate's windows (its default window_s)
+    wc = int(round(CALIBRATION_WINDOW_S * fs))          # autocalibrate's windows
     if acc.ndim != 2 or acc.shape[1] != 3 or wc <= 0 or acc.shape[0] < wc:
         a = acc / G
         cal = autocalibrate(a, fs)
