@@ -118,21 +118,15 @@ def scaled_window_mean_std(acc, divisor, w):
     for i in range(n):
         for k in range(3):
             a[i, k] = acc[i, k] / divisor
-    nw = n // w
-    mean = np.empty((nw, 3))
-    std = np.empty((nw, 3))
-    for j in range(nw):
+    mean = window_mean(a, w)
+    std = np.empty_like(mean)
+    for j in range(mean.shape[0]):
         b = j * w
         for k in range(3):
-            s = 0.0
-            for i in range(b, b + w):
-                s += a[i, k]
-            m = s / w
             q = 0.0
             for i in range(b, b + w):
-                d = a[i, k] - m
+                d = a[i, k] - mean[j, k]
                 q += d * d
-            mean[j, k] = m
             std[j, k] = np.sqrt(q / w)
     return a, mean, std
 
