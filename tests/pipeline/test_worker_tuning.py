@@ -51,6 +51,8 @@ def probe(kind: str):
     if kind == "blas":
         from threadpoolctl import threadpool_info
         return sorted({d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"})
+    if kind == "ingest_loaded":           # the worker's start imported the ingest modules (this module does not)
+        return "pipeline.ingest" in sys.modules
     if kind == "touch":                   # touch 400 MB, free it, report the RSS while holding it
         a = np.ones(400 << 17)
         held = _rss_mb()
@@ -77,6 +79,20 @@ def test_local_engine_workers_serve_large_arrays_from_the_heap():
     finally:
         eng.close()
     assert out == {0: True, 1: True}        # M_MMAP_MAX = 0: no mmap of their own
+
+
+def test_local_engine_starts_its_workers_before_the_first_task():
+    """``start`` spawns every worker at once (a pool spawns one per task submitted while none is idle), and each
+    imports the ingest modules as it starts, so the first file does not wait for them."""
+    out = []
+    eng = LocalEngine(2)
+    try:
+        eng.start()
+        assert len(eng.pool._processes) == 2
+        eng.run_all(probe, [("ingest_loaded",)], lambda it, r: out.append(r))
+    finally:
+        eng.close()
+    assert out == [True]
 
 
 def test_dask_workers_task_thread_serves_large_arrays_from_the_heap():
