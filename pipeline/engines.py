@@ -58,7 +58,7 @@ class LocalEngine:
 
     def start(self) -> None:
         """Start the worker processes now (a pool starts one per task submitted while none is idle), so that they
-        start and import while the coordinator opens the warehouse and lists the inbox."""
+        start and import while the coordinator opens the warehouse (``runner.run``)."""
         if self.jobs > 1 and self.pool is None:
             self.pool = self._new_pool()
             for _ in range(self.jobs):
