@@ -100,3 +100,41 @@ def test_no_finite_pair_is_refused():
     q = np.full((10, 4), np.nan)
     with pytest.raises(ValueError, match="no finite quaternion"):
         segment_alignment(q, np.tile([1.0, 0, 0, 0], (10, 1)))
+
+
+def _scatter_case(seed: int, n: int = 400):
+    from estimators.orientation.evaluation import _Scatter
+    rng = np.random.default_rng(seed)
+    _, _, _, q_seg = _moving(n=n, seed=seed)
+    mount = quat_from_axis_angle(rng.normal(size=3), rng.uniform(0, np.pi))
+    heading = quat_from_axis_angle([0, 0, 1], rng.uniform(-np.pi, np.pi))
+    q_est = quat_mul(quat_mul(quat_mul(heading, q_seg), mount), quat_from_rotvec(rng.normal(0, 0.05, (n, 3))))
+    q_est[rng.choice(n, 10, replace=False)] = np.nan
+    return _Scatter(q_est, q_seg), rng
+
+
+def test_the_contraction_kernel_is_einsum_bit_for_bit():
+    """``_contract`` replaces ``np.einsum("ajbk,j,k->ab", ...)`` in the alternation's inner loop: identical values
+    and layout (Fortran order, as einsum returns it) on the tensors ``_Scatter`` forms."""
+    from estimators.orientation.evaluation import _contract
+    for seed in range(8):
+        sc, rng = _scatter_case(seed)
+        assert sc._kernel
+        for t in (sc._tm, sc._tp):
+            for c in [rng.normal(size=4) for _ in range(25)] + [np.array([0.6, -0.0, -0.0, -0.8])]:
+                ref = np.einsum("ajbk,j,k->ab", t, c, c)
+                out = _contract(t, c)
+                assert np.array_equal(out, ref) and out.strides == ref.strides
+
+
+def test_stacked_starts_equal_one_alternation_each_bit_for_bit():
+    """``segment_alignment`` runs its 12 starts together (one stacked ``eigh`` per step); each start's heading,
+    mounting and cost are those of its own ``_alternate``, to the last bit, including starts that stop early."""
+    from estimators.orientation.evaluation import _alternate, _alternate_many
+    for seed in range(6):
+        sc, _ = _scatter_case(seed)
+        starts = [np.array([np.cos(a), 0.0, 0.0, np.sin(a)]) for a in np.pi * np.arange(12) / 12]
+        together = _alternate_many(sc, starts, 40)
+        for start, (h, m, c) in zip(starts, together):
+            h1, m1, c1 = _alternate(sc, start, 40)
+            assert np.array_equal(h, h1) and np.array_equal(m, m1) and c == c1
