@@ -14,7 +14,6 @@ import hashlib
 import json
 import os
 import socket
-import threading
 import time
 import traceback
 import uuid
@@ -458,17 +457,11 @@ def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stage
         # the coordinator runs small statements one after another: DuckDB's own worker threads only add
         # scheduling to each (~20 % of a commit's CPU), and the cores belong to the pipeline's workers
         wh.con.execute("SET threads = 1")
-        # the stage modules (and the SciPy/estimators modules they import: ~0.8 CPU-s) load while the files
-        # ingest, not between the ingest and the first stages, when the workers would wait for them
-        preload = threading.Thread(target=registry, name="stridelab-stage-import", daemon=True)
-        if stages:
-            preload.start()
         try:
             publisher = _Publisher(wh)
             ingest_files(wh, todo, ex, summary, on_progress, on_phase, ingest_options, replace=replace or (),
                          publisher=publisher)
             if stages:
-                preload.join()
                 run_stages(wh, run_id, ex, summary, on_progress, on_phase=on_phase, publisher=publisher)
             if stages and build_report is not None and reports_dir is not None:
                 # on the local engine's workers (already started, imports done); a Dask cluster's

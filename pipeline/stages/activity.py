@@ -12,9 +12,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from estimators.activity import CLASSES, PRESETS, TRANSITIONS, daily_summaries
-from estimators.activity._daily import local_midnights_ns
-from pipeline.activity_model import classify_recording
 from pipeline.stages import SessionInput, Stage, StageOutput
 from warehouse.read import read_column_range, series_rows
 
@@ -43,6 +40,7 @@ def _pieces(root: str, path: str, n: int, fs: float, tz: str) -> list[tuple[int,
     """[start, stop) sample ranges: the whole recording, or its local calendar days when it is long."""
     if n / fs <= DAY_PIECES_ABOVE_S:
         return [(0, n)]
+    from estimators.activity._daily import local_midnights_ns
     t = read_column_range(root, path, ("t_ns",), dtype=np.int64)
     cuts = [int(np.searchsorted(t, b)) for _, _, b in local_midnights_ns(int(t[0]), int(t[-1]), tz)[:-1]]
     del t
@@ -51,6 +49,10 @@ def _pieces(root: str, path: str, n: int, fs: float, tz: str) -> list[tuple[int,
 
 
 def compute(inp: SessionInput, params: dict) -> StageOutput:
+    # imported here, in the worker: the coordinator reads the stage's declaration only (this module is in its
+    # registry), and estimators.activity brings SciPy's signal package (~0.7 CPU-s of imports per run)
+    from estimators.activity import CLASSES, PRESETS, TRANSITIONS, daily_summaries
+    from pipeline.activity_model import classify_recording
     if params["preset"] not in PRESETS:
         raise ValueError(f"unknown activity preset '{params['preset']}'; choose one of {', '.join(PRESETS)}")
     s = inp.session
