@@ -8,6 +8,7 @@ run; the prediction of a window is the majority of its seconds' classes.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 __all__ = ["SCORED_CLASSES", "CLASS_MAP", "WINDOW_S", "window_confusion", "scores"]
 
@@ -35,16 +36,44 @@ def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, co
     w = window_samples(fs, window_s)
     if first_sample % w:
         raise ValueError(f"first_sample {first_sample} is not a multiple of the {w}-sample window")
-    sec = (np.arange(first_sample, first_sample + n) / fs).astype(np.int64)
-    sec = np.minimum(sec, second_class.shape[0] - 1)
     C = np.zeros((4, 4), dtype=np.int64)
-    for i in range(0, n - w + 1, w):
-        lab = labels[i:i + w]
-        if (lab != lab[0]).any() or int(lab[0]) not in code_to_class:
-            continue
-        pred = np.bincount(CLASS_MAP[second_class[sec[i:i + w]]], minlength=4).argmax()
-        C[code_to_class[int(lab[0])], pred] += 1
+    n_w = n // w                                      # whole windows; a partial last one is not scored
+    if n_w == 0 or second_class.shape[0] == 0:
+        return C
+    codes, inv = np.unique(labels[:n_w * w:w], return_inverse=True)           # each window's first label
+    ref = np.array([code_to_class.get(int(c), -1) for c in codes], dtype=np.int64)[inv.ravel()]
+    _confusion(np.ascontiguousarray(second_class, dtype=np.int64), np.ascontiguousarray(labels), ref, w, float(fs),
+               int(first_sample), C)
     return C
+
+
+@njit(cache=True)
+def _confusion(second_class, labels, ref, w, fs, first_sample, C):
+    """Add each window's (reference, majority prediction) to ``C``: windows whose labels are all equal and
+    whose class ``ref`` is scored; a sample's second is ⌊(first_sample + i) / fs⌋ (capped at the last second),
+    a tie in the vote goes to the first class."""
+    last = second_class.shape[0] - 1
+    votes = np.zeros(4, dtype=np.int64)
+    for k in range(ref.shape[0]):
+        if ref[k] < 0:
+            continue
+        a = k * w
+        same = True
+        for i in range(a + 1, a + w):
+            if labels[i] != labels[a]:
+                same = False
+                break
+        if not same:
+            continue
+        votes[:] = 0
+        for i in range(a, a + w):
+            sec = min(int((first_sample + i) / fs), last)
+            votes[CLASS_MAP[second_class[sec]]] += 1
+        pred = 0
+        for c in range(1, 4):
+            if votes[c] > votes[pred]:
+                pred = c
+        C[ref[k], pred] += 1
 
 
 def scores(C: np.ndarray) -> dict:

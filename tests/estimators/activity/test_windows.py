@@ -149,6 +149,40 @@ def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
         window_confusion(second_class, labels[1:], fs, code_to_class, first_sample=1)
 
 
+def _literal_window_confusion(second_class, labels, fs, code_to_class, first_sample=0):
+    """The scorer's definition written window by window (as it was before the numba kernel)."""
+    from estimators.activity.evaluation import CLASS_MAP, window_samples
+    n, w = labels.shape[0], window_samples(fs)
+    sec = np.minimum((np.arange(first_sample, first_sample + n) / fs).astype(np.int64), second_class.shape[0] - 1)
+    C = np.zeros((4, 4), dtype=np.int64)
+    for i in range(0, n - w + 1, w):
+        lab = labels[i:i + w]
+        if (lab != lab[0]).any() or int(lab[0]) not in code_to_class:
+            continue
+        C[code_to_class[int(lab[0])], np.bincount(CLASS_MAP[second_class[sec[i:i + w]]], minlength=4).argmax()] += 1
+    return C
+
+
+def test_window_confusion_equals_its_window_by_window_definition():
+    """Label runs starting and ending inside windows, unscored codes, a partial last window, seconds past the
+    prediction's end, ties in the vote (constant-class runs of 5 s over 10-s windows), slices."""
+    from estimators.activity.evaluation import window_confusion, window_samples
+    rng = np.random.default_rng(0)
+    for t in range(200):
+        fs = float(rng.choice([20.0, 26.0, 50.0, 100.0, 12.5]))
+        n = int(rng.integers(0, 20000))
+        n_sec = max(1, int(n / fs) + int(rng.integers(-3, 3)) + 1)
+        second_class = (np.repeat(rng.integers(0, 7, n_sec // 5 + 1), 5)[:n_sec] if t % 3 == 0
+                        else rng.integers(0, 7, n_sec))
+        labels = np.full(n, -1, np.int64)
+        for i, c in enumerate(np.sort(rng.integers(0, max(n, 1), 4))):
+            labels[c:c + int(rng.integers(0, 5000))] = i
+        code_to_class = {i: int(rng.integers(0, 4)) for i in range(4) if rng.random() < 0.8}
+        first = int(rng.integers(0, 3)) * window_samples(fs)
+        assert np.array_equal(window_confusion(second_class, labels, fs, code_to_class, first_sample=first),
+                              _literal_window_confusion(second_class, labels, fs, code_to_class, first))
+
+
 def test_periodogram_and_regularity_match_their_reference_definitions():
     """The band powers and peak frequency of the fast periodogram equal those of scipy.signal.periodogram (both
     detrends, even and odd nfft) and the regularity kernel equals the direct normalised autocorrelation,
