@@ -95,6 +95,41 @@ def test_local_engine_starts_its_workers_before_the_first_task():
     assert out == [True]
 
 
+class _MarksTeardown:
+    """Writes its file when the interpreter's teardown clears the module that holds it."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def __del__(self, _open=open):           # builtins may be gone when the teardown gets here
+        with _open(self.path, "w") as f:
+            f.write("torn down")
+
+
+_held = []
+
+
+def _hold_until_teardown(path: str) -> bool:
+    _held.append(_MarksTeardown(path))
+    return True
+
+
+def test_local_engine_workers_exit_without_the_interpreter_teardown(tmp_path):
+    """A pool worker leaves by ``os._exit`` from an exit handler (pipeline/engines.py ``_exit_now``): an object
+    a task left in a module global is never finalised, and ``close`` does not wait for a teardown. Checked by
+    its effect, not by time: in a plain spawned worker the same object is finalised at exit."""
+    out = []
+    eng = LocalEngine(2)
+    try:
+        eng.run_all(_hold_until_teardown, [(str(tmp_path / "engine"),)], lambda it, r: out.append(r))
+    finally:
+        eng.close()
+    assert out == [True] and not (tmp_path / "engine").exists()
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+        assert pool.submit(_hold_until_teardown, str(tmp_path / "plain")).result()
+    assert (tmp_path / "plain").read_text() == "torn down"
+
+
 def test_dask_workers_task_thread_serves_large_arrays_from_the_heap():
     """A Dask worker's task thread exists before its first task: only MALLOC_ARENA_MAX at the worker's
     start keeps it on the main heap (pipeline/engines.py)."""
