@@ -21,6 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import xxhash
 
 from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
 from pipeline import supersede
@@ -60,7 +61,8 @@ class Prepared:
     end_ns: int | None = None
     n_samples: int = 0
     ignored_topics: list[str] = field(default_factory=list)
-    sample_hash: str = ""                    # sha256 over the decoded samples of every topic (re-export check)
+    sample_hash: str = ""                    # XXH3-128 over the decoded samples of every topic (re-export check)
+    legacy_sample_hash: str = ""             # their SHA-256 identity of before, when asked for (IngestOptions)
 
 
 def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
@@ -135,6 +137,9 @@ class IngestOptions:
     TOPIC=PLACEMENT``) applied to every recording of the run."""
     session: dict[str, str] = field(default_factory=dict)
     topic_map: dict[str, str] = field(default_factory=dict)
+    #: also compute the samples' SHA-256 identity that recordings ingested before the XXH3 one carry (set by
+    #: the coordinator, :func:`pipeline.runner.ingest_files`, when the warehouse holds any)
+    legacy_sample_hash: bool = False
 
 
 #: IMU clocks whose offsets to the host clock (median log_time - header.stamp) differ by more than
@@ -236,7 +241,7 @@ def _prepare(path, root, options) -> Prepared:
                 continue
             s = states.get(b.topic)
             if s is None:
-                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(root))
+                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(root), options.legacy_sample_hash)
             s.add(b)
         out.content_hash = res.sha256
         if custom is None:
@@ -307,7 +312,10 @@ def _prepare(path, root, options) -> Prepared:
         out.start_ns = min(s.t0 for s in imu)
         out.end_ns = max(s.last_t for s in imu)
         out.ignored_topics = sorted(set(out.ignored_topics) | set(res.ignored_topics))
-        out.sample_hash = sample_hash({placement_of[t]: s for t, s in ((s.topic, s) for s in mapped.values())})
+        by_key = {placement_of[t]: s for t, s in ((s.topic, s) for s in mapped.values())}
+        out.sample_hash = sample_hash(by_key)
+        if options.legacy_sample_hash:
+            out.legacy_sample_hash = legacy_sample_hash(by_key)
         for e in out.events:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
@@ -342,15 +350,40 @@ def _content_hash(path: Path) -> str:
     return _sha256(path)
 
 
+#: prefix of the sample hashes (``recordings.sample_hash``) by :func:`sample_hash`; the earlier ones are 64 hex
+#: digits of SHA-256 without a prefix (:func:`legacy_sample_hash`)
+SAMPLE_HASH_PREFIX = "xxh3-128:"
+
+
 def sample_hash(series: dict) -> str:
     """Identity of a recording by content: the same samples exported again (another file name, writer,
     chunking, compression or topic names) give the same hash. ``series``: (placement, series name) ->
-    TopicSeries; hashed in key order over each series' header stamps and values."""
-    h = hashlib.sha256()
+    TopicSeries; hashed in key order over each series' header stamps and values (XXH3-128 digests).
+
+    It finds re-exports, nothing more: the file's identity (``content_hash``) stays SHA-256 of its bytes,
+    which anyone can check with ``sha256sum``. A non-cryptographic 128-bit hash cannot collide by accident
+    (2^-128 per pair); a file made to collide on purpose would only be reported as a re-export, not ingested."""
+    h = xxhash.xxh3_128()
     for key in sorted(series):
         s = series[key]
         h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + s.stamp_digest.digest() + s.value_digest.digest())
+    return SAMPLE_HASH_PREFIX + h.hexdigest()
+
+
+def legacy_sample_hash(series: dict) -> str:
+    """The samples' identity as recordings ingested before :data:`SAMPLE_HASH_PREFIX` carry it (SHA-256 over
+    the same fields); needs series created with ``legacy_digest=True``."""
+    h = hashlib.sha256()
+    for key in sorted(series):
+        s = series[key]
+        h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + s.legacy[0].digest() + s.legacy[1].digest())
     return h.hexdigest()
+
+
+def has_legacy_sample_hashes(con) -> bool:
+    """Whether the catalog holds recordings with a sample hash of before :data:`SAMPLE_HASH_PREFIX`."""
+    return first(con.execute("SELECT 1 FROM recordings WHERE sample_hash IS NOT NULL AND NOT starts_with("
+                             "sample_hash, ?) LIMIT 1", [SAMPLE_HASH_PREFIX])) is not None
 
 
 def _sha256(path: Path) -> str:
@@ -395,11 +428,13 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
         if prev is not None:
             return CommitResult("duplicate", f"{p.file_name}: already {prev[0]} (same content), nothing changed")
         if not wh.has_column("recordings", "sample_hash"):
-            p.sample_hash = ""          # a catalog before migration 009 (only tests open one without migrating)
+            p.sample_hash = p.legacy_sample_hash = ""   # a catalog before migration 009 (only tests open one
+            #                                             without migrating)
         old = supersede.previous_versions(con, p) if p.status == "ingested" and replace else []
         if p.status == "ingested" and not replace and p.sample_hash:
-            same = first(con.execute("SELECT file_name, session_id FROM recordings WHERE sample_hash = ? "
-                                     "AND status = 'ingested'", [p.sample_hash]))
+            same = first(con.execute("SELECT file_name, session_id FROM recordings WHERE sample_hash IN (?, ?) "
+                                     "AND status = 'ingested'", [p.sample_hash,
+                                                                 p.legacy_sample_hash or p.sample_hash]))
             if same is not None:
                 reason = (f"same samples as {same[0]} (session {same[1]}), ingested before: a re-export, not "
                           f"ingested again; to correct that recording, rerun with --replace {p.file_name}")

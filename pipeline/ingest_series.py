@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import xxhash
 from numba import njit
 
 from pipeline.formats.mcap_read import Block
@@ -214,7 +215,7 @@ class TopicSeries:
     most two slices in flight), whose errors surface at the next :meth:`add` or at :meth:`finish`.
     """
 
-    def __init__(self, topic: str, kind: str, root: Path):
+    def __init__(self, topic: str, kind: str, root: Path, legacy_digest: bool = False):
         self.topic, self.kind, self.root = topic, kind, Path(root)
         # reading side (the caller's thread)
         self.buf: list[_Piece] = []
@@ -244,8 +245,11 @@ class TopicSeries:
         self.batch_size = 1.0
         self.batch_thresh = 0
         # the stored samples (not the file bytes) identify a recording (ingest.sample_hash); stamps and
-        # values hashed apart, so that where the writes cut the stream does not matter
-        self.stamp_digest, self.value_digest = hashlib.sha256(), hashlib.sha256()
+        # values hashed apart, so that where the writes cut the stream does not matter. XXH3-128 (~25 GB/s
+        # here against SHA-256's 1.8 with the CPU's SHA extensions: 0.27 CPU-s per 24 h day); the SHA-256
+        # digests of the samples' earlier identity only where the warehouse still holds such (``legacy_digest``)
+        self.stamp_digest, self.value_digest = xxhash.xxh3_128(), xxhash.xxh3_128()
+        self.legacy = (hashlib.sha256(), hashlib.sha256()) if legacy_digest else None
         self._pool: ThreadPoolExecutor | None = None
         self._pending: list[Future] = []
 
@@ -361,9 +365,15 @@ class TopicSeries:
         if self.t0 is None:
             self.t0 = int(t[0])
         self.n += len(t)
-        self.stamp_digest.update(np.ascontiguousarray(t, dtype=np.int64))
+        stamps = np.ascontiguousarray(t, dtype=np.int64)
+        self.stamp_digest.update(stamps)
+        if self.legacy is not None:
+            self.legacy[0].update(stamps)
         for v in vs:                       # row-major, as always; block by block (in cache)
-            self.value_digest.update(np.ascontiguousarray(v, dtype=np.float64))
+            rows = np.ascontiguousarray(v, dtype=np.float64)
+            self.value_digest.update(rows)
+            if self.legacy is not None:
+                self.legacy[1].update(rows)
         if self.kind == "mag":
             vs = [v * 1e6 for v in vs]     # tesla on the wire -> µT in the warehouse
         schema = SCHEMAS[self.kind]

@@ -159,6 +159,8 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
     """Ingest ``files``; those also in ``replace`` supersede the recordings they correct (``--replace``)."""
     publisher = publisher or _Publisher(wh)
     replacing = {str(Path(f).resolve()) for f in replace}
+    if wh.has_column("recordings", "sample_hash") and ingest_mod.has_legacy_sample_hashes(wh.con):
+        options = dict(options or {}, legacy_sample_hash=True)     # re-exports of recordings hashed before XXH3
     todo, seen = [], set()
     for f in files:
         f = Path(f)

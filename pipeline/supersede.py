@@ -16,8 +16,9 @@ _NOT_OUTPUTS = {"recordings", "stage_runs", "sessions", "reference_events"}
 def previous_versions(con, p) -> list[tuple[str, str, str]]:
     """(content_hash, file_name, session_id) of the ingested recordings ``p`` supersedes."""
     return con.execute("SELECT content_hash, file_name, session_id FROM recordings WHERE status = 'ingested' "
-                       "AND content_hash <> ? AND ((? <> '' AND sample_hash = ?) OR file_name = ?) ORDER BY 1",
-                       [p.content_hash, p.sample_hash, p.sample_hash, p.file_name]).fetchall()
+                       "AND content_hash <> ? AND ((? <> '' AND sample_hash IN (?, ?)) OR file_name = ?) ORDER BY 1",
+                       [p.content_hash, p.sample_hash, p.sample_hash, p.legacy_sample_hash or p.sample_hash,
+                        p.file_name]).fetchall()
 
 
 def sessions_emptied(con, old: list[tuple[str, str, str]]) -> set[str]:

@@ -105,3 +105,35 @@ def test_replace_of_the_only_recording_of_a_session_removes_the_session_and_its_
     assert _q(wh, "SELECT participant_id FROM participants") == [("P007",)]
     assert _q(wh, "SELECT DISTINCT session_id FROM orientation") == [("P007-lab-1",)]
     assert _q(wh, "SELECT DISTINCT session_id FROM stage_state") == [("P007-lab-1",)]
+
+
+#: ``recordings.sample_hash`` of ``small_recording(seconds=4)`` as the code before the XXH3 identity stored it
+#: (SHA-256, computed with commit 2729324's ``ingest.sample_hash``): warehouses ingested then hold such values
+LEGACY_SAMPLE_HASH_4S = "7c0fe591af53942146044943e42f8948fbe68059cd791161b7157a5aa905ba8e"
+
+
+def test_re_exports_of_recordings_hashed_before_xxh3_are_still_found_and_replaceable(tmp_path):
+    from pipeline import ingest
+    from warehouse.catalog import Warehouse
+    rec = small_recording(seconds=4)
+    a = write_recording(rec, tmp_path / "a.mcap")
+    b = write_recording(replace(rec, metadata=dict(rec.metadata, protocol="test-v2")), tmp_path / "b.mcap")
+    wh = tmp_path / "wh"
+    runner.run(wh, None, files=[a], stages=False)
+    [(h,)] = _q(wh, "SELECT sample_hash FROM recordings")
+    assert h.startswith(ingest.SAMPLE_HASH_PREFIX) and len(h) == len(ingest.SAMPLE_HASH_PREFIX) + 32
+    with Warehouse.open(wh) as w:
+        assert not ingest.has_legacy_sample_hashes(w.con)        # a new warehouse: no SHA-256 pass at ingest
+    p = ingest.prepare(a, tmp_path / "scratch", {"legacy_sample_hash": True})
+    assert (p.sample_hash, p.legacy_sample_hash) == (h, LEGACY_SAMPLE_HASH_4S)
+    # the warehouse as the earlier code left it
+    with Warehouse.open(wh) as w:
+        w.con.execute("UPDATE recordings SET sample_hash = ?", [LEGACY_SAMPLE_HASH_4S])
+        w.publish_snapshot()
+        assert ingest.has_legacy_sample_hashes(w.con)
+    s = runner.run(wh, None, files=[b], stages=False)
+    assert not s.ingested and len(s.reexports) == 1 and "same samples as a.mcap" in s.reexports[0]
+    s = runner.run(wh, None, files=[b], stages=False, replace=[b])
+    assert len(s.ingested) == 1, s.messages
+    assert _q(wh, "SELECT file_name, status FROM recordings ORDER BY 1") == [("a.mcap", "superseded"),
+                                                                            ("b.mcap", "ingested")]
