@@ -8,20 +8,37 @@ gets quality indicators and a pass / warn / fail status.
     from estimators.calibration import calibrate_session
     cal = calibrate_session(acc, gyr, sampling_rate_hz=100.0)     # dicts placement -> (N, 3)
     q_thigh_af = cal.segment_quat("thigh_left", q_thigh_sensor)
-"""
-from estimators.calibration._s2s import (CalibrationError, calibrate_imu, heading_calibration, pelvis_from_sway,
-                                         pelvis_from_thighs, vertical_calibration)
-from estimators.calibration._session import calibrate_session, missing_calibration, motion_plausibility
-from estimators.calibration._types import (LEG_PLACEMENTS, PRESETS, CalibrationParams, CalibrationWindows,
-                                           ImuCalibration, SessionCalibration)
-from estimators.calibration._windows import (count_cycles, count_repetitions, detect_calibration_windows,
-                                             first_quiet_standing)
-from estimators.calibration.alignment import (body_rate_from_quat, constant_offset_rotation,
-                                              imu_to_cluster_rotation, sync_by_angular_rate)
-from estimators.calibration.evaluation import helical_angle_deg
 
-__all__ = ["CalibrationError", "calibrate_imu", "heading_calibration", "pelvis_from_sway", "pelvis_from_thighs",
-           "vertical_calibration", "calibrate_session", "missing_calibration", "motion_plausibility",
-           "LEG_PLACEMENTS", "PRESETS", "CalibrationParams", "CalibrationWindows", "ImuCalibration",
-           "SessionCalibration", "count_cycles", "count_repetitions", "detect_calibration_windows", "first_quiet_standing", "body_rate_from_quat",
-           "constant_offset_rotation", "imu_to_cluster_rotation", "sync_by_angular_rate", "helical_angle_deg"]
+The names below load their submodule on first use (PEP 562): the pipeline's coordinator reads
+``CalibrationParams`` for a stage's default parameters without importing the estimators and SciPy's
+signal package behind them (0.7-0.9 s, with both workers waiting for the next stage level).
+"""
+import importlib
+
+_SUBMODULE = {
+    **dict.fromkeys(("CalibrationError", "calibrate_imu", "heading_calibration", "pelvis_from_sway",
+                     "pelvis_from_thighs", "vertical_calibration"), "_s2s"),
+    **dict.fromkeys(("calibrate_session", "missing_calibration", "motion_plausibility"), "_session"),
+    **dict.fromkeys(("LEG_PLACEMENTS", "PRESETS", "CalibrationParams", "CalibrationWindows", "ImuCalibration",
+                     "SessionCalibration"), "_types"),
+    **dict.fromkeys(("count_cycles", "count_repetitions", "detect_calibration_windows", "first_quiet_standing"),
+                    "_windows"),
+    **dict.fromkeys(("body_rate_from_quat", "constant_offset_rotation", "imu_to_cluster_rotation",
+                     "sync_by_angular_rate"), "alignment"),
+    "helical_angle_deg": "evaluation",
+}
+
+__all__ = list(_SUBMODULE)
+
+
+def __getattr__(name: str):
+    where = _SUBMODULE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
