@@ -22,7 +22,7 @@ import os
 import sys
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from typing import Callable
+from typing import Callable, Iterable
 
 from pipeline.lifeline import COORDINATOR_ENV, die_with_parent
 from pipeline.worker_tuning import run_task
@@ -80,10 +80,14 @@ class LocalEngine:
             for _ in range(self.jobs):
                 self.pool.submit(_ready)
 
-    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
-        """Call ``fn(*item)`` for each item; ``on_done(item, result_or_exception)`` runs in the coordinator."""
+    def run_all(self, fn: Callable, items: Iterable, on_done: Callable) -> None:
+        """Call ``fn(*item)`` for each item; ``on_done(item, result_or_exception)`` runs in the coordinator.
+
+        ``items`` may be a generator: the first items run while it produces the next ones (the runner builds
+        a stage task's inputs from the catalog, ~10 ms each, while the workers already compute), and it is
+        drained before the first ``on_done``, so producing an item never sees a result of the same call."""
         if self.jobs == 1:
-            for it in items:
+            for it in list(items):
                 try:
                     r = fn(*it)
                 except Exception as e:  # noqa: BLE001 - reported per item
@@ -92,20 +96,45 @@ class LocalEngine:
             return
         if self.pool is None:
             self.pool = self._new_pool()
-        attempts = [0] * len(items)
-        queue = list(range(len(items)))
+        source = iter(items)
+        got: list = []                  # items taken from ``source``, by index
+        attempts: list[int] = []
+        queue: list[int] = []           # indices to submit (retries first)
+        held: list[tuple[int, object]] = []     # results that arrived while ``source`` was not yet drained
+        drained = False
         pending: dict[Future, int] = {}
-        while queue or pending:
-            while queue and len(pending) < 2 * self.jobs:
+
+        def take() -> bool:
+            nonlocal drained
+            if drained:
+                return False
+            try:
+                it = next(source)
+            except StopIteration:
+                drained = True
+                return False
+            got.append(it)
+            attempts.append(0)
+            queue.append(len(got) - 1)
+            return True
+
+        while queue or pending or held or not drained:
+            while len(pending) < 2 * self.jobs and (queue or take()):
                 i = queue.pop(0)
                 attempts[i] += 1
                 try:
-                    pending[self.pool.submit(run_task, fn, *items[i])] = i
+                    pending[self.pool.submit(run_task, fn, *got[i])] = i
                 except BrokenProcessPool:
                     queue.insert(0, i)
                     attempts[i] -= 1
                     self._rebuild(pending, queue)
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            if not drained:
+                take()                  # the next item while the workers run; results are collected meanwhile
+                done = {f for f in pending if f.done()}
+            elif held or not pending:
+                done = set()
+            else:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
             broken = False
             for fut in done:
                 i = pending.pop(fut)
@@ -119,7 +148,11 @@ class LocalEngine:
                     r = TaskLost(f"worker process died {attempts[i]} times while running this task")
                 except Exception as e:  # noqa: BLE001
                     r = e
-                on_done(items[i], r)
+                held.append((i, r))
+            if drained:
+                for i, r in held:
+                    on_done(got[i], r)
+                held.clear()
             if broken:
                 self._rebuild(pending, queue)
 
@@ -179,8 +212,9 @@ class DaskEngine:
             self.client = Client(self.cluster)
         self.max_attempts = max_attempts
 
-    def run_all(self, fn: Callable, items: list, on_done: Callable) -> None:
+    def run_all(self, fn: Callable, items: Iterable, on_done: Callable) -> None:
         from dask.distributed import as_completed
+        items = list(items)
         if not items:
             return
         futs = {self.client.submit(run_task, fn, *it, pure=False, retries=self.max_attempts - 1): k

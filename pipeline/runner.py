@@ -302,23 +302,28 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
         sessions = [s for s in sessions if s[0] in only_sessions]
     failed_sessions: dict[str, str] = {}
     stages = registry()
+    by_name = {s.name: s for s in stages}
     for level in stage_levels(stages):
         batch, dispatch = [], {}
         for stage in level:
-            items, why = _plan_stage(wh, stage, stages, sessions, failed_sessions, summary)
-            if not items:
+            tasks, why = _plan_stage(wh, stage, stages, sessions, failed_sessions, summary)
+            if not tasks:
                 continue
 
             def done(item, res, stage=stage, why=why):
                 _commit_stage_result(wh, run_id, stage, why, item, res, failed_sessions, summary, on_progress)
                 publisher.due()
 
-            batch += items
+            batch += tasks
             dispatch[stage.name] = done
         # one pool pass per level: the stages of a level need nothing of each other, so a session's long
-        # activity day and other sessions' lab stages share the workers without a barrier between stages
+        # activity day and other sessions' lab stages share the workers without a barrier between stages.
+        # A task's inputs are read from the catalog as the pool takes it (the engine drains the generator
+        # before it commits any result of the level): the workers start on the first tasks meanwhile
         on_phase(" + ".join(dispatch), len(batch))
-        ex.run_all(_stage_task_4, _longest_first(batch), lambda item, res: dispatch[item[0]](item, res))
+        items = ((name, _session_inputs(wh, sid, by_name[name]), params, st)
+                 for name, sid, params, st in _longest_first(batch))
+        ex.run_all(_stage_task_4, items, lambda item, res: dispatch[item[0]](item, res))
         publisher.flush()
 
 
@@ -342,7 +347,8 @@ def _longest_first(items: list) -> list:
 
 def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, failed_sessions: dict,
                 summary: RunSummary) -> tuple[list, dict]:
-    """Tasks of ``stage`` for the sessions that want it and are stale, and why each runs."""
+    """Tasks ``(stage name, session id, params, stamp)`` of ``stage`` for the sessions that want it and are
+    stale, and why each runs."""
     items, why = [], {}
     for session_id, study, kind in sessions:
         wanted = why_wanted(stage, kind, study, stages)
@@ -359,7 +365,7 @@ def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, fail
             summary.skipped_fresh += 1
             continue
         why[session_id] = (ih, f"{wanted}; {_why_stale(wh, session_id, stage, params, ih, cur is not None)}")
-        items.append((stage.name, _session_inputs(wh, session_id, stage), params, st))
+        items.append((stage.name, session_id, params, st))
     return items, why
 
 
