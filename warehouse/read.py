@@ -89,7 +89,10 @@ def read_column_range(root, relpath: str, columns: tuple[str, ...], start: int =
     import pyarrow.parquet as pq
     src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
     try:
-        return _read_column_range(pq.ParquetFile(src), columns, start, stop, dtype)
+        # pre_buffer: a row group's column chunks in one coalesced read instead of one read each (the
+        # accelerometer of a 24 h chest day from the disk: 0.20-0.23 s and 0.10-0.12 CPU-s instead of 0.26-0.43 s
+        # and 0.13-0.28 CPU-s); still one row group at a time
+        return _read_column_range(pq.ParquetFile(src, pre_buffer=True), columns, start, stop, dtype)
     finally:
         if not isinstance(src, Path):
             src.close()
