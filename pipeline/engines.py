@@ -214,11 +214,15 @@ class DaskEngine:
 
     def run_all(self, fn: Callable, items: Iterable, on_done: Callable) -> None:
         from dask.distributed import as_completed
-        items = list(items)
-        if not items:
+        # each item submitted as it is produced (the cluster starts on it), results read once all are
+        # submitted: the same contract as LocalEngine.run_all
+        got, futs = [], {}
+        for it in items:
+            futs[self.client.submit(run_task, fn, *it, pure=False, retries=self.max_attempts - 1)] = len(got)
+            got.append(it)
+        if not got:
             return
-        futs = {self.client.submit(run_task, fn, *it, pure=False, retries=self.max_attempts - 1): k
-                for k, it in enumerate(items)}
+        items = got
         for fut in as_completed(list(futs)):
             k = futs[fut]
             try:

@@ -1,4 +1,4 @@
-"""The local engine takes its items from a generator while the first ones already run, and commits no result
+"""The engines take their items from a generator while the first ones already run, and commits no result
 before the generator is drained (pipeline/engines.py ``LocalEngine.run_all``; the runner builds each stage task's
 inputs from the catalog that way)."""
 from __future__ import annotations
@@ -6,7 +6,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from pipeline.engines import LocalEngine
+import pytest
+
+from pipeline.engines import DaskEngine, LocalEngine
 
 
 def _mark(path: str) -> str:
@@ -28,9 +30,10 @@ def _items(tmp_path: Path, done: list, seen: list):
     seen.append(len(done))
 
 
-def test_local_engine_runs_the_first_items_while_the_generator_produces_the_next(tmp_path):
+@pytest.mark.parametrize("engine", ["local", "dask"])
+def test_engines_run_the_first_items_while_the_generator_produces_the_next(tmp_path, engine):
     done, seen = [], []
-    eng = LocalEngine(2)
+    eng = LocalEngine(2) if engine == "local" else DaskEngine(2)
     try:
         eng.run_all(_mark, _items(tmp_path, done, seen), lambda it, r: done.append((it, r)))
     finally:
