@@ -363,20 +363,21 @@ def sample_hash(series: dict) -> str:
     It finds re-exports, nothing more: the file's identity (``content_hash``) stays SHA-256 of its bytes,
     which anyone can check with ``sha256sum``. A non-cryptographic 128-bit hash cannot collide by accident
     (2^-128 per pair); a file made to collide on purpose would only be reported as a re-export, not ingested."""
-    h = xxhash.xxh3_128()
-    for key in sorted(series):
-        s = series[key]
-        h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + s.stamp_digest.digest() + s.value_digest.digest())
-    return SAMPLE_HASH_PREFIX + h.hexdigest()
+    return SAMPLE_HASH_PREFIX + _combined(xxhash.xxh3_128(), series, lambda s: (s.stamp_digest, s.value_digest))
 
 
 def legacy_sample_hash(series: dict) -> str:
     """The samples' identity as recordings ingested before :data:`SAMPLE_HASH_PREFIX` carry it (SHA-256 over
     the same fields); needs series created with ``legacy_digest=True``."""
-    h = hashlib.sha256()
+    return _combined(hashlib.sha256(), series, lambda s: s.legacy)
+
+
+def _combined(h, series: dict, digests) -> str:
+    """``h`` over each series' key, kind and its (stamps, values) digests, in key order."""
     for key in sorted(series):
         s = series[key]
-        h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + s.legacy[0].digest() + s.legacy[1].digest())
+        stamps, values = digests(s)
+        h.update(f"{key[0]}\0{key[1]}\0{s.kind}\0".encode() + stamps.digest() + values.digest())
     return h.hexdigest()
 
 
