@@ -168,3 +168,162 @@ def open_for_read(path: str | os.PathLike, min_bytes: int):
         os.close(fd)
         return path
     return DirectFile(path, fd)
+
+
+#: bytes per O_DIRECT write of a series file (a multiple of :data:`ALIGN`); a file that never fills one block
+#: is written buffered, as before
+WRITE_BLOCK = 4 << 20
+
+
+class DirectWriteFile(io.RawIOBase):
+    """A write-only, sequential file object that bypasses the page cache once the file grows past one block.
+
+    Why: a buffered write of a large series file (a 24 h chest day: ~420 MB) puts every byte into new
+    page-cache pages before the disk sees it, and on the reference machine (a VM whose free memory goes back
+    to its host) each new page costs kernel time: ``dd`` of 416 MB took 0.58-1.19 CPU-s of system time
+    buffered and 0.06-0.09 s with ``O_DIRECT``, measured here. The file is dropped from the page cache after its
+    ``fsync`` anyway (:meth:`warehouse.store.SeriesWriter.commit`) and read back once, with ``O_DIRECT``.
+
+    How: writes collect in an aligned buffer of :data:`WRITE_BLOCK` bytes (allocated once the file reaches that
+    size: a small file is kept as the pieces written and written with one buffered ``write`` at :meth:`close`,
+    as before); the first full block opens an
+    ``O_DIRECT`` descriptor, and each full block is handed to one writer thread (``pwrite``) while the other one
+    fills (two blocks in all: the disk takes a block in a few milliseconds, the encoder fills it in ~30). :meth:`close` writes the tail padded to :data:`ALIGN` and truncates the file
+    to its length.
+    Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` at a write) the blocks go on buffered. The
+    bytes of the file are the same either way; durability is the caller's ``fsync``, as with any file.
+    ``direct`` tells whether any block went to the disk directly."""
+
+    def __init__(self, path: str | os.PathLike, block: int | None = None):
+        super().__init__()
+        block = WRITE_BLOCK if block is None else block
+        if block <= 0 or block % ALIGN:
+            raise ValueError(f"block must be a positive multiple of {ALIGN}")
+        self.name = str(path)
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_CLOEXEC", 0), 0o644)
+        self._dfd: int | None = None
+        self._block = block
+        self._small: list[bytes] = []       # a file's first bytes, until they fill a block
+        self._small_n = 0
+        self._free: list = []
+        self._cur = None                    # the block being filled (aligned), once there is one
+        self._fill = 0                      # bytes in self._cur
+        self._off = 0                       # file offset of self._cur[0]
+        self._pool = None
+        self._inflight: list = []
+        self._tried = False
+        self.direct = False
+
+    def writable(self) -> bool:
+        return True
+
+    @property
+    def uncached(self) -> bool:
+        """True while full blocks go to the disk past the page cache (an ``O_DIRECT`` descriptor is open)."""
+        return self._dfd is not None
+
+    def tell(self) -> int:
+        return self._off + self._fill + self._small_n
+
+    def write(self, b) -> int:
+        src = memoryview(b).cast("B")
+        n = len(src)
+        if self._cur is None:
+            if self._small_n + n < self._block:       # a small file never allocates a block
+                self._small.append(b if isinstance(b, bytes) else bytes(src))
+                self._small_n += n
+                return n
+            self._free = [aligned_buffer(self._block) for _ in range(2)]
+            self._cur = self._free.pop()
+            head, self._small, self._small_n = self._small, [], 0
+            for piece in head:
+                self._cur[self._fill:self._fill + len(piece)] = np.frombuffer(piece, np.uint8)
+                self._fill += len(piece)
+        done = 0
+        while done < n:
+            take = min(n - done, self._block - self._fill)
+            memoryview(self._cur)[self._fill:self._fill + take] = src[done:done + take]
+            self._fill += take
+            done += take
+            if self._fill == self._block:
+                self._put_block()
+        return n
+
+    def _put_block(self) -> None:
+        """Hand the full current block to the disk and start filling a free one."""
+        if not self._tried:
+            self._tried = True
+            o_direct = getattr(os, "O_DIRECT", 0)
+            if o_direct:
+                try:
+                    self._dfd = os.open(self.name, os.O_WRONLY | o_direct | getattr(os, "O_CLOEXEC", 0))
+                except OSError:
+                    self._dfd = None                 # no O_DIRECT on this file system: buffered
+            if self._dfd is not None:
+                from concurrent.futures import ThreadPoolExecutor
+                self._pool = ThreadPoolExecutor(1, thread_name_prefix="direct-write")
+        buf, off = self._cur, self._off
+        if self._pool is None:
+            self._pwrite_direct(buf, self._block, off)          # buffered: no O_DIRECT descriptor
+        else:
+            while not self._free:
+                self._free.append(self._wait_oldest())
+            self._inflight.append((self._pool.submit(self._pwrite_direct, buf, self._block, off), buf))
+            self._cur = self._free.pop()
+        self._off += self._block
+        self._fill = 0
+
+    def _pwrite_direct(self, buf, n: int, off: int) -> None:
+        """On the writer thread: ``n`` bytes of ``buf`` (aligned) at ``off``, directly if still possible."""
+        if self._dfd is not None:
+            try:
+                written = os.pwrite(self._dfd, buf[:n], off)
+            except OSError as e:
+                if e.errno != errno.EINVAL:
+                    raise
+                self._dfd_refused()
+            else:
+                if written == n:
+                    self.direct = True
+                    return
+                off, buf, n = off + written, buf[written:], n - written     # a short write: the rest buffered
+        while n:
+            written = os.pwrite(self._fd, buf[:n], off)
+            off, buf, n = off + written, buf[written:], n - written
+
+    def _dfd_refused(self) -> None:
+        fd, self._dfd = self._dfd, None
+        os.close(fd)
+
+    def _wait_oldest(self):
+        fut, buf = self._inflight.pop(0)
+        fut.result()
+        return buf
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        try:
+            while self._inflight:
+                self._free.append(self._wait_oldest())
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
+            if self._small:
+                data = b"".join(self._small)
+                self._small, self._small_n = [], 0
+                self._pwrite_direct(memoryview(data), len(data), 0)
+            n = self._fill
+            if n:
+                if self._dfd is not None:
+                    padded = -(-n // ALIGN) * ALIGN
+                    self._cur[n:padded] = 0
+                    self._pwrite_direct(self._cur, padded, self._off)
+                    os.ftruncate(self._fd, self._off + n)
+                else:
+                    self._pwrite_direct(self._cur, n, self._off)
+        finally:
+            if self._dfd is not None:
+                os.close(self._dfd)
+                self._dfd = None
+            os.close(self._fd)
+            super().close()

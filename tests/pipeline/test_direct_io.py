@@ -13,7 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from warehouse import direct_io, read
-from warehouse.direct_io import ALIGN, DirectFile, cached_fraction, open_for_read
+from warehouse.direct_io import ALIGN, DirectFile, DirectWriteFile, cached_fraction, open_for_read
 from tests.pipeline._page_cache import uncache as _uncache
 
 pytestmark = pytest.mark.skipif(not getattr(os, "O_DIRECT", 0), reason="the platform has no O_DIRECT")
@@ -126,3 +126,135 @@ def test_a_series_read_direct_equals_the_buffered_read(tmp_path, monkeypatch):
     if not any(isinstance(s, DirectFile) for s in opened):
         pytest.skip("O_DIRECT or cachestat(2) unavailable here: only the buffered path ran")
     assert all(s.closed for s in opened if isinstance(s, DirectFile))
+
+
+# ---- writes past the page cache (DirectWriteFile, used by warehouse.store.SeriesWriter) -------------------------
+
+def _pieces(data: bytes, rng) -> list[bytes]:
+    """``data`` cut at random places (pieces of 1 byte to 3 blocks), as a writer hands it over."""
+    out, i = [], 0
+    while i < len(data):
+        k = int(rng.integers(1, 3 * 4 * ALIGN))
+        out.append(data[i:i + k])
+        i += k
+    return out
+
+
+def _direct_refused(tmp_path) -> bool:
+    probe = tmp_path / ".probe"
+    probe.write_bytes(b"")
+    try:
+        os.close(os.open(probe, os.O_WRONLY | os.O_DIRECT))
+    except OSError:
+        return True
+    finally:
+        probe.unlink()
+    return False
+
+
+@pytest.mark.parametrize("size", [0, 1, 4 * ALIGN - 1, 4 * ALIGN, 4 * ALIGN + 1, 13 * 4 * ALIGN + 777])
+def test_a_direct_write_is_the_bytes_written(tmp_path, size):
+    """Blocks of 4 * ALIGN: a file below one block is written buffered at close; a larger one goes past the page
+    cache, block by block, and its tail is padded and truncated away."""
+    data = np.random.default_rng(size).integers(0, 256, size, dtype=np.uint8).tobytes()
+    f = DirectWriteFile(tmp_path / "out.bin", block=4 * ALIGN)
+    for piece in _pieces(data, np.random.default_rng(1)):
+        assert f.write(piece) == len(piece)
+    assert f.tell() == size
+    f.close()
+    f.close()                                            # idempotent
+    assert (tmp_path / "out.bin").read_bytes() == data
+    if size >= 4 * ALIGN and not _direct_refused(tmp_path):
+        assert f.direct
+    if size < 4 * ALIGN:
+        assert not f.direct
+
+
+def test_a_direct_write_leaves_the_file_out_of_the_page_cache(tmp_path):
+    if _direct_refused(tmp_path):
+        pytest.skip(f"{tmp_path} refuses O_DIRECT")
+    data = np.random.default_rng(5).integers(0, 256, 64 * ALIGN + 100, dtype=np.uint8).tobytes()
+    with DirectWriteFile(tmp_path / "out.bin", block=8 * ALIGN) as f:
+        f.write(data)
+    fd = os.open(tmp_path / "out.bin", os.O_RDONLY)
+    try:
+        frac = cached_fraction(fd, len(data))
+    finally:
+        os.close(fd)
+    if frac is None:
+        pytest.skip("cachestat(2) unavailable here")
+    assert frac <= 1 / 8                                 # the tail block at most (64 blocks went direct)
+    assert (tmp_path / "out.bin").read_bytes() == data
+
+
+def test_einval_at_a_write_or_a_refused_open_goes_on_buffered(tmp_path, monkeypatch):
+    data = np.random.default_rng(6).integers(0, 256, 10 * 4 * ALIGN + 5, dtype=np.uint8).tobytes()
+    real_pwrite, calls = os.pwrite, []
+
+    def pwrite(fd, buf, off):
+        calls.append(fd)
+        if len(calls) == 3:                              # the third block: a file system that refuses late
+            raise OSError(errno.EINVAL, "Invalid argument")
+        return real_pwrite(fd, buf, off)
+
+    monkeypatch.setattr(direct_io.os, "pwrite", pwrite)
+    with DirectWriteFile(tmp_path / "late.bin", block=4 * ALIGN) as f:
+        f.write(data)
+    assert (tmp_path / "late.bin").read_bytes() == data
+
+    real_open = os.open
+
+    def no_direct(path, flags, *a):
+        if flags & os.O_DIRECT:
+            raise OSError(errno.EINVAL, "Invalid argument")
+        return real_open(path, flags, *a)
+
+    monkeypatch.setattr(direct_io.os, "open", no_direct)
+    with DirectWriteFile(tmp_path / "never.bin", block=4 * ALIGN) as f:
+        for piece in _pieces(data, np.random.default_rng(7)):
+            f.write(piece)
+    assert not f.direct
+    assert (tmp_path / "never.bin").read_bytes() == data
+
+
+def test_a_series_file_written_direct_is_the_file_arrow_writes(tmp_path, monkeypatch):
+    """SeriesWriter's output is byte for byte the file pyarrow writes to a path with the same settings, and a
+    failed direct write (disk full) fails the write and leaves no file behind."""
+    from warehouse import store
+    monkeypatch.setattr(direct_io, "WRITE_BLOCK", 16 * ALIGN)
+    rng = np.random.default_rng(8)
+    n = 200_000
+    tab = pa.table({"t_ns": np.arange(n, dtype=np.int64) * 10_000_000, "acc_x": rng.normal(size=n),
+                    "acc_y": rng.normal(size=n)})
+    w = store.SeriesWriter(tmp_path, "series/a.parquet", tab.schema)
+    for i in range(0, n, 30_000):
+        w.write(tab.slice(i, 30_000))
+    w.commit()
+    if not _direct_refused(tmp_path):
+        assert w._sink.direct
+    ref = pq.ParquetWriter(tmp_path / "ref.parquet", tab.schema, compression={"t_ns": "zstd", "acc_x": "lz4",
+                           "acc_y": "lz4"}, compression_level=1, use_dictionary=False,
+                           column_encoding={"t_ns": "DELTA_BINARY_PACKED"}, write_statistics=["t_ns"])
+    for i in range(0, n, 30_000):
+        ref.write_table(tab.slice(i, 30_000), row_group_size=1 << 20)
+    ref.close()
+    assert (tmp_path / "series/a.parquet").read_bytes() == (tmp_path / "ref.parquet").read_bytes()
+
+    if _direct_refused(tmp_path):
+        return
+    real_pwrite = os.pwrite
+
+    def full(fd, buf, off):
+        if off > 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_pwrite(fd, buf, off)
+
+    monkeypatch.setattr(direct_io.os, "pwrite", full)
+    w = store.SeriesWriter(tmp_path, "series/full.parquet", tab.schema)
+    with pytest.raises(OSError, match="No space left"):
+        for i in range(0, n, 30_000):
+            w.write(tab.slice(i, 30_000))
+        w.commit()
+    w.abort()
+    assert not (tmp_path / "series/full.parquet").exists()
+    assert not [p for p in (tmp_path / "series").iterdir() if p.name.startswith(store.TMP_PREFIX)]
