@@ -173,6 +173,8 @@ def open_for_read(path: str | os.PathLike, min_bytes: int):
 #: bytes per O_DIRECT write of a series file (a multiple of :data:`ALIGN`); a file that never fills one block
 #: is written buffered, as before
 WRITE_BLOCK = 4 << 20
+#: seconds the writer waits for the disk to take a block before it writes the rest of the file buffered
+STALL_S = 1.0
 
 
 class DirectWriteFile(io.RawIOBase):
@@ -190,7 +192,9 @@ class DirectWriteFile(io.RawIOBase):
     ``O_DIRECT`` descriptor, and each full block is handed to one writer thread (``pwrite``) while the other one
     fills (two blocks in all: the disk takes a block in a few milliseconds, the encoder fills it in ~30). :meth:`close` writes the tail padded to :data:`ALIGN` and truncates the file
     to its length.
-    Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` at a write) the blocks go on buffered. The
+    Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` at a write) the blocks go on buffered, and so
+    do they once the disk has not taken a block for :data:`STALL_S` (a buffered write lets the page cache
+    absorb a stall of a shared disk; a direct one would hold up the encoder for as long). The
     bytes of the file are the same either way; durability is the caller's ``fsync``, as with any file.
     ``direct`` tells whether any block went to the disk directly."""
 
@@ -212,6 +216,7 @@ class DirectWriteFile(io.RawIOBase):
         self._pool = None
         self._inflight: list = []
         self._tried = False
+        self._stalled = False
         self.direct = False
 
     def writable(self) -> bool:
@@ -219,8 +224,9 @@ class DirectWriteFile(io.RawIOBase):
 
     @property
     def uncached(self) -> bool:
-        """True while full blocks go to the disk past the page cache (an ``O_DIRECT`` descriptor is open)."""
-        return self._dfd is not None
+        """True while full blocks go to the disk past the page cache (an ``O_DIRECT`` descriptor is open and the
+        disk keeps up)."""
+        return self._dfd is not None and not self._stalled
 
     def tell(self) -> int:
         return self._off + self._fill + self._small_n
@@ -263,13 +269,25 @@ class DirectWriteFile(io.RawIOBase):
                 from concurrent.futures import ThreadPoolExecutor
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="direct-write")
         buf, off = self._cur, self._off
-        if self._pool is None:
-            self._pwrite_direct(buf, self._block, off)          # buffered: no O_DIRECT descriptor
+        if self._pool is None or self._stalled:
+            self._pwrite_buffered(buf, self._block, off)        # no O_DIRECT descriptor, or the disk lagged
         else:
             while not self._free:
-                self._free.append(self._wait_oldest())
-            self._inflight.append((self._pool.submit(self._pwrite_direct, buf, self._block, off), buf))
-            self._cur = self._free.pop()
+                fut, oldest = self._inflight[0]
+                try:
+                    fut.result(timeout=STALL_S)
+                except TimeoutError:
+                    # the disk has not taken a block for STALL_S: the rest of the file goes through the page
+                    # cache, which absorbs a stall as it did before; the block in flight lands when it lands
+                    self._stalled = True
+                    break
+                self._inflight.pop(0)
+                self._free.append(oldest)
+            if self._stalled:
+                self._pwrite_buffered(buf, self._block, off)
+            else:
+                self._inflight.append((self._pool.submit(self._pwrite_direct, buf, self._block, off), buf))
+                self._cur = self._free.pop()
         self._off += self._block
         self._fill = 0
 
@@ -287,6 +305,9 @@ class DirectWriteFile(io.RawIOBase):
                     self.direct = True
                     return
                 off, buf, n = off + written, buf[written:], n - written     # a short write: the rest buffered
+        self._pwrite_buffered(buf, n, off)
+
+    def _pwrite_buffered(self, buf, n: int, off: int) -> None:
         while n:
             written = os.pwrite(self._fd, buf[:n], off)
             off, buf, n = off + written, buf[written:], n - written
@@ -314,13 +335,13 @@ class DirectWriteFile(io.RawIOBase):
                 self._pwrite_direct(memoryview(data), len(data), 0)
             n = self._fill
             if n:
-                if self._dfd is not None:
+                if self._dfd is not None and not self._stalled:
                     padded = -(-n // ALIGN) * ALIGN
                     self._cur[n:padded] = 0
                     self._pwrite_direct(self._cur, padded, self._off)
                     os.ftruncate(self._fd, self._off + n)
                 else:
-                    self._pwrite_direct(self._cur, n, self._off)
+                    self._pwrite_buffered(self._cur, n, self._off)
         finally:
             if self._dfd is not None:
                 os.close(self._dfd)

@@ -217,6 +217,32 @@ def test_einval_at_a_write_or_a_refused_open_goes_on_buffered(tmp_path, monkeypa
     assert (tmp_path / "never.bin").read_bytes() == data
 
 
+def test_a_disk_that_stops_taking_blocks_sends_the_rest_of_the_file_through_the_page_cache(tmp_path, monkeypatch):
+    if _direct_refused(tmp_path):
+        pytest.skip(f"{tmp_path} refuses O_DIRECT")
+    import threading
+    import time
+    monkeypatch.setattr(direct_io, "STALL_S", 0.05)
+    data = np.random.default_rng(9).integers(0, 256, 12 * 4 * ALIGN + 99, dtype=np.uint8).tobytes()
+    real_pwrite, direct_calls = os.pwrite, []
+
+    def slow(fd, buf, off):
+        if threading.current_thread().name.startswith("direct-write"):
+            direct_calls.append(off)
+            if len(direct_calls) == 1:
+                time.sleep(0.5)                          # the disk holds the first block
+        return real_pwrite(fd, buf, off)
+
+    monkeypatch.setattr(direct_io.os, "pwrite", slow)
+    f = DirectWriteFile(tmp_path / "stall.bin", block=4 * ALIGN)
+    for piece in _pieces(data, np.random.default_rng(10)):
+        f.write(piece)
+    assert f._stalled and not f.uncached                 # went buffered while the first block was held
+    f.close()
+    assert len(direct_calls) <= 2                        # the held block and at most the one queued behind it
+    assert (tmp_path / "stall.bin").read_bytes() == data
+
+
 def test_a_series_file_written_direct_is_the_file_arrow_writes(tmp_path, monkeypatch):
     """SeriesWriter's output is byte for byte the file pyarrow writes to a path with the same settings, and a
     failed direct write (disk full) fails the write and leaves no file behind."""
