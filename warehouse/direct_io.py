@@ -1,4 +1,6 @@
-"""Positional reads of a large series file that bypass the page cache when the file is not cached already.
+"""Reads and writes of large series files that bypass the page cache (writes: :class:`DirectWriteFile`, below).
+
+Reads, when the file is not cached already.
 
 Why: a committed series file of :data:`warehouse.store.UNCACHE_BYTES` or more is dropped from the page cache
 once it is on the disk, and is read back once, by one stage (the ``activity`` stage reads the accelerometer
@@ -22,6 +24,7 @@ import io
 import mmap
 import os
 import struct
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -186,16 +189,15 @@ class DirectWriteFile(io.RawIOBase):
     buffered and 0.06-0.09 s with ``O_DIRECT``, measured here. The file is dropped from the page cache after its
     ``fsync`` anyway (:meth:`warehouse.store.SeriesWriter.commit`) and read back once, with ``O_DIRECT``.
 
-    How: writes collect in an aligned buffer of :data:`WRITE_BLOCK` bytes (allocated once the file reaches that
-    size: a small file is kept as the pieces written and written with one buffered ``write`` at :meth:`close`,
-    as before); the first full block opens an
-    ``O_DIRECT`` descriptor, and each full block is handed to one writer thread (``pwrite``) while the other one
-    fills (two blocks in all: the disk takes a block in a few milliseconds, the encoder fills it in ~30). :meth:`close` writes the tail padded to :data:`ALIGN` and truncates the file
-    to its length.
-    Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` at a write) the blocks go on buffered, and so
-    do they once the disk has not taken a block for :data:`STALL_S` (a buffered write lets the page cache
-    absorb a stall of a shared disk; a direct one would hold up the encoder for as long). The
-    bytes of the file are the same either way; durability is the caller's ``fsync``, as with any file.
+    How: writes collect in an aligned buffer of :data:`WRITE_BLOCK` bytes, allocated once the file reaches that
+    size (a small file is kept as the pieces written and written with one buffered ``write`` at :meth:`close`, as
+    before). The first full block opens an ``O_DIRECT`` descriptor; each full block is handed to one writer thread
+    (``pwrite``) while the other one fills (two blocks in all: the disk takes a block in a few milliseconds, the
+    encoder fills it in ~30). :meth:`close` writes the tail padded to :data:`ALIGN` and truncates the file to its
+    length. Where ``O_DIRECT`` is refused (``open`` fails, or ``EINVAL`` at a write) the blocks go on buffered, and
+    so do they once the disk has not taken a block for :data:`STALL_S` (a buffered write lets the page cache absorb
+    a stall of a shared disk; a direct one would hold up the encoder for as long). The bytes of the file are the
+    same either way; durability is the caller's ``fsync``, as with any file.
     ``direct`` tells whether any block went to the disk directly."""
 
     def __init__(self, path: str | os.PathLike, block: int | None = None):
@@ -266,7 +268,6 @@ class DirectWriteFile(io.RawIOBase):
                 except OSError:
                     self._dfd = None                 # no O_DIRECT on this file system: buffered
             if self._dfd is not None:
-                from concurrent.futures import ThreadPoolExecutor
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="direct-write")
         buf, off = self._cur, self._off
         if self._pool is None or self._stalled:
@@ -327,8 +328,6 @@ class DirectWriteFile(io.RawIOBase):
         try:
             while self._inflight:
                 self._free.append(self._wait_oldest())
-            if self._pool is not None:
-                self._pool.shutdown(wait=True)
             if self._small:
                 data = b"".join(self._small)
                 self._small, self._small_n = [], 0
@@ -343,6 +342,9 @@ class DirectWriteFile(io.RawIOBase):
                 else:
                     self._pwrite_buffered(self._cur, n, self._off)
         finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)          # a failed write's siblings finish first
+                self._pool = None
             if self._dfd is not None:
                 os.close(self._dfd)
                 self._dfd = None
