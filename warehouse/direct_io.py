@@ -331,7 +331,7 @@ class DirectWriteFile(io.RawIOBase):
             if self._small:
                 data = b"".join(self._small)
                 self._small, self._small_n = [], 0
-                self._pwrite_direct(memoryview(data), len(data), 0)
+                self._pwrite_buffered(memoryview(data), len(data), 0)   # never reached a block: no O_DIRECT
             n = self._fill
             if n:
                 if self._dfd is not None and not self._stalled:
