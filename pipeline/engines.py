@@ -25,7 +25,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterable
 
 from pipeline.lifeline import COORDINATOR_ENV, die_with_parent
-from pipeline.worker_tuning import run_task
+from pipeline.worker_tuning import run_task, single_thread_env
 
 
 class TaskLost(RuntimeError):
@@ -33,10 +33,12 @@ class TaskLost(RuntimeError):
 
 
 def _start_worker(parent_pid: int) -> None:
-    """A pool worker's start: die with the coordinator (kill -9, OOM killer) instead of lingering, end without
+    """A pool worker's start: die with the coordinator (kill -9, OOM killer) instead of lingering, one BLAS
+    thread in every library it loads (``worker_tuning.single_thread_env``), end without
     the interpreter's teardown (:func:`_exit_now`), then import the ingest's modules (pyarrow, numba's cached
     kernels: ~1 s) before the first task arrives."""
     die_with_parent(parent_pid)
+    single_thread_env()
     atexit.register(_exit_now)
     try:
         import pipeline.ingest  # noqa: F401

@@ -26,9 +26,13 @@ next task. Elsewhere (macOS, musl) all of this does nothing.
 
 BLAS threads. A worker runs one task on one core beside the other workers, so OpenBLAS's own thread
 pools (NumPy's and SciPy's, one thread per core each) only spin-wait after every BLAS call, taking
-the core from the other worker. They are limited to one thread (``threadpoolctl``), as Dask's nanny
-does for its workers with ``OPENBLAS_NUM_THREADS=1``; the Dask and local engines' warehouses are
-compared identical by ``stridelab bench pipeline --compare-engines``.
+the core from the other worker. :func:`single_thread_env` sets ``OPENBLAS_NUM_THREADS=1`` (and the OpenMP
+and MKL equivalents) as a pool worker starts, as Dask's nanny does for its workers, so a BLAS library loaded
+later in the worker's life starts with one thread; :func:`limit_blas_threads` (``threadpoolctl``) limits the
+ones already loaded. The limit alone missed SciPy's own OpenBLAS, which the activity and orientation stages
+load only after the worker's first (ingest) task: its second thread spun after every ``lstsq`` and ``eigh``,
+~1.5 CPU-s of a 20-participant night (``perf``). The Dask and local engines' warehouses are compared
+identical by ``stridelab bench pipeline --compare-engines``.
 
 Garbage collector. After each task the objects still alive (modules, compiled kernels, caches) are
 collected once and frozen (:func:`gc.freeze`), so the collector's full passes during the next task
@@ -103,6 +107,15 @@ def release_memory(above: int = RELEASE_ABOVE_BYTES) -> bool:
     return True
 
 
+#: environment variables read by BLAS and OpenMP libraries as they load (set by :func:`single_thread_env`)
+SINGLE_THREAD_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def single_thread_env() -> None:
+    """One thread for every BLAS/OpenMP library this process loads from now on (see the module docstring)."""
+    os.environ.update(SINGLE_THREAD_ENV)
+
+
 def limit_blas_threads() -> None:
     """One thread for every BLAS/OpenMP library loaded in this process."""
     try:
@@ -125,6 +138,7 @@ def run_task(fn: Callable, *args):
     global _tuned
     if not _tuned:
         tune_allocator()
+        single_thread_env()
         limit_blas_threads()
         atexit.register(gc.unfreeze)
         _tuned = True

@@ -51,6 +51,10 @@ def probe(kind: str):
     if kind == "blas":
         from threadpoolctl import threadpool_info
         return sorted({d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"})
+    if kind == "blas_late":               # a BLAS library first loaded by a later task (SciPy's own OpenBLAS)
+        import scipy.linalg  # noqa: F401
+        from threadpoolctl import threadpool_info
+        return {d["filepath"]: d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
     if kind == "ingest_loaded":           # the worker's start imported the ingest modules (this module does not)
         return "pipeline.ingest" in sys.modules
     if kind == "touch":                   # touch 400 MB, free it, report the RSS while holding it
@@ -147,6 +151,26 @@ def test_without_tuning_a_large_array_is_a_separate_mapping():
     """The control: in a plain process glibc maps an array of this size on its own."""
     a = np.ones(BIG // 8)
     assert not _in_heap(a.ctypes.data)
+
+
+def test_a_blas_library_loaded_after_the_first_task_has_one_thread_too():
+    """SciPy loads its own OpenBLAS only when a stage imports scipy.linalg, after the limit of the first task."""
+    for probes in (_one_worker("rss", "blas_late"), _local_engine_worker("rss", "blas_late")):
+        libs = probes[1]
+        assert len(libs) >= 1
+        assert set(libs.values()) == {1}, libs
+
+
+def _local_engine_worker(*kinds):
+    """``probe(kind)`` for each kind in turn in the local engine's pool (its workers' own start)."""
+    out = []
+    eng = LocalEngine(2)
+    try:
+        for k in kinds:
+            eng.run_all(probe, [(k,)], lambda it, r: out.append(r))
+    finally:
+        eng.close()
+    return out
 
 
 def test_worker_has_one_blas_thread_and_freezes_survivors_after_a_task():
