@@ -115,6 +115,8 @@ def exit_code(summary) -> int:
 
 def _run_with_progress(**kw):
     """Run the pipeline with a progress bar per phase (ingest, then each level of stages) on stderr."""
+    from pipeline.engines import start_workers_early
+    start_workers_early(kw.get("engine", "local"), kw.get("jobs", 1), kw.get("scheduler"))   # before the imports below
     import duckdb
     from pipeline import runner
     from pipeline.console import UserError, err_console, progress

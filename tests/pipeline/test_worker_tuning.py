@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gc
 import multiprocessing as mp
+import subprocess
 import sys
 import threading
 from concurrent.futures import ProcessPoolExecutor
@@ -57,6 +58,10 @@ def probe(kind: str):
         return {d["filepath"]: d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
     if kind == "ingest_loaded":           # the worker's start imported the ingest modules (this module does not)
         return "pipeline.ingest" in sys.modules
+    if kind == "ready":                   # ... and what the first task would import or load before its first byte
+        from numba.core.registry import cpu_target
+        return ("pipeline.ingest" in sys.modules, "pandas" in sys.modules,
+                len(cpu_target.target_context._registries) > 1)
     if kind == "touch":                   # touch 400 MB, free it, report the RSS while holding it
         a = np.ones(400 << 17)
         held = _rss_mb()
@@ -97,6 +102,37 @@ def test_local_engine_starts_its_workers_before_the_first_task():
     finally:
         eng.close()
     assert out == [True]
+
+
+def test_workers_started_early_are_taken_over_by_the_run_and_ready():
+    """``start_workers_early`` (the CLI's ``run`` and the pipeline bench, before they import the runner) starts
+    the pool; the next ``make_engine`` of the same size takes it over, with its workers already spawned and past
+    the imports and registry loads of a first task."""
+    from pipeline import engines
+    assert engines._early is None
+    engines.start_workers_early("local", 2)
+    early = engines._early
+    out = []
+    try:
+        assert early is not None and len(early.pool._processes) == 2
+        eng = engines.make_engine("local", 2)
+        assert eng is early and engines._early is None
+        eng.run_all(probe, [("ready",)], lambda it, r: out.append(r))
+    finally:
+        early.close()
+        engines._early = None
+    assert out == [(True, True, True)]
+    engines.start_workers_early("local", 1)          # one job runs in the coordinator: nothing to start
+    engines.start_workers_early("dask", 2)
+    assert engines._early is None
+
+
+def test_the_engines_module_starts_workers_before_the_heavy_imports():
+    """Starting the workers early only helps if importing ``pipeline.engines`` itself is light."""
+    code = ("import sys, pipeline.engines; "
+            "print(sorted(m for m in ('numpy', 'duckdb', 'pyarrow', 'pandas', 'numba') if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert r.stdout.strip() == "[]"
 
 
 class _MarksTeardown:

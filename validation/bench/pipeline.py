@@ -38,7 +38,9 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
     t0 = time.perf_counter()
     # the run process's own peak is its VmHWM: ru_maxrss survives exec on Linux, so the child would report the
     # bench's resident size at fork time (6.8 GB after simulating a week in the bench process) as its own
-    code = ("import json, resource, sys; from pathlib import Path; from pipeline import runner; "
+    # the workers start before the runner's imports, as in `stridelab run` (pipeline.engines.start_workers_early)
+    code = ("import json, resource, sys; from pipeline.engines import start_workers_early; "
+            "start_workers_early(sys.argv[4], int(sys.argv[3])); from pathlib import Path; from pipeline import runner; "
             "s = runner.run(Path(sys.argv[1]), Path(sys.argv[2]), jobs=int(sys.argv[3]), engine=sys.argv[4]); "
             "hwm = [int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmHWM:')]; "
             "me, ch = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN); "
