@@ -20,6 +20,7 @@ heading offset; total and heading errors are relative to the trial's mean headin
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,11 +93,30 @@ def pooled_rmse(parts: list[OrientationError]) -> OrientationError:
     return OrientationError(pool("total_rmse_deg"), pool("heading_rmse_deg"), pool("inclination_rmse_deg"), n)
 
 
+try:        # the gufunc behind np.linalg.eigh for a real matrix (its default UPLO="L")
+    from numpy.linalg._umath_linalg import eigh_lo as _EIGH_LO
+except ImportError:  # pragma: no cover - a NumPy without it takes the public call
+    _EIGH_LO = None
+
+
+def _eigh(a: np.ndarray):
+    """``np.linalg.eigh(a)`` for float64 ``a`` (4, 4) or (k, 4, 4), bit for bit: the gufunc it calls, with the
+    signature it passes (``d->dd``), without its argument checks and error-state context (3.0 instead of 6.4 µs
+    a call; a lab session's alignments make ~8,000). LAPACK's failure leaves NaN eigenvalues (after the gufunc's
+    "invalid value" RuntimeWarning); such a matrix goes to ``np.linalg.eigh``, which raises ``LinAlgError`` as
+    before. The scatter matrices the alignment forms are finite sums of finite products: it never gets there."""
+    if _EIGH_LO is not None and a.dtype == np.float64:
+        w, v = _EIGH_LO(a, signature="d->dd")
+        if (w[0] == w[0]) if w.ndim == 1 else not np.isnan(w).any():
+            return w, v
+    return np.linalg.eigh(a)
+
+
 def _top_eigvec(a: np.ndarray) -> np.ndarray:
     """The chordal L2 mean of unit quaternions q from their scatter Σ q qᵀ: its eigenvector with the largest
     eigenvalue, sign chosen with w ≥ 0. ``a`` (4, 4), or a stack (k, 4, 4): NumPy's ``eigh`` calls LAPACK once
     per matrix either way, so a stacked matrix gets the vector it gets alone, bit for bit."""
-    w, v = np.linalg.eigh(a)
+    w, v = _eigh(a)
     if a.ndim == 2:
         m = v[:, -1]
         return m if m[0] >= 0 else -m
@@ -111,24 +131,40 @@ def _twist(g: np.ndarray) -> np.ndarray:
     """``quat_normalize([g_w, 0, 0, g_z])``, the twist of ``g`` about the vertical: with two zero components the
     squared norm is g_w² + g_z² in any order of summation, so this equals the general path bit for bit."""
     w, z = float(g[0]), float(g[3])
-    n = np.sqrt(w * w + z * z)
+    n = math.sqrt(w * w + z * z)                # IEEE square root, correctly rounded: np.sqrt's value
     if n == 0.0:
         return quat_normalize(np.array([w, 0.0, 0.0, z]))           # raises: a zero-norm quaternion
     return np.array([w / n, 0.0, 0.0, z / n])
 
 
+#: entries of L(p) (``_LEFT``) and R(q) (``_RIGHT``): row by row, (component of the quaternion, sign)
+_LEFT = (((0, 1), (1, -1), (2, -1), (3, -1)), ((1, 1), (0, 1), (3, -1), (2, 1)),
+         ((2, 1), (3, 1), (0, 1), (1, -1)), ((3, 1), (2, -1), (1, 1), (0, 1)))
+_RIGHT = (((0, 1), (1, -1), (2, -1), (3, -1)), ((1, 1), (0, 1), (3, 1), (2, -1)),
+          ((2, 1), (3, -1), (0, 1), (1, 1)), ((3, 1), (2, 1), (1, -1), (0, 1)))
+
+
+def _matrices(p: np.ndarray, entries) -> np.ndarray:
+    """(N, 4, 4) C-ordered matrices whose entry (r, c) is ± a component of each quaternion of ``p`` (N, 4): each
+    entry is a copy or a negation, so the values do not depend on how the array is filled."""
+    out = np.empty(p.shape[:-1] + (4, 4))
+    for r, row in enumerate(entries):
+        for c, (k, sign) in enumerate(row):
+            if sign > 0:
+                out[..., r, c] = p[..., k]
+            else:
+                np.negative(p[..., k], out=out[..., r, c])
+    return out
+
+
 def _left(p: np.ndarray) -> np.ndarray:
     """(N, 4, 4) matrices L(p) with ``p ⊗ q = L(p) q`` (Hamilton, [w x y z]); L(p)ᵀ = L(p*)."""
-    w, x, y, z = np.moveaxis(p, -1, 0)
-    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, -z, y], -1),
-                     np.stack([y, z, w, -x], -1), np.stack([z, -y, x, w], -1)], axis=-2)
+    return _matrices(p, _LEFT)
 
 
 def _right(q: np.ndarray) -> np.ndarray:
     """(N, 4, 4) matrices R(q) with ``p ⊗ q = R(q) p``."""
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, z, -y], -1),
-                     np.stack([y, -z, w, x], -1), np.stack([z, y, -x, w], -1)], axis=-2)
+    return _matrices(q, _RIGHT)
 
 
 #: byte strides (a, j, b, k) of the (4, 4, 4, 4) float64 sums ``_Scatter`` forms: j fastest, then a, k, b
@@ -202,8 +238,16 @@ def _alternate(sc: _Scatter, h: np.ndarray, iterations: int,
                tol: float = 1e-12) -> tuple[np.ndarray, np.ndarray, float]:
     """Alternating chordal-mean least squares from the heading ``h``; returns (h, mount, cost), cost = mean
     chordal residual 1 − ⟨q_est, h ⊗ q_ref ⊗ mount⟩² (0 = exact fit)."""
-    (h, mount, cost), = _alternate_many(sc, [h], iterations, tol)
-    return h, mount, cost
+    h = np.asarray(h, float)
+    for _ in range(iterations):         # :func:`_alternate_many`'s steps for one start, without its bookkeeping
+        new = _twist(sc.heading(sc.mount(h)))
+        done = 1.0 - abs(float(np.dot(new, h))) < tol
+        h = new
+        if done:
+            break
+    a = sc.mount_scatter(h)
+    mount = _top_eigvec(a)
+    return h, mount, float(1.0 - mount @ a @ mount / sc.n)
 
 
 def _alternate_many(sc: _Scatter, starts: list[np.ndarray], iterations: int,
