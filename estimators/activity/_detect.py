@@ -190,7 +190,7 @@ def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
             return x
         hi = min(p.step_lowpass_hz, 0.45 * fs)
         sos = signal.butter(2, [p.step_highpass_hz, hi], btype="bandpass", fs=fs, output="sos")
-        return signal.sosfilt(sos, x - x[0])            # zero state = steady state of a constant start
+        return sosfilt(sos, x - x[0])                   # zero state = steady state of a constant start
     if mag is None:
         mag = np.sqrt(np.einsum("ij,ij->i", acc_g, acc_g)) - 1.0
     sos = signal.butter(2, min(p.step_lowpass_hz, 0.45 * fs), fs=fs, output="sos")

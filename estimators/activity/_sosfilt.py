@@ -28,7 +28,46 @@ def _sosfilt_columns(sos, x, zi, out):
     order are SciPy's."""
     n_sections = sos.shape[0]
     k = x.shape[1]
-    for n in range(x.shape[0]):
+    N = x.shape[0]
+    if n_sections == 1 and k == 3:
+        # the activity stage's gravity filter (one elliptic section, three axes): the same statements with the
+        # state in registers. Through the arrays, every sample's recurrence went through a store and a load
+        # (~3× the time: 0.095 s for a 24 h day); the operations and their order are unchanged.
+        b0, b1, b2, a1, a2 = sos[0, 0], sos[0, 1], sos[0, 2], sos[0, 4], sos[0, 5]
+        u0, u1, v0, v1, w0, w1 = zi[0, 0, 0], zi[0, 0, 1], zi[1, 0, 0], zi[1, 0, 1], zi[2, 0, 0], zi[2, 0, 1]
+        for n in range(N):
+            xa, xb, xc = x[n, 0], x[n, 1], x[n, 2]
+            ya = b0 * xa + u0
+            u0 = b1 * xa - a1 * ya + u1
+            u1 = b2 * xa - a2 * ya
+            yb = b0 * xb + v0
+            v0 = b1 * xb - a1 * yb + v1
+            v1 = b2 * xb - a2 * yb
+            yc = b0 * xc + w0
+            w0 = b1 * xc - a1 * yc + w1
+            w1 = b2 * xc - a2 * yc
+            out[0, n] = ya
+            out[1, n] = yb
+            out[2, n] = yc
+        zi[0, 0, 0], zi[0, 0, 1], zi[1, 0, 0], zi[1, 0, 1], zi[2, 0, 0], zi[2, 0, 1] = u0, u1, v0, v1, w0, w1
+        return
+    if n_sections == 2 and k == 1:
+        # the step signal's band-pass (two Butterworth sections, one signal): likewise in registers
+        b0, b1, b2, a1, a2 = sos[0, 0], sos[0, 1], sos[0, 2], sos[0, 4], sos[0, 5]
+        c0, c1, c2, d1, d2 = sos[1, 0], sos[1, 1], sos[1, 2], sos[1, 4], sos[1, 5]
+        u0, u1, v0, v1 = zi[0, 0, 0], zi[0, 0, 1], zi[0, 1, 0], zi[0, 1, 1]
+        for n in range(N):
+            xa = x[n, 0]
+            ya = b0 * xa + u0
+            u0 = b1 * xa - a1 * ya + u1
+            u1 = b2 * xa - a2 * ya
+            yb = c0 * ya + v0
+            v0 = c1 * ya - d1 * yb + v1
+            v1 = c2 * ya - d2 * yb
+            out[0, n] = yb
+        zi[0, 0, 0], zi[0, 0, 1], zi[0, 1, 0], zi[0, 1, 1] = u0, u1, v0, v1
+        return
+    for n in range(N):
         for i in range(k):
             x_cur = x[n, i]
             for s in range(n_sections):
