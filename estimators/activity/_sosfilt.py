@@ -9,7 +9,10 @@ SciPy's ``_sosfilt`` loop (direct form II transposed per section; SciPy 1.17
 ``scipy/signal/_sosfilt.pyx``) in the same order without fused multiply-adds (numba's default, like SciPy's
 baseline-x86-64 build), so the results are identical, which ``tests/estimators/activity/test_sosfilt.py``
 checks on real and random data. :func:`sosfiltfilt` is SciPy's ``sosfiltfilt`` (odd padding, steady-state
-start, forward then backward) with its two ``sosfilt`` calls replaced.
+start, forward then backward) with its two ``sosfilt`` calls replaced. The shapes the activity stage filters
+(one section or two, one signal or three axes) keep the sections' state in local variables instead of the
+state array: the same statements in the same order, without a store and a load in every sample's recurrence
+(a 24 h day's gravity filter 0.048 instead of 0.095 s).
 """
 from __future__ import annotations
 
@@ -50,6 +53,40 @@ def _sosfilt_columns(sos, x, zi, out):
             out[1, n] = yb
             out[2, n] = yc
         zi[0, 0, 0], zi[0, 0, 1], zi[1, 0, 0], zi[1, 0, 1], zi[2, 0, 0], zi[2, 0, 1] = u0, u1, v0, v1, w0, w1
+        return
+    if n_sections == 2 and k == 3:
+        # the window model's 0.3-20 Hz band-pass (two sections, three axes): likewise in registers
+        b0, b1, b2, a1, a2 = sos[0, 0], sos[0, 1], sos[0, 2], sos[0, 4], sos[0, 5]
+        c0, c1, c2, d1, d2 = sos[1, 0], sos[1, 1], sos[1, 2], sos[1, 4], sos[1, 5]
+        u0, u1, v0, v1 = zi[0, 0, 0], zi[0, 0, 1], zi[0, 1, 0], zi[0, 1, 1]
+        p0, p1, q0, q1 = zi[1, 0, 0], zi[1, 0, 1], zi[1, 1, 0], zi[1, 1, 1]
+        r0, r1, s0, s1 = zi[2, 0, 0], zi[2, 0, 1], zi[2, 1, 0], zi[2, 1, 1]
+        for n in range(N):
+            xa, xb, xc = x[n, 0], x[n, 1], x[n, 2]
+            ya = b0 * xa + u0
+            u0 = b1 * xa - a1 * ya + u1
+            u1 = b2 * xa - a2 * ya
+            za = c0 * ya + v0
+            v0 = c1 * ya - d1 * za + v1
+            v1 = c2 * ya - d2 * za
+            yb = b0 * xb + p0
+            p0 = b1 * xb - a1 * yb + p1
+            p1 = b2 * xb - a2 * yb
+            zb = c0 * yb + q0
+            q0 = c1 * yb - d1 * zb + q1
+            q1 = c2 * yb - d2 * zb
+            yc = b0 * xc + r0
+            r0 = b1 * xc - a1 * yc + r1
+            r1 = b2 * xc - a2 * yc
+            zc = c0 * yc + s0
+            s0 = c1 * yc - d1 * zc + s1
+            s1 = c2 * yc - d2 * zc
+            out[0, n] = za
+            out[1, n] = zb
+            out[2, n] = zc
+        zi[0, 0, 0], zi[0, 0, 1], zi[0, 1, 0], zi[0, 1, 1] = u0, u1, v0, v1
+        zi[1, 0, 0], zi[1, 0, 1], zi[1, 1, 0], zi[1, 1, 1] = p0, p1, q0, q1
+        zi[2, 0, 0], zi[2, 0, 1], zi[2, 1, 0], zi[2, 1, 1] = r0, r1, s0, s1
         return
     if n_sections == 2 and k == 1:
         # the step signal's band-pass (two Butterworth sections, one signal): likewise in registers
