@@ -34,7 +34,7 @@ from pipeline.ingest_series import (FLUSH_ROWS, GAP_WARN_S, SCHEMAS as _SCHEMAS,
                                      TopicSeries, check_block)
 from pipeline.session_sources import NO_SESSION, SessionSourceError, gather_session, placement_for
 from warehouse.catalog import first, Warehouse
-from warehouse.store import check_identifier, series_relpath
+from warehouse.store import check_identifier, commit_all, series_relpath
 
 RATE_RANGE_HZ = (5.0, 5000.0)
 
@@ -298,11 +298,13 @@ def _prepare(path, root, options) -> Prepared:
                                "message": f"the IMUs run on independent clocks (their offsets to log_time differ by "
                                           f"{spread:.3f} s): multi-IMU stages align them on log_time and resample "
                                           f"onto one grid"})
-        for (placement, prefix), s in sorted(mapped.items(), key=lambda kv: kv[1].topic):
+        ordered = sorted(mapped.items(), key=lambda kv: kv[1].topic)
+        rels = commit_all([s.writer for _, s in ordered],
+                          [series_relpath(session["study"], session["participant"], session["session"], placement,
+                                          f"{prefix}-{res.sha256[:16]}") for (placement, prefix), _ in ordered])
+        for ((placement, prefix), s), rel in zip(ordered, rels):
             for m in s.warnings():
                 out.issues.append({"severity": "warning", "topic": s.topic, "message": m})
-            rel = s.writer.commit(series_relpath(session["study"], session["participant"], session["session"],
-                                                 placement, f"{prefix}-{res.sha256[:16]}"))
             s.writer = None
             out.sensors.append({"topic": s.topic, "placement": placement, "kind": s.kind, "n_samples": s.n,
                                 "sampling_rate_hz": s.rate_hz, "start_ns": s.t0, "end_ns": s.last_t,

@@ -170,3 +170,66 @@ def test_series_writer_flushes_in_the_background_and_a_failed_flush_fails_the_wr
     w.abort()
     assert not (tmp_path / "series/full.parquet").exists()
     assert not [p for p in (tmp_path / "series").iterdir() if p.name.startswith(store.TMP_PREFIX)]
+
+
+def test_series_of_one_recording_are_flushed_together_and_placed_only_when_all_flushes_succeeded(tmp_path,
+                                                                                                 monkeypatch):
+    """warehouse.store.commit_all: every file is fsync'ed before any is moved into place, the flushes run side by
+    side (up to FLUSH_THREADS at once), and one failed flush (disk full) places none of them."""
+    import errno
+    import threading
+
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from warehouse import store
+    tab = pa.table({"t_ns": np.arange(1000, dtype=np.int64), "x": np.random.default_rng(1).normal(size=1000)})
+    rels = [f"series/p/imu-{k}.parquet" for k in range(5)]
+
+    def writers(tag):
+        out = []
+        for k in range(5):
+            w = store.SeriesWriter(tmp_path, f"series/_staging/{tag}{k}.parquet", tab.schema)
+            w.write(tab, last=True)
+            out.append(w)
+        return out
+
+    real_fsync = os.fsync
+    inside, peak, placed_early = [0], [0], []
+    lock = threading.Lock()
+    second = threading.Event()
+
+    def slow_fsync(fd):
+        with lock:
+            inside[0] += 1
+            peak[0] = max(peak[0], inside[0])
+            placed_early.extend(r for r in rels if (tmp_path / r).exists())
+            if inside[0] >= 2:
+                second.set()
+        second.wait(timeout=5)           # the first flush returns at once only if a second one starts meanwhile
+        real_fsync(fd)
+        with lock:
+            inside[0] -= 1
+    monkeypatch.setattr(store.os, "fsync", slow_fsync)
+    assert store.commit_all(writers("a"), rels) == rels
+    assert peak[0] >= 2 and placed_early == []
+    for r in rels:
+        assert pq.read_table(tmp_path / r).equals(tab)
+
+    rels2 = [r.replace("imu", "mag") for r in rels]
+    calls = [0]
+
+    def full(fd):
+        calls[0] += 1
+        if calls[0] == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real_fsync(fd)
+    monkeypatch.setattr(store.os, "fsync", full)
+    ws = writers("b")
+    with pytest.raises(OSError, match="No space left"):
+        store.commit_all(ws, rels2)
+    for w in ws:
+        w.abort()
+    assert not any((tmp_path / r).exists() for r in rels2)
+    assert not [p for p in (tmp_path / "series/_staging").iterdir() if p.name.startswith(store.TMP_PREFIX)]
