@@ -25,6 +25,7 @@ def test_bench_pipeline_json_engines_and_inbox_reuse(tmp_path):
     first = json.loads(_bench(*common, "--compare-engines").stdout)
     for k in ("run_wall_s", "cpu_s_per_participant_day", "peak_rss_mb", "coordinator_cpu_s", "workers_cpu_s"):
         assert first[k] > 0, k
+    assert 0 < first["reading_floor_cpu_s_per_participant_day"] < first["cpu_s_per_participant_day"]
     assert first["cpu_s"] == pytest.approx(first["coordinator_cpu_s"] + first["workers_cpu_s"], rel=0.05)
     assert first["failed"] == [] and first["simulate_s"] > 0
     eng = first["engines"]

@@ -157,6 +157,23 @@ def decompress_floor(path: Path) -> tuple[float, int]:
     return spent, n
 
 
+def reading_floor(paths: list[Path]) -> float:
+    """CPU-seconds (one core) that no ingest of ``paths`` can go below without storing something else: the
+    SHA-256 of every file's bytes (the warehouse's ``content_hash``, a key of every table) and the zstd
+    decompression of every chunk (:func:`decompress_floor`). Reading the bytes is not timed."""
+    import hashlib
+    spent = 0.0
+    for path in paths:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            while block := f.read(8 << 20):
+                t0 = time.perf_counter()
+                h.update(block)
+                spent += time.perf_counter() - t0
+        spent += decompress_floor(path)[0]
+    return spent
+
+
 def _naive(path: Path, limit: int) -> dict:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory

@@ -7,7 +7,10 @@ study. Peak memory is the largest resident set of any process of the run (coordi
 user + system time of the whole process tree of the run (Dask's scheduler and workers included, all children of
 the run process), split into the coordinator's own (``coordinator_cpu_s``: catalog commits, and on one job the
 tasks too) and its children's (``workers_cpu_s``); a participant-day is one participant's lab session
-and 24 h of free-living recording. A multi-day recording (``--days`` > 2) is made of consecutive simulated
+and 24 h of free-living recording. ``reading_floor_cpu_s_per_participant_day`` sets that CPU beside what reading
+the inbox costs at the least, measured after the run on the first participant's recordings: the SHA-256 of each
+file (``content_hash``) and the zstd decompression of its chunks, on one core
+(:func:`validation.bench.ingest.reading_floor`). A multi-day recording (``--days`` > 2) is made of consecutive simulated
 days (day k: the participant's day simulated as session k, shifted by k days) written as one MCAP file.
 """
 from __future__ import annotations
@@ -196,6 +199,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
       stridelab bench pipeline --participants 20 --inbox /tmp/study20 --json   # simulate once, rerun on it
       sudo stridelab bench pipeline --participants 20 --inbox /tmp/study20 --drop-caches --json
     """
+    from validation.bench.ingest import reading_floor
     from validation.simulate import simulate_to_dir
     if days is not None:
         hours = 24.0 * days
@@ -251,6 +255,13 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             "coordinator_cpu_s": full["coordinator_cpu_s"], "workers_cpu_s": full["workers_cpu_s"],
             "stages": stages, "failed": full["failed"], "page_cache_dropped": drop_caches,
         }
+        # what the inbox itself costs to read, for scale: the first participant's recordings, per recorded day
+        first = sorted(files, key=lambda f: f.name)
+        first = [f for f in first if f.name.split("_")[0] == first[0].name.split("_")[0]]
+        out["reading_floor_cpu_s_per_participant_day"] = reading_floor(first) / (hours / 24.0)
+        err_console.print(f"CPU per participant-day {out['cpu_s_per_participant_day']:.2f} s, of which no ingest can "
+                          f"avoid {out['reading_floor_cpu_s_per_participant_day']:.2f} s (SHA-256 of the files and "
+                          f"zstd decompression of their chunks, one core, {first[0].name.split('_')[0]}'s recordings)")
         if compare_engines:
             other = "dask" if engine == "local" else "local"
             first_fp = _fingerprint(tmp / "wh")
