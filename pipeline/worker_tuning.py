@@ -17,7 +17,7 @@ allocations from the heap (``M_MMAP_MAX = 0``), stops glibc trimming it on every
 (``M_TRIM_THRESHOLD``), and keeps one heap for all threads (``M_ARENA_MAX = 1``), so freed arrays are
 reused in place whichever thread (Arrow's and the MCAP reader's I/O threads) allocated them. One arena is
 what keeps the untrimmed heap small: with glibc's default of one arena per thread a worker's heaps grew to
-1.9 GB over a night, with one 1.36-1.39 GB (docs/operations.md). Memory is not given back between tasks: on
+1.9 GB over a night, with one 1.36-1.39 GB (d7f8942's 20-participant night; 1.2 GB since). Memory is not given back between tasks: on
 the reference machine (a VM whose free memory returns to its host seconds after it is freed) re-touching
 returned pages costs ~2-3 CPU-s per GB in the kernel, and a ``malloc_trim`` after every task cost the night
 ~10 % of its time. :func:`release_memory` (after every task) gives the free pages back only when the
