@@ -24,7 +24,8 @@ TMP_PREFIX = ".tmp-"
 WRITEBACK_BYTES = 64 << 20
 #: a committed series file at least this large leaves the page cache once it is on the disk (see commit)
 UNCACHE_BYTES = 64 << 20
-#: flushes of one recording's series files in flight at once (:func:`commit_all`)
+#: flushes of one recording's series files in flight at once (:func:`commit_all`); 28 files of 200 kB beside a
+#: concurrent O_DIRECT writer, here: one at a time 105-130 ms, 8 threads 52-67 ms, 28 threads 60-63 ms
 FLUSH_THREADS = 8
 
 

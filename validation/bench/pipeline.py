@@ -256,12 +256,12 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             "stages": stages, "failed": full["failed"], "page_cache_dropped": drop_caches,
         }
         # what the inbox itself costs to read, for scale: the first participant's recordings, per recorded day
-        first = sorted(files, key=lambda f: f.name)
-        first = [f for f in first if f.name.split("_")[0] == first[0].name.split("_")[0]]
-        out["reading_floor_cpu_s_per_participant_day"] = reading_floor(first) / (hours / 24.0)
+        p0 = min(f.name.split("_")[0] for f in files)
+        out["reading_floor_cpu_s_per_participant_day"] = reading_floor(
+            [f for f in files if f.name.split("_")[0] == p0]) / (hours / 24.0)
         err_console.print(f"CPU per participant-day {out['cpu_s_per_participant_day']:.2f} s, of which no ingest can "
                           f"avoid {out['reading_floor_cpu_s_per_participant_day']:.2f} s (SHA-256 of the files and "
-                          f"zstd decompression of their chunks, one core, {first[0].name.split('_')[0]}'s recordings)")
+                          f"zstd decompression of their chunks, one core, {p0}'s recordings)")
         if compare_engines:
             other = "dask" if engine == "local" else "local"
             first_fp = _fingerprint(tmp / "wh")
