@@ -131,10 +131,11 @@ class _Publisher:
             self.dirty = False
 
 
-def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float]:
+def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float, float]:
+    """Run one stage on one session in a worker: (output, wall seconds, CPU seconds of this process)."""
     _fault_injection()
     stage = {s.name: s for s in registry()}[stage_name]
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         out = stage.compute(inp, params)
     except Exception as e:
@@ -143,7 +144,7 @@ def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[Stage
         tb = traceback.extract_tb(e.__traceback__)
         where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
         raise RuntimeError(f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}{where}") from None
-    return out, time.perf_counter() - t0
+    return out, time.perf_counter() - t0, time.process_time() - c0
 
 
 # ---- coordinator ---------------------------------------------------------------------------
@@ -389,7 +390,7 @@ def _commit_stage_result(wh: Warehouse, run_id: str, stage: Stage, why: dict, it
                                       "error": str(res)}])
         on_progress(f"{stage.name} {sid}: FAILED: {res}")
     else:
-        out, secs = res
+        out, secs, cpu = res
         with wh.transaction() as con:
             for t in stage.tables:
                 rows = out.rows.get(t, [])
@@ -404,7 +405,7 @@ def _commit_stage_result(wh: Warehouse, run_id: str, stage: Stage, why: dict, it
             wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,
                                       "stage_version": stage.version, "params_hash": ph, "stamp": st,
                                       "input_hash": why[sid][0], "reason": why[sid][1],
-                                      "status": out.status, "started_at": started, "duration_s": secs,
+                                      "status": out.status, "started_at": started, "duration_s": secs, "cpu_s": cpu,
                                       "note": out.note or None}])
         summary.stage_runs += 1
         on_progress(f"{stage.name} {sid}: {out.status} in {secs:.1f} s" + (f" ({out.note})" if out.note else ""))

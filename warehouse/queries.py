@@ -768,7 +768,7 @@ def pipeline_runs(con, limit: int = 200) -> pd.DataFrame:
 def stage_runs(con, run_id: str | None = None, status: str | None = None, stage=None, limit: int = 2000) -> pd.DataFrame:
     return _df(con, """
         SELECT r.run_id, r.stage, r.stage_version, r.session_id, s.participant_id, r.status, r.started_at,
-               r.duration_s, r.error, r.note
+               r.duration_s, r.cpu_s, r.error, r.note
         FROM stage_runs r LEFT JOIN sessions s USING (session_id)
         WHERE (? IS NULL OR r.run_id = ?) AND (? IS NULL OR r.status = ?)
           AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], r.stage))
@@ -780,7 +780,7 @@ def stage_durations(con) -> pd.DataFrame:
     return _df(con, """
         SELECT stage, count(*) AS runs, count(*) FILTER (WHERE status = 'failed') AS failed,
                avg(duration_s) AS mean_s, quantile_cont(duration_s, 0.5) AS median_s, max(duration_s) AS max_s,
-               sum(duration_s) AS total_s
+               sum(duration_s) AS total_s, avg(cpu_s) AS mean_cpu_s, sum(cpu_s) AS total_cpu_s
         FROM stage_runs GROUP BY stage ORDER BY stage""")
 
 

@@ -67,6 +67,10 @@ def test_run_computes_orientation_for_every_imu_then_is_fresh(tmp_path):
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == n_imu
     assert first(con.execute("SELECT count(*) FROM stage_runs WHERE stage = 'orientation' AND status = 'ok'"))[0] == 2
     n_stages = first(con.execute("SELECT count(DISTINCT stage) FROM stage_runs"))[0]
+    # the ledger holds each run's CPU seconds beside its wall seconds (migration 011)
+    least_cpu, no_cpu = first(con.execute("SELECT min(cpu_s), count(*) FILTER (WHERE cpu_s IS NULL) FROM stage_runs "
+                                          "WHERE status = 'ok'"))
+    assert least_cpu > 0 and no_cpu == 0
     con.close()
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json",
             "--reports", tmp_path / "reports")
@@ -156,6 +160,7 @@ def test_a_failing_session_is_recorded_and_does_not_block_the_others(tmp_path):
     rows = con.execute("SELECT s.study, r.status FROM stage_runs r JOIN sessions s USING (session_id) "
                        "WHERE r.stage = 'orientation'").fetchall()
     assert sorted(rows) == [("broken", "failed"), ("fine", "ok")]
+    assert first(con.execute("SELECT count(*) FROM stage_runs WHERE status = 'failed' AND cpu_s IS NOT NULL"))[0] == 0
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 8
 
 

@@ -27,6 +27,10 @@ def test_bench_pipeline_json_engines_and_inbox_reuse(tmp_path):
         assert first[k] > 0, k
     assert 0 < first["reading_floor_cpu_s_per_participant_day"] < first["cpu_s_per_participant_day"]
     assert first["cpu_s"] == pytest.approx(first["coordinator_cpu_s"] + first["workers_cpu_s"], rel=0.05)
+    assert all(v["cpu_s"] > 0 for v in first["stages"].values() if v["runs"])
+    assert 0 < first["stage_cpu_s_per_participant_day"] < first["cpu_s_per_participant_day"]
+    assert first["outside_stages_cpu_s_per_participant_day"] == pytest.approx(
+        first["cpu_s_per_participant_day"] - first["stage_cpu_s_per_participant_day"])
     assert first["failed"] == [] and first["simulate_s"] > 0
     eng = first["engines"]
     assert eng["identical_warehouse"] is True and eng["dask"]["failed"] == []

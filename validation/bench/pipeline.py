@@ -6,7 +6,9 @@ processes, with 1 and 2 workers on a subset for the scaling figure and with ``--
 study. Peak memory is the largest resident set of any process of the run (coordinator or worker); CPU is
 user + system time of the whole process tree of the run (Dask's scheduler and workers included, all children of
 the run process), split into the coordinator's own (``coordinator_cpu_s``: catalog commits, and on one job the
-tasks too) and its children's (``workers_cpu_s``); a participant-day is one participant's lab session
+tasks too) and its children's (``workers_cpu_s``), and into the stage tasks' (``stage_cpu_s_per_participant_day``,
+the ledger's ``stage_runs.cpu_s``; per stage in ``stages``) and the rest (``outside_stages_cpu_s_per_participant_day``:
+ingest, the coordinator, the workers' start-up); a participant-day is one participant's lab session
 and 24 h of free-living recording. ``reading_floor_cpu_s_per_participant_day`` sets that CPU beside what reading
 the inbox costs at the least, measured after the run on the first participant's recordings: the SHA-256 of each
 file (``content_hash``) and the zstd decompression of its chunks, on one core
@@ -66,15 +68,16 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
 
 def _ledger(wh: Path) -> tuple[int, dict]:
     """IMU samples in the warehouse, and per stage: runs (``ok``), ``skipped`` runs (a session without the
-    stage's inputs, with a reason in the ledger) and their worker seconds."""
+    stage's inputs, with a reason in the ledger), their worker seconds and CPU seconds (``stage_runs.cpu_s``)."""
     from warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
         n = int(con.execute("SELECT coalesce(sum(n_samples), 0) FROM sensors WHERE kind = 'imu'").fetchall()[0][0])
-        stages = {st: {"runs": int(k), "skipped": int(sk), "worker_s": float(sec or 0.0)}
-                  for st, k, sk, sec in con.execute(
+        stages = {st: {"runs": int(k), "skipped": int(sk), "worker_s": float(sec or 0.0), "cpu_s": float(cpu or 0.0)}
+                  for st, k, sk, sec, cpu in con.execute(
             "SELECT stage, count(*) FILTER (WHERE status = 'ok'), count(*) FILTER (WHERE status = 'skipped'), "
-            "sum(duration_s) FILTER (WHERE status IN ('ok', 'skipped')) FROM stage_runs "
+            "sum(duration_s) FILTER (WHERE status IN ('ok', 'skipped')), "
+            "sum(cpu_s) FILTER (WHERE status IN ('ok', 'skipped')) FROM stage_runs "
             "WHERE status IN ('ok', 'skipped') GROUP BY 1 ORDER BY 1").fetchall()}
         return n, stages
     finally:
@@ -255,11 +258,17 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
             "coordinator_cpu_s": full["coordinator_cpu_s"], "workers_cpu_s": full["workers_cpu_s"],
             "stages": stages, "failed": full["failed"], "page_cache_dropped": drop_caches,
         }
+        # the CPU split: the stages' tasks (the ledger's cpu_s) and everything else (ingest, coordinator, start-up)
+        out["stage_cpu_s_per_participant_day"] = sum(v["cpu_s"] for v in stages.values()) / pdays
+        out["outside_stages_cpu_s_per_participant_day"] = (out["cpu_s_per_participant_day"]
+                                                           - out["stage_cpu_s_per_participant_day"])
         # what the inbox itself costs to read, for scale: the first participant's recordings, per recorded day
         p0 = min(f.name.split("_")[0] for f in files)
         out["reading_floor_cpu_s_per_participant_day"] = reading_floor(
             [f for f in files if f.name.split("_")[0] == p0]) / (hours / 24.0)
-        err_console.print(f"CPU per participant-day {out['cpu_s_per_participant_day']:.2f} s, of which no ingest can "
+        err_console.print(f"CPU per participant-day {out['cpu_s_per_participant_day']:.2f} s: stages "
+                          f"{out['stage_cpu_s_per_participant_day']:.2f} s, ingest, coordinator and start-up "
+                          f"{out['outside_stages_cpu_s_per_participant_day']:.2f} s, of which no ingest can "
                           f"avoid {out['reading_floor_cpu_s_per_participant_day']:.2f} s (SHA-256 of the files and "
                           f"zstd decompression of their chunks, one core, {p0}'s recordings)")
         if compare_engines:
