@@ -21,8 +21,9 @@ if snap is not None:
             st.caption("No stage has run yet (ingest-only runs so far).")
         else:
             st.dataframe(durs, hide_index=True)
-            st.caption("cpu_s: CPU seconds of the process that ran the task, over the task; duration_s − cpu_s is "
-                       "mostly time spent waiting (the disk, another process on a shared core).")
+            st.caption("CPU seconds (`mean_cpu_s`, `total_cpu_s`, a run's `cpu_s`): the CPU time of the process that "
+                       "ran the task, over the task; wall seconds minus CPU seconds is mostly time spent waiting (the "
+                       "disk, another process on a shared core).")
             c1, c2, c3 = st.columns(3)
             run_id = c1.selectbox("Run", ["all"] + runs["run_id"].tolist(), key="runs_run")
             status = c2.selectbox("Status", ["all", "ok", "skipped", "failed"], key="runs_status",
