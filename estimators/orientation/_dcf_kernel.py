@@ -22,6 +22,13 @@ State vector layout (float64, length ``STATE_LEN``); all quaternions [w x y z]:
 35    bias_p  variance of the rest-bias estimate per axis, (rad/s)² (< 0 = not initialised; Kalman mode)
 36    mag_ok_t      time since the last rejected magnetometer sample (s)
 37    head_p        variance of the heading offset delta, rad² (< 0 = not initialised; heading Kalman mode)
+38    cand_norm     candidate reference field norm (µT; new-field acceptance)
+39    cand_dip      candidate reference dip (rad)
+40    cand_t        time (while rotating) the field has stayed with the candidate (s)
+41:45 hi_theta      hard-iron model θ = (b_x, b_y, b_z, c): |m|² = 2 m·b + c, c = R² − |b|² (µT, µT²)
+45:61 hi_P          its RLS covariance, 4×4 row-major (< 0 in [45] = not initialised)
+61    hi_res2       low-passed squared a-priori residual of the norm model, µT²
+62    hi_t          time the hard-iron model has been updated (s, while rotating)
 ====  ============================================================================
 """
 from __future__ import annotations
@@ -29,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-STATE_LEN = 38
+STATE_LEN = 63
 
 
 def initial_state() -> np.ndarray:
@@ -39,6 +46,7 @@ def initial_state() -> np.ndarray:
     s[35] = -1.0
     s[36] = 1e9
     s[37] = -1.0
+    s[45] = -1.0
     return s
 
 
@@ -58,16 +66,19 @@ def _qrot(w, x, y, z, v0, v1, v2):
 
 
 @njit(cache=True)
-def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej):
-    """Run the filter over (N, 3) arrays from state ``s`` (updated in place).
+def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej, out_mag):
+    """Run the filter over (N, 3) arrays from state ``s`` (updated in place). ``out_mag`` (N, 3) receives the
+    magnetometer sample as used (hard-iron offset removed when the fit is settled; NaN where there is none).
 
     coef = (k_acc, k_mag, k_rest_lp, rest_gyr_th, rest_acc_th, rest_min_s, k_bias_motion, bias_max,
             mag_norm_th, mag_dip_th, mag_rej_max_s, k_mag_ref, n_acc_init, n_mag_init,
             b0, b1, b2, a1, a2,   -- 2nd-order Butterworth low-pass (k_acc unused when b0 > 0)
             bias_p0, bias_v, bias_w_rest,   -- rest-bias Kalman filter (bias_w_rest <= 0: bias = low-pass at rest)
             mag_settle_s,   -- after a rejected magnetometer sample, accepted ones are used only after this long
-            head_q0, head_kappa², head_r, inv_rate_ref²)   -- heading Kalman filter (head_r <= 0: fixed gain k_mag):
+            head_q0, head_kappa², head_r, inv_rate_ref²,   -- heading Kalman filter (head_r <= 0: fixed gain k_mag):
                 P += (q0 + κ²|ω|²) dt per sample; a magnetometer sample has variance r (1 + |ω|²/ω_ref²) / dt
+            mag_new_s, mag_new_min_gyr,   -- new-field acceptance (mag_new_s <= 0: off)
+            hi_lambda, hi_min_gyr, hi_p0_b, hi_res_th2, hi_k_res, hi_min_t, hi_p_th, hi_b_min²)   -- online hard-iron (hi_lambda <= 0: off)
     """
     k_acc = coef[0]
     k_mag = coef[1]
@@ -87,6 +98,11 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
     bp0, bv, bw = coef[19], coef[20], coef[21]
     m_settle = coef[22]
     hq0, hk2, hr, irr2 = coef[23], coef[24], coef[25], coef[26]
+    m_new, m_new_g = coef[27], coef[28]
+    hi_lam, hi_g, hi_p0, hi_rth2, hi_kr, hi_tmin, hi_pth = coef[29], coef[30], coef[31], coef[32], coef[33], coef[34], coef[35]
+    hi_bmin2 = coef[36]
+    phi = np.empty(4)
+    pphi = np.empty(4)
     if s[37] < 0.0:
         s[37] = 2.5                                   # (≈ 90°)²: the first samples set the heading
     if s[35] < 0.0:
@@ -204,6 +220,11 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
         if use_mag:
             mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
             if mx == mx and my == my and mz == mz:
+                if hi_lam > 0.0:
+                    mx, my, mz = _hard_iron(s, mx, my, mz, w2, dt, hi_lam, hi_g, hi_p0, hi_rth2, hi_kr, hi_tmin,
+                                            hi_pth, hi_bmin2, phi, pphi)
+            out_mag[i, 0], out_mag[i, 1], out_mag[i, 2] = mx, my, mz
+            if mx == mx and my == my and mz == mz:
                 hx, hy, hz = _qrot(q0, q1, q2, q3, mx, my, mz)
                 nm = np.sqrt(hx * hx + hy * hy + hz * hz)
                 if nm > 1e-9:
@@ -230,6 +251,22 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
                         else:
                             s[24] += k_mref * (nm - s[24])
                             s[25] += k_mref * (dip - s[25])
+                    if m_new > 0.0:                      # new-field acceptance (VQF): a field that stays consistent
+                        if s[38] > 0.0 and abs(nm - s[38]) < m_nth * s[38] and abs(dip - s[39]) < m_dth:
+                            if w2 >= m_new_g * m_new_g:  # ... while the sensor rotates is a clean field
+                                s[40] += dt
+                            s[38] += k_mref * (nm - s[38])
+                            s[39] += k_mref * (dip - s[39])
+                            if rej and s[40] >= m_new:
+                                s[24] = s[38]
+                                s[25] = s[39]
+                                s[26] = 0.0
+                                s[36] = m_settle
+                                rej = False
+                        else:
+                            s[38] = nm
+                            s[39] = dip
+                            s[40] = 0.0
                     if not rej:
                         ang = np.arctan2(hx, hy) - delta
                         ang = (ang + np.pi) % (2.0 * np.pi) - np.pi
@@ -258,6 +295,69 @@ def dcf_series(gyr, acc, mag, use_mag, dt, coef, s, out_q, out_rest, out_magrej)
     s[0], s[1], s[2], s[3] = qg0, qg1, qg2, qg3
     s[4], s[5], s[6], s[7] = qa0, qa1, qa2, qa3
     s[8] = delta
+
+
+@njit(cache=True)
+def _hard_iron(s, mx, my, mz, w2, dt, lam, min_g, p0_b, res_th2, k_res, t_min, p_th, b_min2, phi, pphi):
+    """Online hard-iron offset b (sensor frame, µT) of a magnet that moves with the sensor, and the corrected field.
+
+    Model (sphere fit, linear in θ = (b, c)): |m|² = 2 m·b + c with c = R² − |b|² (Vasconcelos et al. 2011, IEEE
+    TIM 60(2):370, eq. 9-10, its linear least-squares form), estimated by recursive least squares with forgetting
+    factor λ (Ljung 1999 §11.2), updated only while the sensor rotates faster than ``min_g`` rad/s (at rest the
+    model is not observable). The offset is removed only once the model has been updated ``t_min`` s, its offset
+    variance is below ``p_th`` µT² on every axis and the low-passed a-priori residual of the norm model is below
+    ``√res_th2`` µT and the offset exceeds ``√b_min2`` µT (below that it is a calibration residual the fit cannot tell
+    from noise) (a field that does not move with the sensor, e.g. a magnet on the table, leaves a large residual:
+    then the raw field goes on to the norm/dip rejection unchanged)."""
+    if s[45] < 0.0:                                  # initialise: no offset, c from the first sample
+        for k in range(16):
+            s[45 + k] = 0.0
+        s[45] = p0_b
+        s[50] = p0_b
+        s[55] = p0_b
+        s[60] = p0_b * (4.0 * (mx * mx + my * my + mz * mz)) ** 2 / max(mx * mx + my * my + mz * mz, 1e-9)
+        s[41], s[42], s[43] = 0.0, 0.0, 0.0
+        s[44] = mx * mx + my * my + mz * mz
+        s[61] = 1e9
+        s[62] = 0.0
+    y = mx * mx + my * my + mz * mz
+    wt = 1.0 / (2.0 * np.sqrt(y) + 1e-9)              # rows weighted so that the residual is a norm error in µT
+    phi[0], phi[1], phi[2], phi[3] = 2.0 * mx * wt, 2.0 * my * wt, 2.0 * mz * wt, wt
+    e = (y - (2.0 * mx * s[41] + 2.0 * my * s[42] + 2.0 * mz * s[43] + s[44])) * wt
+    if w2 >= min_g * min_g:
+        den = lam
+        for r in range(4):
+            acc = 0.0
+            for c in range(4):
+                acc += s[45 + 4 * r + c] * phi[c]
+            pphi[r] = acc
+            den += phi[r] * acc
+        for r in range(4):
+            s[41 + r] += pphi[r] / den * e
+        for r in range(4):
+            for c in range(4):
+                s[45 + 4 * r + c] = (s[45 + 4 * r + c] - pphi[r] * pphi[c] / den) / lam
+        for r in range(3):                            # bounded covariance: no wind-up in unexcited directions
+            if s[45 + 5 * r] > p0_b:
+                s[45 + 5 * r] = p0_b
+        s[62] += dt
+        if s[61] > 1e8:
+            s[61] = e * e
+        s[61] += k_res * (e * e - s[61])
+        if s[61] > 2.25 * res_th2 and s[45] + s[50] + s[55] < 0.03 * p0_b:
+            # the model stopped fitting (a magnet was attached or moved): covariance reset (Goodwin & Sin 1984
+            # §3.7), so the fit re-converges within seconds of rotation instead of the forgetting time
+            for k in range(16):
+                s[45 + k] = 0.0
+            s[45] = p0_b
+            s[50] = p0_b
+            s[55] = p0_b
+            s[60] = p0_b * 16.0 * y
+            s[62] = 0.0
+    if (s[62] >= t_min and s[61] < res_th2 and s[45] < p_th and s[50] < p_th and s[55] < p_th
+            and s[41] * s[41] + s[42] * s[42] + s[43] * s[43] > b_min2):
+        return mx - s[41], my - s[42], mz - s[43]
+    return mx, my, mz
 
 
 @njit(cache=True)

@@ -15,12 +15,15 @@ class OrientationResult:
     still: (N,) bool, samples the estimator treated as stance/rest.
     mag_used: whether a magnetometer informed the heading (False: 6D, heading from the gyro only).
     params: the parameters that produced it (hashed into the stage stamp).
+    mag_sensor: (N, 3) the magnetometer after the estimator's own corrections (the dcf's hard-iron offset removed),
+        sensor frame, µT; None where the estimator makes none.
     """
     quat: np.ndarray
     gain: np.ndarray
     still: np.ndarray
     mag_used: bool
     params: object
+    mag_sensor: np.ndarray | None = None
 
 
 class OnlineFilter:

@@ -91,7 +91,7 @@ def compute(inp: SessionInput, params: dict) -> StageOutput:
                        note="; ".join(notes))
 
 
-STAGE = Stage(name="orientation", version="4", needs=(), tables=("orientation", "accuracy_metrics"),
+STAGE = Stage(name="orientation", version="5", needs=(), tables=("orientation", "accuracy_metrics"),
               session_kinds=("lab", "free_living", "calibration"), compute=compute, default_params=default_params,
               # a free-living chest day's orientation is read by no stage, page or report (half of a night's
               # compute went to it): computed only for studies that ask ([compute.orientation] free_living = true)

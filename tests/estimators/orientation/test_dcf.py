@@ -187,7 +187,13 @@ def test_bench_orientation_json_format():
                                      "--no-cv"])
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)
-    assert set(d) == {"trials", "summary", "default", "default_offline", "in_sample_note"}
+    assert set(d) == {"trials", "summary", "default", "default_offline", "in_sample_note", "shipped_defaults",
+                      "cross_validated", "in_sample", "attached_magnet_synthetic"}
+    assert d["shipped_defaults"]["online_rmse_deg"] == d["summary"]["dcf"]["mean_total_rmse_deg"]
+    assert d["shipped_defaults"]["vqf_rmse_deg"] == d["summary"]["vqf"]["mean_total_rmse_deg"]
+    assert d["cross_validated"]["recorded"] is True                    # --no-cv: the figures of tuned_gains.json
+    assert set(d["attached_magnet_synthetic"]) == {"dcf", "vqf"}
+    assert set(d["attached_magnet_synthetic"]["dcf"]["by_offset_ut"]) == {"4", "10", "25", "40"}
     assert {t["estimator"] for t in d["trials"]} == {"dcf", "vqf"}
     assert set(d["trials"][0]) == {"trial", "group", "estimator", "total_rmse_deg", "heading_rmse_deg",
                                    "inclination_rmse_deg"}
@@ -262,3 +268,50 @@ def test_rest_bias_kalman_is_not_pulled_by_the_onset_of_a_slow_movement():
         bias[mode] = np.degrees(f.state[20])
     assert abs(bias["lowpass"] - 0.5) > 3.0
     assert abs(bias["kalman"] - 0.5) < 0.5
+
+
+def _heading_rmse_deg(q_est, q_true, sl):
+    e = orientation_rmse_deg(q_est[sl], q_true[sl], np.ones(len(q_true[sl]), bool))
+    return e.heading_rmse_deg
+
+
+def test_attached_magnet_longer_than_the_rejection_limit_is_not_adopted():
+    """Issue 43, online orientation: a magnet that moves with the sensor (hard iron, a constant sensor-frame offset, as
+    BROAD trials 32/34: 58 / 14 µT) for longer than ``mag_reject_max_s`` (60 s). Before, the filter rejected the
+    disturbed field for 60 s and then adopted it as the new reference: the heading followed the disturbed field (tens
+    of degrees off). Now the online hard-iron fit removes the offset and the settling time keeps the disturbance's
+    edges out; the old configuration (no hard-iron fit, no settling) still fails here, so the test can fail."""
+    fs = 100.0
+    w, acc, mag, q = _moving(n=int(150 * fs), fs=fs, seed=5)
+    b = 25.0 * np.array([0.6, -0.48, 0.64])                     # 25 µT, fixed sensor-frame direction
+    on, off = int(20 * fs), int(110 * fs)                        # on for 90 s while moving
+    mag = mag.copy()
+    mag[on:off] += b
+    sl = slice(on, off)
+    new = dcf(w, acc, mag, sampling_rate_hz=fs)
+    old = dcf(w, acc, mag, sampling_rate_hz=fs, params=DCFParams(hard_iron=False, mag_settle_s=0.0))
+    e_new, e_old = _heading_rmse_deg(new.quat, q, sl), _heading_rmse_deg(old.quat, q, sl)
+    assert e_old > 8.0, f"the failure mode is not reproduced: old heading RMSE {e_old:.1f}°"
+    assert e_new < 2.0, f"heading RMSE with the magnet on {e_new:.1f}° (old configuration {e_old:.1f}°)"
+
+
+def test_hard_iron_fit_leaves_a_clean_field_alone():
+    """Without a magnet the hard-iron correction stays off (offset below ``hard_iron_min_ut``): the result equals the
+    filter without the fit, sample for sample."""
+    w, acc, mag, q = _moving(n=6000, fs=100.0, seed=2)
+    a = dcf(w, acc, mag, sampling_rate_hz=100.0).quat
+    b = dcf(w, acc, mag, sampling_rate_hz=100.0, params=DCFParams(hard_iron=False)).quat
+    np.testing.assert_array_equal(a, b)
+
+
+def test_hard_iron_fit_ignores_a_field_that_does_not_move_with_the_sensor():
+    """A disturbance fixed in the room (the field rotates with the earth frame, not the sensor: no sphere in the sensor
+    frame) fails the norm model: the fit's residual stays above its threshold and the correction is never applied, so
+    the result equals the filter without the fit."""
+    w, acc, mag, q = _moving(n=9000, fs=100.0, seed=3)
+    dist = quat_rotate(quat_conj(q), np.array([15.0, -10.0, 5.0]))   # earth-fixed extra field, from 20 s to 60 s
+    mag = mag.copy()
+    mag[2000:6000] += dist[2000:6000]
+    a = dcf(w, acc, mag, sampling_rate_hz=100.0).quat
+    b = dcf(w, acc, mag, sampling_rate_hz=100.0, params=DCFParams(hard_iron=False)).quat
+    np.testing.assert_array_equal(a, b)
