@@ -39,16 +39,18 @@ class ZuptParams:
     window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped.
     adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window
     (also the fallback of ``cycle_window``).  adapt_contrast: ρ.
-    cycle_window: (Z5, issue 43) the n_k / M_k window is one gait cycle, not ±``adapt_window_s``:
-        half-width h_k = ½ P_k, P_k = the local stride period = the lag of the first autocorrelation peak of |ω|
-        (≥ 0.8 × the highest peak, r ≥ 0.3) in 0.4–2.5 s, over 8 s blocks (hop 4 s); a block without gait keeps
-        h_k = adapt_window_s.                                                                             (Z5)
-        A window of one period holds one stance of every foot cycle, so n_k is the quietest moment *of this cycle*
-        and that moment always passes its own test (m = n_k ≤ θ_k while n_k ≤ θ_hi). With ±1 s, running (P ≈
-        0.7 s) compared each stance with the quietest of about three and missed the rest: 54 of 191 oracle still
-        phases in the PyShoe running trials. θ_hi is the physical bound: the foot rolls over at most about
-        30° in a 0.2 s running stance (≈ 2.6 rad/s), so a "quietest window" above θ_hi = 3 rad/s is no stance.
-        Each cycle's quietest sample (m_k = n_k ≤ θ_hi) keeps its run even when shorter than ``min_stance_s``.
+    cycle_window: (Z5, issue 43) besides (Z3), the quietest window of every gait cycle is stance when it is below
+        the physical bound θ_hi:
+            P_k = local stride period: lag of the first autocorrelation peak of |ω| in 0.4–2.5 s that reaches
+                  0.8 × the highest one with r ≥ 0.3, over 8 s blocks (hop 4 s); no such peak → no gait there,
+            k is its cycle's quietest sample iff m_k = min of m over ±½P_k (one period holds one stance of this
+                  foot) and m_k ≤ θ_hi ; stance ∪= the ``window_s`` window around each such k                  (Z5)
+        Why: (Z3) compares each sample with the quietest stance within ±1 s; in running (P ≈ 0.7 s) that is the
+        quietest of about three stances, and the less quiet ones fail β·n_k: 50 of 218 oracle still phases
+        (PyShoe's zv_shoe_opt, runs ≥ 3 samples) of the 8 PyShoe running trials had no stance sample (the issue
+        counted 54 of 191 on its held-back trials); with (Z5) 9 of 218. θ_hi = 3 rad/s is the bound: the foot rolls
+        over at most about 30° in a 0.2 s running stance (≈ 2.6 rad/s), so a cycle whose quietest window turns
+        faster has no stance to give. Chosen on by leave-one-trial-out (validation/provenance.toml).
     """
     gyr_threshold_rad_s: float = 0.3
     acc_tolerance_m_s2: float = 1.25
@@ -242,9 +244,14 @@ class EskfParams:
 
     acc_noise_m_s2: per-sample accelerometer white-noise std σ_a (Q_v = (σ_a T)²).
     gyr_noise_rad_s: per-sample gyroscope white-noise std σ_g (Q_θ = (σ_g T)²).
-    acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` and ``|ω|``
-        (30 % and 1 %: heel-strike impacts are clipped (16 g) and under-sampled, so their integral is barely
-        known; c_a was picked from a coarse scan on the gaitmap walk, see docs/gait.md — not a priori).
+    acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` (impacts: clipped
+        and under-sampled, their integral barely known) and to the angular rate ``|ω|`` (gyro scale-factor and
+        cross-axis errors, 1–3 % on MEMS data sheets, and what the saturation repair cannot restore grow with the
+        rate). Issue 43: c_a = 0.15, c_g = 0.03 (before: 0.3, 0.01). With c_a = 0.3 and c_g = 0.01 the smoother
+        blamed a stride's velocity error on the 60–100 m/s² impacts and the large swing accelerations of running
+        and put the correction there (hardly any position correction: running 0.24 m mean); the rate term lets
+        it blame the attitude during fast rotation, where running errs. Chosen by leave-one-trial-out over
+        ``PYSHOE_GRID`` (validation/provenance.toml; c_a was first picked on the gaitmap walk, issue 15).
     impact_window_s: the c_a term uses the largest ``| |f| − g |`` within ±impact_window_s/2 of each sample (E4c):
         a heel-strike transient lasts about 20–30 ms (Whittle, *Gait Analysis*, heel-strike transient) and is
         under-sampled at 100–200 Hz, so the sampled peak says *that* an impact happened, not on which of its
@@ -273,10 +280,10 @@ class EskfParams:
         pseudo-measurement z = p_z,0 − p̂_z (the foot stands at the height of its first stance; Duong & Suh 2015
         "zero velocity + height updating", their B6.4 baseline, 1e-4 m²). 0 = off (default): it is only true on
         a flat floor (no stairs, ramps); it removes the height drift of 10–15 mm per stride on flat walks.
-    noise_model: "phase" (default) or "global" (E4b as before issue 43): "phase" leaves the impact term
-        c_a·| |f| − g | out at stance samples (the foot is still by the detector: an impact has no integration
-        error to carry there; with it, running stance samples next to 60–90 m/s² impacts had σ_a ≈ 20 m/s²)
-        and adds σ += L_j on samples of an accelerometer axis on a plateau near full scale (E4d).
+    noise_model: "global" (default; E4b on every sample) or "phase" (E4d, issue 43): "phase" leaves the impact
+        term c_a·| |f| − g | out at stance samples (the foot is still by the detector) and adds σ += L_j on samples
+        of an accelerometer axis on a plateau near full scale (saturation). Not chosen: leave-one-trial-out kept
+        "global" in 28/28 folds (grid mean 2-D ARMSE 0.0866 vs 0.0871 m; PyShoe's accelerometer never clips).
     zupt: the stance detector parameters.
     """
     acc_noise_m_s2: float = 0.5
@@ -298,7 +305,7 @@ class EskfParams:
     normalise_gravity: bool = False
     gyro_bias: str = "none"
     zupt: ZuptParams = ZuptParams()
-    noise_model: str = "phase"
+    noise_model: str = "global"
     stance_height_var: float = 0.0
 
 
