@@ -247,11 +247,11 @@ class EskfParams:
     acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` (impacts: clipped
         and under-sampled, their integral barely known) and to the angular rate ``|ω|`` (gyro scale-factor and
         cross-axis errors, 1–3 % on MEMS data sheets, and what the saturation repair cannot restore grow with the
-        rate). Issue 43: c_a = 0.15, c_g = 0.03 (before: 0.3, 0.01). With c_a = 0.3 and c_g = 0.01 the smoother
-        blamed a stride's velocity error on the 60–100 m/s² impacts and the large swing accelerations of running
-        and put the correction there (hardly any position correction: running 0.24 m mean); the rate term lets
-        it blame the attitude during fast rotation, where running errs. Chosen by leave-one-trial-out over
-        ``PYSHOE_GRID`` (validation/provenance.toml; c_a was first picked on the gaitmap walk, issue 15).
+        rate). Issue 43: c_g 0.01 → 0.03, chosen by leave-one-trial-out over ``PYSHOE_GRID``. With c_g = 0.01 the
+        smoother blamed a running stride's velocity error on the 60–100 m/s² impacts and large swing
+        accelerations (c_a term) and put the correction there, hardly moving the position; the rate term lets it
+        blame the attitude during fast rotation, where running errs. c_a = 0.3 stays (issue 15; 0.15 scored
+        better on PyShoe but broke the gaitmap walk's stride-length target: validation/bench/trajectory.py).
     impact_window_s: the c_a term uses the largest ``| |f| − g |`` within ±impact_window_s/2 of each sample (E4c):
         a heel-strike transient lasts about 20–30 ms (Whittle, *Gait Analysis*, heel-strike transient) and is
         under-sampled at 100–200 Hz, so the sampled peak says *that* an impact happened, not on which of its
@@ -288,7 +288,7 @@ class EskfParams:
     """
     acc_noise_m_s2: float = 0.5
     gyr_noise_rad_s: float = 0.02
-    acc_noise_rel: float = 0.15
+    acc_noise_rel: float = 0.3
     gyr_noise_rel: float = 0.03
     impact_window_s: float = 0.03
     pos_noise_m: float = 1e-5

@@ -25,16 +25,19 @@ import numpy as np
 from pipeline.console import UserError, emit_json, err_console, progress
 
 FAILED_ARMSE_M = 0.5
-#: leave-one-trial-out grid (issue 43) over the options of the five diagnosed failure modes, each with the
+#: leave-one-trial-out grid (issue 43) over the options of the diagnosed failure modes, each with the
 #: pre-issue-43 value first (argmin keeps the first of equal losses, so a change must earn its place):
 #:   gyr_noise_rel c_g (E4b, the angular-rate term of the noise model) 0.01 / 0.03
-#:   acc_noise_rel c_a (E4b, the impact term) 0.3 / 0.15
 #:   noise_model "global" / "phase" (E4d: no impact term at stance samples, accelerometer-plateau term)
 #:   cycle_window (Z5: each gait cycle's quietest window is stance, bound θ_hi) off / on
 #:   gyro_bias "none" / "stances" (E1b: all-stance median; the 1 s initial estimate is gone)
+#: acc_noise_rel c_a stays 0.3: a first run of this grid with c_a 0.3 / 0.15 preferred 0.15 on PyShoe (grid mean
+#: 0.0866 vs 0.0916 m) but 0.15 breaks issue 4's stride-length target on the gaitmap walk (2.12 vs 1.98 cm,
+#: target ≤ 2 cm; tests/estimators/gait/test_gaitmap_realdata.py), so it is left out of the grid (a constraint
+#: from other development data, stated here and in validation/provenance.toml, not a PyShoe fit).
 #: Fixed, not in the grid: the saturation rule (S1–S2, a priori), β = 3, θ_lo = 0.3, θ_hi = 3 rad/s (issue 15).
 GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "noise_model", "cycle_window", "gyro_bias")
-PYSHOE_GRID = tuple((cg, ca, nm, cw, gb) for cg in (0.01, 0.03) for ca in (0.3, 0.15) for nm in ("global", "phase")
+PYSHOE_GRID = tuple((cg, ca, nm, cw, gb) for cg in (0.01, 0.03) for ca in (0.3,) for nm in ("global", "phase")
                     for cw in (False, True) for gb in ("none", "stances"))
 #: gaitmap RtsKalman grid, the same leave-one-trial-out: its ZUPT threshold (NormZuptDetector, deg/s, default
 #: 34) × level_walking (its flat-floor height update, default on) — its two options that matter on this data.
