@@ -283,7 +283,7 @@ class EskfParams:
     noise_model: "global" (default; E4b on every sample) or "phase" (E4d, issue 43): "phase" leaves the impact
         term c_a·| |f| − g | out at stance samples (the foot is still by the detector) and adds σ += L_j on samples
         of an accelerometer axis on a plateau near full scale (saturation). Not chosen: leave-one-trial-out kept
-        "global" in 28/28 folds (grid mean 2-D ARMSE 0.0866 vs 0.0871 m; PyShoe's accelerometer never clips).
+        "global" in 28/28 folds (grid mean 2-D ARMSE 0.0916 vs 0.0925 m; PyShoe's accelerometer never clips).
     zupt: the stance detector parameters.
     """
     acc_noise_m_s2: float = 0.5
