@@ -215,3 +215,13 @@ def test_armse_3d_sees_the_height_error_2d_hides():
     assert armse_3d_aligned(est, ref) == pytest.approx(0.05, rel=1e-3)     # mean of 0.01 t over 0–10 s
     xy, e3 = final_position_error(np.array([[0, 0, 0], [3.0, 4.0, 12.0]]))
     assert (xy, e3) == (5.0, 13.0)
+
+
+def test_gait_cycle_period_finds_the_stride_and_not_noise():
+    from estimators.trajectory import gait_cycle_period
+    gyr, _, _ = _running_like(n_cycles=20, period_s=0.7)
+    per = gait_cycle_period(gyr, sampling_rate_hz=FS)
+    assert np.nanmedian(per[int(2 * FS):]) == pytest.approx(0.7, abs=0.02)
+    noise = np.random.default_rng(0).normal(0, 1.0, (int(20 * FS), 3))
+    assert np.isnan(gait_cycle_period(noise, sampling_rate_hz=FS)).all()
+    assert np.isnan(gait_cycle_period(np.zeros((50, 3)), sampling_rate_hz=FS)).all()
