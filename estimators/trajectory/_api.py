@@ -10,7 +10,7 @@ from numba import njit
 from estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
 from estimators.trajectory._saturation import repair_gyro_saturation
 
-__all__ = ["ZuptParams", "detect_zupt", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
 
 @dataclass(frozen=True)
@@ -37,8 +37,20 @@ class ZuptParams:
     θ_lo = 0.3, θ_hi = 3.0, β = 3: chosen by leave-one-trial-out on the 28 PyShoe Vicon trials
         (``stridelab bench trajectory --pyshoe``; docs/gait.md "Parameters and how they were chosen").
     window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped.
-    adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window.
-    adapt_contrast: ρ.
+    adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window
+    (also the fallback of ``cycle_window``).  adapt_contrast: ρ.
+    cycle_window: (Z5, issue 43) besides (Z3), the quietest window of every gait cycle is stance when it is below
+        the physical bound θ_hi:
+            P_k = local stride period: lag of the first autocorrelation peak of |ω| in 0.4–2.5 s that reaches
+                  0.8 × the highest one with r ≥ 0.3, over 8 s blocks (hop 4 s); no such peak → no gait there,
+            k is its cycle's quietest sample iff m_k = min of m over ±½P_k (one period holds one stance of this
+                  foot) and m_k ≤ θ_hi ; stance ∪= the ``window_s`` window around each such k                  (Z5)
+        Why: (Z3) compares each sample with the quietest stance within ±1 s; in running (P ≈ 0.7 s) that is the
+        quietest of about three stances, and the less quiet ones fail β·n_k: 50 of 218 oracle still phases
+        (PyShoe's zv_shoe_opt, runs ≥ 3 samples) of the 8 PyShoe running trials had no stance sample (the issue
+        counted 54 of 191 on its held-back trials); with (Z5) 9 of 218. θ_hi = 3 rad/s is the bound: the foot rolls
+        over at most about 30° in a 0.2 s running stance (≈ 2.6 rad/s), so a cycle whose quietest window turns
+        faster has no stance to give. Chosen on by leave-one-trial-out (validation/provenance.toml).
     """
     gyr_threshold_rad_s: float = 0.3
     acc_tolerance_m_s2: float = 1.25
@@ -49,6 +61,7 @@ class ZuptParams:
     adapt_max_rad_s: float = 3.0
     adapt_window_s: float = 1.0
     adapt_contrast: float = 10.0
+    cycle_window: bool = True
 
 
 @njit(cache=True)
@@ -99,6 +112,66 @@ def _window_min(x, half):
         lo = max(0, i - half)
         hi = min(n - 1, i + half)
         out[i] = min(suf[lo], pre[hi])
+    return out
+
+
+@njit(cache=True)
+def _window_min_var(x, half):
+    """min of x over [i − half_i, i + half_i] (variable half-width, O(N·h))."""
+    n = x.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        lo = max(0, i - half[i])
+        hi = min(n, i + half[i] + 1)
+        m = x[lo]
+        for j in range(lo + 1, hi):
+            if x[j] < m:
+                m = x[j]
+        out[i] = m
+    return out
+
+
+CYCLE_MIN_S, CYCLE_MAX_S, CYCLE_BLOCK_S, CYCLE_MIN_R = 0.4, 2.5, 8.0, 0.3
+
+
+def gait_cycle_period(gyr: np.ndarray, *, sampling_rate_hz: float) -> np.ndarray:
+    """(Z5) local stride period P_k (s) per sample, NaN where no gait cycle is found: the lag of the first
+    autocorrelation peak of |ω| in 0.4–2.5 s that reaches 0.8 × the highest one and r ≥ 0.3, over 8 s blocks
+    (hop 4 s; each sample takes the block whose centre is nearest)."""
+    fs = float(sampling_rate_hz)
+    w = np.linalg.norm(np.asarray(gyr, float), axis=1)
+    w = np.where(np.isfinite(w), w, 0.0)
+    n = len(w)
+    out = np.full(n, np.nan)
+    blk = int(round(CYCLE_BLOCK_S * fs))
+    lo, hi = int(round(CYCLE_MIN_S * fs)), int(round(CYCLE_MAX_S * fs))
+    if n < 2 * lo:
+        return out
+    starts = list(range(0, max(1, n - blk + 1), max(1, blk // 2)))
+    if starts[-1] + blk < n:
+        starts.append(max(0, n - blk))
+    centres, periods = [], []
+    for s0 in starts:
+        x = w[s0:s0 + blk] - w[s0:s0 + blk].mean()
+        m = len(x)
+        den = float(np.dot(x, x))
+        per = np.nan
+        if den > 0 and m > lo + 2:
+            top = min(hi, m - 2)
+            f = np.fft.rfft(x, 2 * m)
+            ac = np.fft.irfft(f * np.conj(f))[:top + 2] / den
+            ac = ac * m / (m - np.arange(top + 2))          # unbiased: a lag of half the block counts fully
+            pk = [k for k in range(max(lo, 1), top + 1) if ac[k] >= ac[k - 1] and ac[k] >= ac[k + 1]
+                  and ac[k] >= CYCLE_MIN_R]
+            if pk:
+                best = max(ac[k] for k in pk)
+                per = next(k for k in pk if ac[k] >= 0.8 * best) / fs
+        centres.append(s0 + min(blk, n - s0) / 2)
+        periods.append(per)
+    centres = np.asarray(centres)
+    idx = np.abs(np.arange(n)[:, None] - centres[None, :]).argmin(axis=1) if len(centres) < 64 else \
+        np.clip(np.searchsorted((centres[1:] + centres[:-1]) / 2, np.arange(n)), 0, len(centres) - 1)
+    out[:] = np.asarray(periods)[idx]
     return out
 
 
@@ -155,6 +228,13 @@ def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
         mask = m <= thr
     mask = np.ascontiguousarray(mask, dtype=np.bool_)
     _drop_short(mask, max(1, int(round(params.min_stance_s * fs))))
+    if params.adaptive and params.cycle_window:                                        # (Z5)
+        per = gait_cycle_period(gyr, sampling_rate_hz=fs)
+        if np.isfinite(per).any():
+            hk = np.where(np.isfinite(per), np.round(0.5 * per * fs), 0).astype(np.int64)
+            quietest = np.isfinite(per) & (m <= _window_min_var(m, hk)) & (m <= params.adapt_max_rad_s)
+            hw = max(0, int(round(params.window_s * fs / 2)))
+            mask |= _window_max(quietest.astype(float), hw) > 0
     return mask
 
 
@@ -164,9 +244,14 @@ class EskfParams:
 
     acc_noise_m_s2: per-sample accelerometer white-noise std σ_a (Q_v = (σ_a T)²).
     gyr_noise_rad_s: per-sample gyroscope white-noise std σ_g (Q_θ = (σ_g T)²).
-    acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` and ``|ω|``
-        (30 % and 1 %: heel-strike impacts are clipped (16 g) and under-sampled, so their integral is barely
-        known; c_a was picked from a coarse scan on the gaitmap walk, see docs/gait.md — not a priori).
+    acc_noise_rel, gyr_noise_rel: c_a, c_g of (E4b): extra std proportional to ``| |f| − g |`` (impacts: clipped
+        and under-sampled, their integral barely known) and to the angular rate ``|ω|`` (gyro scale-factor and
+        cross-axis errors, 1–3 % on MEMS data sheets, and what the saturation repair cannot restore grow with the
+        rate). Issue 43: c_g 0.01 → 0.03, chosen by leave-one-trial-out over ``PYSHOE_GRID``. With c_g = 0.01 the
+        smoother blamed a running stride's velocity error on the 60–100 m/s² impacts and large swing
+        accelerations (c_a term) and put the correction there, hardly moving the position; the rate term lets it
+        blame the attitude during fast rotation, where running errs. c_a = 0.3 stays (issue 15; 0.15 scored
+        better on PyShoe but broke the gaitmap walk's stride-length target: validation/bench/trajectory.py).
     impact_window_s: the c_a term uses the largest ``| |f| − g |`` within ±impact_window_s/2 of each sample (E4c):
         a heel-strike transient lasts about 20–30 ms (Whittle, *Gait Analysis*, heel-strike transient) and is
         under-sampled at 100–200 Hz, so the sampled peak says *that* an impact happened, not on which of its
@@ -185,15 +270,26 @@ class EskfParams:
         against a scale-factor error. Off by default: leave-one-trial-out on PyShoe (g_s 9.79–9.83) cannot tell
         the two apart and the simpler option is kept; on the gaitmap walk (g_s 9.85/9.81) it shortens strides.
         The ZUPT detector always uses g_s (Z2).
-    initial_gyro_bias: subtract the mean gyro of the first stance run (≤ 1 s) as a constant bias. Off: on the
-        PyShoe trials it put a constant yaw drift of up to 0.6 °/s into slow trials (foot not perfectly still
-        in its first stance); chosen off by leave-one-trial-out (docs/gait.md).
+    gyro_bias: "none" (default) or "stances": subtract a constant gyro bias estimated as the per-axis median of
+        the gyro over the quiet cores of *all* detected stance runs (samples with |ω| ≤ θ_lo; at least
+        ``GYRO_BIAS_MIN_S`` = 2 s in ≥ 5 runs, else no bias) — (E1b). Issue 43: the former option
+        ``initial_gyro_bias`` took the mean of the first stance run (≤ 1 s), which held the foot's settling
+        rotation, not the bias (up to 0.6 °/s of yaw drift on slow PyShoe trials); removed. Chosen by
+        leave-one-trial-out (``PYSHOE_GRID``; validation/provenance.toml).
+    stance_height_var: σ_h² (m²) of the flat-floor stance-height update (E5c): at each stance sample the
+        pseudo-measurement z = p_z,0 − p̂_z (the foot stands at the height of its first stance; Duong & Suh 2015
+        "zero velocity + height updating", their B6.4 baseline, 1e-4 m²). 0 = off (default): it is only true on
+        a flat floor (no stairs, ramps); it removes the height drift of 10–15 mm per stride on flat walks.
+    noise_model: "global" (default; E4b on every sample) or "phase" (E4d, issue 43): "phase" leaves the impact
+        term c_a·| |f| − g | out at stance samples (the foot is still by the detector) and adds σ += L_j on samples
+        of an accelerometer axis on a plateau near full scale (saturation). Not chosen: leave-one-trial-out kept
+        "global" in 28/28 folds (grid mean 2-D ARMSE 0.0916 vs 0.0925 m; PyShoe's accelerometer never clips).
     zupt: the stance detector parameters.
     """
     acc_noise_m_s2: float = 0.5
     gyr_noise_rad_s: float = 0.02
     acc_noise_rel: float = 0.3
-    gyr_noise_rel: float = 0.01
+    gyr_noise_rel: float = 0.03
     impact_window_s: float = 0.03
     pos_noise_m: float = 1e-5
     zupt_noise_m_s: float = 0.01
@@ -207,8 +303,31 @@ class EskfParams:
     smooth: bool = True
     repair_saturation: bool = True
     normalise_gravity: bool = False
-    initial_gyro_bias: bool = False
+    gyro_bias: str = "none"
     zupt: ZuptParams = ZuptParams()
+    noise_model: str = "global"
+    stance_height_var: float = 0.0
+
+
+def _acc_clip_noise(acc: np.ndarray) -> np.ndarray:
+    """(E4d) saturation term: an accelerometer axis on a plateau near full scale (``_saturation.plateau_runs``,
+    the gyro rule S1–S2 applied to |f_j| with ω_min → 4 g) reads at most its range, the true value is unknown
+    above it: σ += L_j (the size of the reading itself) on those samples; 0 elsewhere."""
+    from estimators.trajectory._saturation import N_MIN_RUNS, plateau_runs
+    out = np.zeros(acc.shape[0])
+    for j in range(acc.shape[1]):
+        a = np.abs(acc[:, j])
+        fin = np.isfinite(a)
+        if not fin.any():
+            continue
+        L = float(a[fin].max())
+        if L < 4.0 * GRAVITY:
+            continue
+        runs = plateau_runs(a, L)
+        if len(runs) >= N_MIN_RUNS:
+            for s0, e0 in runs:
+                out[s0:e0] += L
+    return out
 
 
 @dataclass(frozen=True)
@@ -231,6 +350,26 @@ class TrajectoryResult:
     params: EskfParams
     sensor_gravity_m_s2: float = GRAVITY
     gyro_clipped_axes: tuple = ()
+
+
+GYRO_BIAS_MIN_S = 2.0
+GYRO_BIAS_MIN_RUNS = 5
+
+
+def stance_gyro_bias(gyr: np.ndarray, zupt: np.ndarray, *, sampling_rate_hz: float,
+                     quiet_rad_s: float = 0.3) -> np.ndarray:
+    """(E1b) constant gyro bias (3,) rad/s: per-axis median of ω over the stance samples with |ω| ≤ ``quiet_rad_s``
+    (the quiet cores of foot flat), from at least ``GYRO_BIAS_MIN_S`` s in ≥ ``GYRO_BIAS_MIN_RUNS`` stance runs;
+    zeros otherwise. The median over many stances cancels the signed roll-over of single stances; one stance
+    (the former 1 s estimate) cannot tell its settling rotation from a bias."""
+    gyr = np.asarray(gyr, float)
+    zupt = np.asarray(zupt, bool)
+    d = np.diff(np.concatenate([[0], zupt.astype(np.int8), [0]]))
+    quiet = zupt & (np.linalg.norm(gyr, axis=1) <= quiet_rad_s) & np.all(np.isfinite(gyr), axis=1)
+    n_runs = sum(1 for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)) if quiet[a:b].any())
+    if quiet.sum() < GYRO_BIAS_MIN_S * sampling_rate_hz or n_runs < GYRO_BIAS_MIN_RUNS:
+        return np.zeros(3)
+    return np.median(gyr[quiet], axis=0)
 
 
 def check_foot_imu(gyr, acc, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -300,8 +439,12 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     while k1 < lim and zupt[k1]:
         k1 += 1
     f0 = acc[k0:k1].mean(axis=0)
-    bg0 = gyr[k0:k1].mean(axis=0) if params.initial_gyro_bias and (k1 - k0) >= max(3, int(0.1 * sampling_rate_hz)) \
-        else np.zeros(3)
+    if params.gyro_bias not in ("none", "stances"):
+        raise ValueError(f"gyro_bias must be 'none' or 'stances', got {params.gyro_bias!r}")
+    if params.noise_model not in ("phase", "global"):
+        raise ValueError(f"noise_model must be 'phase' or 'global', got {params.noise_model!r}")
+    bg0 = stance_gyro_bias(gyr, zupt, sampling_rate_hz=sampling_rate_hz, quiet_rad_s=params.zupt.gyr_threshold_rad_s) \
+        if params.gyro_bias == "stances" else np.zeros(3)
     q0 = _level_quat(f0)
     T = 1.0 / sampling_rate_hz
     ns = 15 if params.estimate_biases else 9
@@ -325,8 +468,12 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     half = int(round(0.5 * params.impact_window_s * sampling_rate_hz))
     if half > 0:
         dev = _window_max(dev, half)                                                     # (E4c)
-    sig_a = params.acc_noise_m_s2 + params.acc_noise_rel * dev
+    c_a = params.acc_noise_rel
+    if params.noise_model == "phase":                                                    # (E4d)
+        sig_a = params.acc_noise_m_s2 + c_a * dev * ~zupt + _acc_clip_noise(acc)
+    else:
+        sig_a = params.acc_noise_m_s2 + c_a * dev
     sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1) + extra_g      # (S4)
     eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
-                    pos, vel, quat, bias)
+                    pos, vel, quat, bias, float(params.stance_height_var))
     return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params, g_s, clipped)

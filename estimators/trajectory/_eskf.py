@@ -13,13 +13,16 @@ Model (error = truth − estimate, world-frame attitude error ``R_true = (I + [�
               duration): an under-sampled impact's integration error is not only on its peak sample
     ZUPT      z = 0 − v̂_k = H δx + n ,  H = [0 I 0 0 0] ,  R = σ_z,k² I  (at detected stance samples) (E5)
               σ_z,k = σ_z + r_lever·|ω_k|: a foot point r_lever from the rolling contact moves at |ω|·r (E5b)
+    height    optional, flat floor: z = 0 − p̂_z,k = δp_z + n_h, R = σ_h² at stance samples after the ZUPT
+              (the first stance is z = 0; Duong & Suh 2015 "height updating", spec B6.4); off by default (E5c)
     update    Joseph form; inject p,v,b additively, q ← quat(δθ) ⊗ q ; reset δx = 0          (E6)
     RTS       δs_k = P_f,k Φ_k' P_p,k+1⁻¹ (δs_{k+1} + δu_{k+1}),  δu = the update injected at k+1   (E7)
               smoothed nominal x_s,k = x_f,k ⊕ δs_k (only the mean is smoothed; P_s is not formed)
 
 State size 9 (p, v, δθ) or 15 (+ accelerometer and gyroscope bias) — ``estimate_biases``.
 The state is 0 before the first stance sample ``k0``: the filter is initialised there (attitude levelled on
-gravity, yaw 0, gyroscope bias = mean gyro of that stance run), so a recording that starts mid-swing is handled.
+gravity, yaw 0, gyroscope bias ``bg0``: zero or the all-stance median of ``_api.stance_gyro_bias``), so a
+recording that starts mid-swing is handled.
 """
 from __future__ import annotations
 
@@ -118,7 +121,7 @@ def _cholesky_solve(A, b, n, L, y):
 
 @njit(cache=True)
 def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag, sig_z, smooth,
-                    pos, vel, quat, bias):
+                    pos, vel, quat, bias, var_h=0.0):
     """Forward ESKF (E1–E6) from sample ``k0`` then RTS (E7) back to ``k0``; writes pos, vel, quat, bias (N, ·).
 
     Rows before ``k0`` are left untouched (the caller fills them with NaN). ``qd`` (n,) is the diagonal of Q_k,
@@ -210,6 +213,33 @@ def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag
                 for i in range(3):
                     ba[i] += dx[9 + i]
                     bg[i] += dx[12 + i]
+            if var_h > 0.0:
+                # ---- flat-floor stance height (E5c): z = 0 − p̂_z = δp_z + n_h (first stance at z = 0)
+                Sh = P[2, 2] + var_h
+                yh = -p[2]
+                for i in range(n):
+                    K[i, 0] = P[i, 2] / Sh
+                for i in range(n):
+                    for j in range(i, n):
+                        s = P[i, j] - K[i, 0] * P[2, j]
+                        tmp[i, j] = s
+                for i in range(n):
+                    for j in range(i, n):
+                        P[i, j] = tmp[i, j]
+                        P[j, i] = tmp[i, j]
+                dh = np.zeros(n)
+                for i in range(n):
+                    dh[i] = K[i, 0] * yh
+                    dx[i] += dh[i]
+                for i in range(3):
+                    p[i] += dh[i]
+                    v[i] += dh[3 + i]
+                q = quat_mul_1(_quat_small(dh[6:9]), q)
+                q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+                if n == 15:
+                    for i in range(3):
+                        ba[i] += dh[9 + i]
+                        bg[i] += dh[12 + i]
         for i in range(n):
             dU[m, i] = dx[i]
             for j in range(n):

@@ -6,12 +6,16 @@
       both trajectories minus their first sample;  k* = first sample where |p̂_xy(k) − p̂_xy(0)| ≥ 0.8 m (else 300)
       ψ = atan2 of the reference xy at k* − atan2 of the estimate xy at k*;  p̂_xy ← R_z(ψ) p̂_xy            (M1)
       ARMSE = mean_k |p̂_xy(k) − p_xy(k)|   over all samples                                                (M2)
+- ``armse_3d_aligned`` (issue 43): the same alignment (M1, a rotation about z; both start at their first sample)
+  with the 3-D Euclidean error mean_k |p̂(k) − p(k)| (M3): adds the height drift the 2-D figure hides.
+- ``final_position_error``: closure error of a walk that ends where it started, |p(last) − p(first)| of the
+  mid-stance positions, horizontal and 3-D (M4).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rms_error_per_axis", "armse_2d_aligned", "ALIGN_DISTANCE_M", "ALIGN_FALLBACK_SAMPLE"]
+__all__ = ["rms_error_per_axis", "armse_2d_aligned", "armse_3d_aligned", "final_position_error", "ALIGN_DISTANCE_M", "ALIGN_FALLBACK_SAMPLE"]
 
 ALIGN_DISTANCE_M = 0.8
 ALIGN_FALLBACK_SAMPLE = 300
@@ -61,3 +65,31 @@ def armse_2d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_dista
         p = p @ np.array([[c, s], [-s, c]])
     e = np.hypot(*(p[rv] - rr[rv]).T)
     return float(e.mean()) if len(e) else float("nan"), p
+
+
+def armse_3d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_distance_m: float = ALIGN_DISTANCE_M,
+                     fallback_sample: int = ALIGN_FALLBACK_SAMPLE) -> float:
+    """(M1), (M3): 3-D Euclidean ARMSE (m) after the 2-D alignment of :func:`armse_2d_aligned` (same heading
+    rotation; heights minus their first finite value). Same input rules."""
+    p3 = np.asarray(estimate, float)[:, :3].copy()
+    r3 = np.asarray(reference, float)[:, :3]
+    _, pxy = armse_2d_aligned(p3, r3, align_distance_m=align_distance_m, fallback_sample=fallback_sample)
+    ok = np.all(np.isfinite(p3), axis=1)
+    if not ok.any():
+        return float("nan")
+    k0 = int(np.argmax(ok))
+    z = p3[:, 2].copy()
+    z[:k0] = z[k0]
+    rv = np.all(np.isfinite(r3), axis=1)
+    rr = r3 - r3[int(np.argmax(rv))]
+    e = np.sqrt(np.sum((np.column_stack([pxy, z - z[0]])[rv] - rr[rv]) ** 2, axis=1))
+    return float(e.mean()) if len(e) else float("nan")
+
+
+def final_position_error(pos_at_mid_stances: np.ndarray) -> tuple[float, float]:
+    """(M4) ``(horizontal, 3-D)`` m: |p(last) − p(first)| of the (K, 3) mid-stance positions (K ≥ 2)."""
+    p = np.asarray(pos_at_mid_stances, float)
+    if p.ndim != 2 or p.shape[0] < 2 or p.shape[1] < 3:
+        raise ValueError(f"need (K >= 2, 3) mid-stance positions, got {p.shape}")
+    e = p[-1, :3] - p[0, :3]
+    return float(np.hypot(e[0], e[1])), float(np.linalg.norm(e))

@@ -323,8 +323,9 @@ def _trajectory_accuracy_rows(sid: str, placement: str, t_ns: np.ndarray, fks: l
                               trial) -> list[dict]:
     """Foot trajectory vs the optical foot position (PyShoe's Vicon): 2-D Euclidean ARMSE after PyShoe's alignment,
     :func:`estimators.trajectory.evaluation.armse_2d_aligned` (the scorer of ``stridelab bench trajectory
-    --pyshoe``), per segment with a reference on at least half its samples, pooled weighted by length."""
-    from estimators.trajectory.evaluation import armse_2d_aligned
+    --pyshoe``), per segment with a reference on at least half its samples, pooled weighted by length; and the 3-D
+    error after the same alignment (``armse_3d_aligned``, metric ``armse_3d_m``; issue 43)."""
+    from estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
     rt, rp = ref
     if len(rt) < 2:
         return []
@@ -341,16 +342,21 @@ def _trajectory_accuracy_rows(sid: str, placement: str, t_ns: np.ndarray, fks: l
             continue
         try:
             e, _ = armse_2d_aligned(fk.trajectory.pos, on)
+            e3 = armse_3d_aligned(fk.trajectory.pos, on)
         except ValueError as err:
             notes.append(f"{trial} {placement}: trajectory not scored ({err})")
             continue
         if np.isfinite(e):
-            parts.append((e, b - a))
+            parts.append((e, b - a, e3))
     if not parts:
         return []
     v = float(np.average([p[0] for p in parts], weights=[p[1] for p in parts]))
-    return [{"session_id": sid, "stage": "foot_trajectory", "estimator": ESTIMATOR, "placement": placement,
+    rows = [{"session_id": sid, "stage": "foot_trajectory", "estimator": ESTIMATOR, "placement": placement,
              "metric": "armse_2d_m", "value": v, "unit": "m"}]
+    if all(np.isfinite(p[2]) for p in parts):
+        rows.append({**rows[0], "metric": "armse_3d_m",
+                     "value": float(np.average([p[2] for p in parts], weights=[p[1] for p in parts]))})
+    return rows
 
 
 def _stride_accuracy_rows(sid: str, strides: list[dict]) -> list[dict]:

@@ -70,6 +70,9 @@ def test_foot_trajectory_stage_equals_bench_on_a_pyshoe_trial(tmp_path, monkeypa
     bench = pyshoe_benchmark(d, show_progress=False, anchors=False)["trials"][0]
     assert len(stage) == 1
     assert stage[0] == pytest.approx(bench["armse_2d_m_in_sample"], rel=0.01)     # the same default parameters
+    stage3 = df(tmp_path / "wh", "SELECT value FROM accuracy_metrics WHERE stage = 'foot_trajectory' "
+                                 "AND metric = 'armse_3d_m'")["value"]
+    assert len(stage3) == 1 and stage3[0] == pytest.approx(bench["armse_3d_m_shipped"], rel=0.01)
 
 
 def _gait_metrics(root, stage):

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from validation.simulator.foot_walk_yun import simulate_yun_walk
@@ -57,3 +58,37 @@ def test_bench_trajectory_bad_file(tmp_path):
     p.write_text("a,b\n1,2\n")
     res = CliRunner().invoke(command, ["--loop", str(p), "--json"])
     assert res.exit_code == 2 and "missing column" in res.output
+
+
+def test_bench_loop_lists_an_unreadable_file_and_goes_on(tmp_path):
+    """Issue 43 point 3: one bad file among good ones is listed with its reason; the others are scored, exit 0;
+    the loop blocks carry the horizontal and 3-D final errors."""
+    from validation.bench.trajectory import command
+    good = tmp_path / "loop0.csv"
+    _write_loop_csv(good, 0)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b\n1,2\n")
+    res = CliRunner().invoke(command, ["--loop", str(bad), "--loop", str(good), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)["loop"]
+    assert [r["file"] for r in out["files"]] == [str(good)]
+    assert out["unreadable"][0]["file"] == str(bad) and "missing column" in out["unreadable"][0]["reason"]
+    sd = out["shipped_defaults"]
+    assert sd["final_position_error_xy_m"][0] <= sd["final_position_error_3d_m"][0] < 0.3
+    assert out["cross_validated"] == "needs >= 2 readable walks"
+
+
+@pytest.mark.realdata
+def test_bench_pyshoe_lists_an_unreadable_file_and_goes_on(tmp_path):
+    from tests.conftest import shared_data
+    from validation.bench.trajectory import pyshoe_benchmark
+    src = sorted(shared_data("pyshoe_vicon").glob("*.mat"))[0]
+    (tmp_path / src.name).symlink_to(src)
+    (tmp_path / "broken.mat").write_bytes(b"not a mat file")
+    out = pyshoe_benchmark(tmp_path, show_progress=False, anchors=False)
+    assert [b["file"] for b in out["unreadable"]] == [str(tmp_path / "broken.mat")]
+    assert "broken.mat" in out["unreadable"][0]["reason"]
+    for block in ("shipped_defaults", "cross_validated", "in_sample"):
+        s = out[block]
+        assert s["n_trials"] == 1 and s["mean_m"] <= s["mean_3d_m"] + 1e-9 or s["mean_3d_m"] is None
+        assert set(s["by_activity"]) == {out["trials"][0]["motion_type"]}
