@@ -5,6 +5,7 @@
 #   make install  the same installation, kernels compiled (`stridelab warm-kernels`) and the packages' bytecode
 #               compiled once before it returns (benches and nightly runs start many processes)
 #   make test   install if missing, compile the packages' bytecode once, run the test suite
+#   make test-fast  the same without the slow, real-data and browser tests (the edit loop)
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'",
 #   INSTALLER=pip (skip uv).
 # Packages are installed by uv (UV_VERSION, from the package index through pip): 6 s instead of pip's 90 s for
@@ -21,7 +22,7 @@ INSTALLER ?= uv
 ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: demo test install browser clean
+.PHONY: demo test test-fast install browser clean
 
 $(DEPS): pyproject.toml requirements.lock
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null || \
@@ -66,6 +67,10 @@ demo: $(DEPS)
 
 test: $(STAMP) $(BYTECODE) browser
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
+
+# The edit loop: everything that needs neither the public data, a browser nor more than a few seconds.
+test-fast: $(STAMP) $(BYTECODE)
+	$(VENV)/bin/python -m pytest -q -m "not slow and not realdata and not browser" $(PYTEST_ARGS)
 
 # Debian's Chromium for the dashboard's real-browser test; skipped (with a message) where apt is unavailable.
 browser:

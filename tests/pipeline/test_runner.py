@@ -126,10 +126,9 @@ def test_a_reader_holding_a_snapshot_neither_blocks_nor_is_blocked(tmp_path):
     reader = connect_snapshot(tmp_path / "wh")
     before = first(reader.execute("SELECT count(*) FROM recordings"))[0]
     make_inbox(tmp_path / "inbox2", n_sessions=2, seconds=10, study="more")
-    t0 = time.time()
+    # a run blocked by the reader would hang: cli()'s subprocess timeout fails the test then (no wall-time assertion)
     r = cli("run", "--inbox", tmp_path / "inbox2", "--warehouse", tmp_path / "wh", "-j", "1")
     assert r.returncode == 0, r.stderr
-    assert time.time() - t0 < 120
     # the old snapshot still answers, unchanged; a new reader sees the new data
     assert first(reader.execute("SELECT count(*) FROM recordings"))[0] == before
     reader.close()
