@@ -110,3 +110,17 @@ def test_import_of_a_folder_names_the_bad_file_and_imports_the_repeated_one(tmp_
     t = np.concatenate([b.t_ns for b in iter_blocks(tmp_path / "inbox" / "voisard-1-2.mcap", rr)
                         if b.topic == "/imu/foot_left"])
     assert len(t) == 60 and np.all(np.diff(t) > 0)                          # every row, times increasing
+
+
+def test_import_of_an_mt_manager_export(tmp_path):
+    pre = ("// Start Time: Unknown", "// Update Rate: 60.0Hz", "// Filter Profile: human (46.1)",
+           "// Option Flags: AHS Disabled ICC Disabled", "// Firmware Version: 4.0.2")
+    p = _write(tmp_path / "walk_lf.txt", range(100, 130), preamble=pre, trailing_tab=True)
+    res = import_paths("xsens", [p], tmp_path / "inbox")
+    assert not res.errors and not res.warnings and len(res.written) == 1
+    from pipeline.formats.mcap_read import ReadResult, iter_blocks
+    blocks = [b for b in iter_blocks(res.written[0], ReadResult()) if b.topic == "/imu/foot_left"]
+    t = np.concatenate([b.t_ns for b in blocks])
+    acc_x = np.concatenate([b.values[:, 3] for b in blocks])                # gyr then acc (m/s²)
+    assert len(t) == 30 and np.allclose(np.diff(t), 1e9 / 60.0, atol=1)
+    np.testing.assert_allclose(acc_x, np.arange(30))
