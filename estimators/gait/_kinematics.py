@@ -70,6 +70,8 @@ class FootParams:
         contact"); None = the pitch maximum (the thesis' IC). Chosen by leave-one-subject-out over the Voisard
         subjects and the gaitmap walk (``stridelab bench gait --voisard``; validation/provenance.toml).
     heel_strike_window_s: W of (H1), 0.15 s as T1 (a priori).
+    weak_push_off_steps: (R5) on heel-striking feet, a step whose push-off never passes T (the first step out of
+        standing) is found after the fact: ``_weak_push_off_steps``. False = Algorithm 1 (+ R4) only.
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams(threshold=-0.1)
@@ -81,6 +83,7 @@ class FootParams:
     swing_events: bool = True
     heel_strike_fraction: float | None = 0.4
     heel_strike_window_s: float = 0.15
+    weak_push_off_steps: bool = True
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,48 @@ def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float,
                          window_s=params.toe_off_window_s, lower_bound=lo)
     tc = np.where(alg1, ref, ev.tc_idx)
     return replace(ev, tc_idx=tc, tc_pitch_min_idx=ev.tc_idx.copy())
+
+
+def _weak_push_off_steps(ev: GaitEvents, s: np.ndarray, fs: float, params: FootParams) -> GaitEvents:
+    """(R5) batch, heel-striking feet: between an IC a and the next TC (or the end), a pitch maximum j (a local
+    maximum after a + n_ref) that rises more than |T| above s_a, with a pitch minimum m in (a, j) at least |T| below
+    s_j, is a step whose push-off was too weak for (R2) (s_m > T: the first step out of standing, after a weight
+    shift that Algorithm 1 took for a step); strict alternation then blocked its heel strike. TC at m and IC at j
+    are added (detections m + 1, j + 1, so T1 and H1 refine them). In ordinary walking s only falls from a heel
+    strike to the stance level before the next push-off, so the rule cannot fire there. The rise |T| (≈ 6°) is the
+    size of the threshold itself, a priori; applied once per interval."""
+    p = ev.params
+    n_ref = max(1, int(round(p.refractory_s * fs)))
+    rise = abs(p.threshold)
+    n = len(s)
+    add_tc, add_ic = [], []
+    for a in ev.ic_idx:
+        later = ev.tc_idx[ev.tc_idx > a]
+        b = int(later[0]) if len(later) else n - 1
+        lo = int(a) + n_ref
+        if b - lo < 3 or not np.isfinite(s[a]):
+            continue
+        seg = s[lo:b]
+        if not np.all(np.isfinite(seg)):
+            continue
+        j = lo + int(np.argmax(seg))
+        if not (lo < j < b - 1 and s[j] >= s[j - 1] and s[j] >= s[j + 1] and s[j] > p.threshold):
+            continue
+        if not s[j] > s[a] + rise:
+            continue
+        m = int(a) + 1 + int(np.argmin(s[a + 1:j]))
+        if not s[m] < s[j] - rise:
+            continue
+        add_tc.append(m)
+        add_ic.append(j)
+    if not add_ic:
+        return ev
+    tc = np.concatenate([ev.tc_idx, add_tc]).astype(np.int64)
+    tcd = np.concatenate([ev.tc_detect_idx, np.asarray(add_tc) + 1]).astype(np.int64)
+    ic = np.concatenate([ev.ic_idx, add_ic]).astype(np.int64)
+    icd = np.concatenate([ev.ic_detect_idx, np.asarray(add_ic) + 1]).astype(np.int64)
+    ot, oi = np.argsort(tc, kind="stable"), np.argsort(ic, kind="stable")
+    return replace(ev, tc_idx=tc[ot], tc_detect_idx=tcd[ot], ic_idx=ic[oi], ic_detect_idx=icd[oi])
 
 
 def _refine_ics(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams) -> GaitEvents:
@@ -276,6 +321,8 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     if swing_rules:
         ev = complete_swing_events(ev, s, stance, sampling_rate_hz=fs, max_swing_s=params.max_stride_time_s,
                                    gyr_norm=w)
+    elif params.weak_push_off_steps:
+        ev = _weak_push_off_steps(ev, s, fs, params)
     ev = _refine(ev, gyr, traj, mids, u, s, fs, params)
     # K2, K3
     idx_rows, val_rows = [], []

@@ -78,3 +78,30 @@ def test_refine_events_equals_foot_kinematics(toe_off, heel):
     assert len(ev.ic_idx) > 25
     if heel is not None:                      # H1 moved ICs later, never earlier
         assert np.all(ev.ic_idx >= ev.ic_pitch_max_idx) and np.any(ev.ic_idx > ev.ic_pitch_max_idx)
+
+
+def _pitch(points, n=400):
+    """Piecewise-linear pitch signal s through (sample, value) points."""
+    x, y = zip(*points)
+    return np.interp(np.arange(n), x, y)
+
+
+def test_weak_push_off_step_is_added_and_ordinary_strides_are_not_touched():
+    """(R5) Voisard 1-1 right foot in miniature: a weight shift Algorithm 1 took for a step (TC 40, IC 80 at
+    s = 0.05), then the first real step whose push-off only reaches s = −0.03 (> T = −0.1, so no TC, and strict
+    alternation blocks its heel strike at s = 0.3), then stance and an ordinary push-off (TC 300)."""
+    from estimators.gait import GaitEvents, IcTcParams
+    from estimators.gait._kinematics import _weak_push_off_steps
+    fs = 100.0
+    s = _pitch([(0, 0), (40, -0.15), (80, 0.05), (120, -0.03), (160, 0.3), (200, 0.0), (260, 0.0), (300, -0.4),
+                (340, 0.3), (399, 0.0)])
+    ev = GaitEvents(np.array([80, 340]), np.array([40, 300]), np.array([81, 341]), np.array([41, 301]), IcTcParams())
+    out = _weak_push_off_steps(ev, s, fs, FootParams())
+    assert out.tc_idx.tolist() == [40, 120, 300] and out.ic_idx.tolist() == [80, 160, 340]
+    assert out.tc_detect_idx.tolist() == [41, 121, 301] and out.ic_detect_idx.tolist() == [81, 161, 341]
+    # an ordinary stride: heel strike, stance, push-off: nothing added
+    s2 = _pitch([(0, 0), (40, -0.4), (80, 0.3), (120, 0.0), (200, 0.0), (240, -0.4), (280, 0.3), (399, 0.0)])
+    ev2 = GaitEvents(np.array([80, 280]), np.array([40, 240]), np.array([81, 281]), np.array([41, 241]),
+                     IcTcParams())
+    out2 = _weak_push_off_steps(ev2, s2, fs, FootParams())
+    assert out2.ic_idx.tolist() == [80, 280] and out2.tc_idx.tolist() == [40, 240]
