@@ -56,6 +56,7 @@ class Format:
 class ImportResult:
     written: list[Path] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)     # imported, with a note (e.g. a repeated packet counter)
 
 
 def _rel_ns(n: int, fs: float) -> np.ndarray:
@@ -219,9 +220,11 @@ def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _xsens_times(x) -> np.ndarray:
-    """Sample times from the packet counter (dropped packets keep their gap)."""
-    k = np.concatenate([[0], np.cumsum(np.diff(np.asarray(x.packet, np.int64)) % 65536)])   # 16-bit counter unwrapped
-    return np.rint(k * (1e9 / x.sampling_rate_hz)).astype(np.int64)
+    """Sample times from the packet counter (dropped packets keep their gap; the 16-bit counter unwrapped and a
+    repeated counter placed by the reader's policy, ``pipeline.formats.xsens_mt.packet_index``)."""
+    from pipeline.formats.xsens_mt import packet_index
+    k = x.index if x.index is not None else packet_index(x.packet)[0]
+    return np.rint(np.asarray(k, np.int64) * (1e9 / x.sampling_rate_hz)).astype(np.int64)
 
 
 _XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "pelvis"}
@@ -410,7 +413,10 @@ def expand(fmt: Format, paths) -> list[Path]:
 def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None, session: dict | None = None,
                  placement: str | None = None, limit: int | None = None,
                  on_file: Callable[[str], None] = lambda m: None) -> ImportResult:
-    """Convert every file; bad files are reported (one line each) and do not stop the others."""
+    """Convert every file; bad files are reported (one line each, naming the file) and do not stop the others.
+    Warnings a reader raises while converting a file (e.g. ``XsensPacketWarning``) are reported as
+    ``warning: <file>: …`` lines and kept in ``ImportResult.warnings``; the file is imported."""
+    import warnings
     from pipeline.formats.mcap_write import write_recording
     fmt = FORMATS[fmt_name]
     if placement is not None and placement not in PLACEMENTS:
@@ -429,7 +435,14 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
             if not path.exists():
                 raise ImportRejected(f"{path}: no such file or folder")
             try:
-                converted = fmt.convert(path, placement)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    converted = fmt.convert(path, placement)
+                for w in caught:
+                    text = str(w.message)
+                    msg = f"warning: {text if str(path) in text else f'{path}: {text}'}"
+                    res.warnings.append(msg)
+                    on_file(msg)
             except ImportRejected:
                 raise
             except (ValueError, KeyError, OSError, IndexError) as e:
@@ -444,7 +457,12 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
                 c.rec.metadata = meta
                 _shift(c.rec, t0)
                 out = inbox / f"{c.stem}.mcap"
-                write_recording(c.rec, out)
+                try:
+                    write_recording(c.rec, out)
+                except (ValueError, OSError) as e:
+                    msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+                    raise ImportRejected(f"{path}: cannot be written as a recording ({msg}); the file is "
+                                         "left out, the others go on") from None
                 res.written.append(out)
                 on_file(f"wrote {out} (session {meta['session']}, {', '.join(sorted(c.rec.imu))})")
         except ImportRejected as e:

@@ -279,9 +279,10 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, recording, se
     res = import_paths(fmt, paths, inbox or default_inbox(), study=study, session=overrides, placement=placement,
                        on_file=lambda m: None if as_json else err_console.print(m, markup=False, highlight=False))
     if as_json:
-        emit_json({"written": [str(p) for p in res.written], "errors": res.errors})
+        emit_json({"written": [str(p) for p in res.written], "errors": res.errors, "warnings": res.warnings})
     else:
-        err_console.print(f"{len(res.written)} recordings written, {len(res.errors)} files refused", markup=False)
+        err_console.print(f"{len(res.written)} recordings written, {len(res.errors)} files refused"
+                          + (f", {len(res.warnings)} warnings" if res.warnings else ""), markup=False)
     if res.errors:
         raise SystemExit(1)
 

@@ -5,7 +5,9 @@ mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foo
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
 → IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → events completed on the swings
 of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → TCs refined from the pitch
-minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → strides.
+minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → heel-strike ICs moved
+from the pitch maximum into the loading rotation (H1, ``refine_heel_strike``; ``FootParams.heel_strike_fraction``)
+→ strides.
 
     K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
         (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
@@ -32,12 +34,13 @@ import numpy as np
 
 from dataclasses import replace
 
-from estimators.gait._events import GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_toe_off
+from estimators.gait._events import (GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_heel_strike,
+                                     refine_toe_off)
 from estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
 from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
-__all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "SessionGait", "gait_session",
-           "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
+__all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "refine_events", "SessionGait",
+           "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
 
 STRIDE_COLUMNS = ("start", "end", "tc", "ic", "pre_ic")
 PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_time_s", "stance_pct", "swing_pct",
@@ -55,18 +58,32 @@ class FootParams:
     max_stride_time_s: strides longer than this are dropped (spec §3.8: 3 s).
     toe_off_refine: move each Algorithm-1 TC (pitch minimum, thesis) back to the toe-off (T1 in ``_events``:
         onset of the plantarflexion deceleration); False = the thesis' plain TC. Flat-lift TCs (R4) are kept.
-    toe_off_onset_fraction, toe_off_window_s: f and W of (T1) (0.2 of the peak deceleration; 0.15 s), a priori.
+    toe_off_onset_fraction: f of (T1): 0.6 of the peak deceleration, chosen by leave-one-subject-out over the
+        Voisard subjects and the gaitmap walk (the a-priori 0.2 put the toe-off 8 ms early on Voisard, 6 ms on the
+        gaitmap walk; ``stridelab bench gait --voisard``, validation/provenance.toml).
+    toe_off_window_s: W of (T1), 0.15 s (Algorithm 1's look-back window), a priori.
     swing_events: complete the events on the swings of the zero-velocity mask (W0–W3 in ``_swing``: flat lift,
         drop foot, flat-foot and forefoot contact); False = Algorithm 1 (+ R4) only.
+    heel_strike_fraction: f of (H1) in ``_events.refine_heel_strike``: a heel-strike IC (a pitch maximum followed
+        by a fall of the pitch) moves to the first sample where the toes-down rotation rate reaches f of its peak
+        within ``heel_strike_window_s`` (the reference's heel strike, docs/gait.md "Which instant is initial
+        contact"); None = the pitch maximum (the thesis' IC). Chosen by leave-one-subject-out over the Voisard
+        subjects and the gaitmap walk (``stridelab bench gait --voisard``; validation/provenance.toml).
+    heel_strike_window_s: W of (H1), 0.15 s as T1 (a priori).
+    weak_push_off_steps: (R5) on heel-striking feet, a step whose push-off never passes T (the first step out of
+        standing) is found after the fact: ``_weak_push_off_steps``. False = Algorithm 1 (+ R4) only.
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams(threshold=-0.1)
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
     toe_off_refine: bool = True
-    toe_off_onset_fraction: float = 0.2
+    toe_off_onset_fraction: float = 0.6
     toe_off_window_s: float = 0.15
     swing_events: bool = True
+    heel_strike_fraction: float | None = 0.4
+    heel_strike_window_s: float = 0.15
+    weak_push_off_steps: bool = True
 
 
 @dataclass(frozen=True)
@@ -153,6 +170,93 @@ def _refine_tcs(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, fs: float,
     return replace(ev, tc_idx=tc, tc_pitch_min_idx=ev.tc_idx.copy())
 
 
+def _weak_push_off_steps(ev: GaitEvents, s: np.ndarray, fs: float, params: FootParams) -> GaitEvents:
+    """(R5) batch, heel-striking feet: between an IC a and the next TC (or the end), a pitch maximum j (a local
+    maximum after a + n_ref) that rises more than |T| above s_a, with a pitch minimum m in (a, j) at least |T| below
+    s_j, is a step whose push-off was too weak for (R2) (s_m > T: the first step out of standing, after a weight
+    shift that Algorithm 1 took for a step); strict alternation then blocked its heel strike. TC at m and IC at j
+    are added (detections m + 1, j + 1, so T1 and H1 refine them). In ordinary walking s only falls from a heel
+    strike to the stance level before the next push-off, so the rule cannot fire there. The rise |T| (≈ 6°) is the
+    size of the threshold itself, a priori; applied once per interval."""
+    p = ev.params
+    n_ref = max(1, int(round(p.refractory_s * fs)))
+    rise = abs(p.threshold)
+    n = len(s)
+    add_tc, add_ic = [], []
+    for a in ev.ic_idx:
+        later = ev.tc_idx[ev.tc_idx > a]
+        b = int(later[0]) if len(later) else n - 1
+        lo = int(a) + n_ref
+        if b - lo < 3 or not np.isfinite(s[a]):
+            continue
+        seg = s[lo:b]
+        if not np.all(np.isfinite(seg)):
+            continue
+        j = lo + int(np.argmax(seg))
+        if not (lo < j < b - 1 and s[j] >= s[j - 1] and s[j] >= s[j + 1] and s[j] > p.threshold):
+            continue
+        if not s[j] > s[a] + rise:
+            continue
+        m = int(a) + 1 + int(np.argmin(s[a + 1:j]))
+        if not s[m] < s[j] - rise:
+            continue
+        add_tc.append(m)
+        add_ic.append(j)
+    if not add_ic:
+        return ev
+    tc = np.concatenate([ev.tc_idx, add_tc]).astype(np.int64)
+    tcd = np.concatenate([ev.tc_detect_idx, np.asarray(add_tc) + 1]).astype(np.int64)
+    ic = np.concatenate([ev.ic_idx, add_ic]).astype(np.int64)
+    icd = np.concatenate([ev.ic_detect_idx, np.asarray(add_ic) + 1]).astype(np.int64)
+    ot, oi = np.argsort(tc, kind="stable"), np.argsort(ic, kind="stable")
+    return replace(ev, tc_idx=tc[ot], tc_detect_idx=tcd[ot], ic_idx=ic[oi], ic_detect_idx=icd[oi])
+
+
+def _refine_ics(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams) -> GaitEvents:
+    """(H1) on the heel-strike ICs: pitch extrema (detection = extremum + 1) with the pitch falling after them; the
+    refined IC stays before the next TC and the next mid-stance."""
+    ups = np.array([_rot_T(traj.quat[m], np.array([0.0, 0.0, 1.0])) for m in mids])
+    up = ups.mean(axis=0)
+    up /= np.linalg.norm(up)
+    ml = np.cross(up, u)
+    ic = ev.ic_idx
+    if not np.linalg.norm(ml) > 0.1 or not len(ic):
+        return ev
+    n = len(s)
+    nxt = ic + 1
+    falls = (ev.ic_detect_idx == nxt) & (nxt < n)
+    falls[falls] = s[nxt[falls]] <= s[ic[falls]]
+    hi = np.full(len(ic), n - 1, np.int64)
+    for points in (ev.tc_idx, mids):
+        k = np.searchsorted(np.asarray(points, np.int64), ic, side="right")
+        has = k < len(points)
+        hi[has] = np.minimum(hi[has], np.asarray(points, np.int64)[k[has]] - 1)
+    ref = refine_heel_strike(gyr, ic, ml, sampling_rate_hz=fs, onset_fraction=params.heel_strike_fraction,
+                             window_s=params.heel_strike_window_s, upper_bound=hi)
+    return replace(ev, ic_idx=np.where(falls, ref, ic), ic_pitch_max_idx=ic.copy())
+
+
+def _refine(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams) -> GaitEvents:
+    """The batch refinements of the events: T1 (toe-off) then H1 (heel strike), as ``params`` asks."""
+    if params.toe_off_refine and len(ev.tc_idx):
+        ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
+    if params.heel_strike_fraction is not None and len(ev.ic_idx):
+        ev = _refine_ics(ev, gyr, traj, mids, u, s, fs, params)
+    return ev
+
+
+def refine_events(fk: "FootKinematics", gyr: np.ndarray, params: FootParams) -> GaitEvents:
+    """The events ``foot_kinematics(gyr, …, params=params)`` returns, from a result ``fk`` computed with the same
+    parameters but both refinements off (``toe_off_refine=False, heel_strike_fraction=None``): T1 and H1 are the
+    last steps and touch nothing else, so a bench can score several refinement settings from one ESKF run."""
+    if fk.events.tc_pitch_min_idx is not None or fk.events.ic_pitch_max_idx is not None:
+        raise ValueError("refine_events needs a FootKinematics computed with both refinements off")
+    if fk.status == "no_stance":
+        return fk.events
+    return _refine(fk.events, gyr, fk.trajectory, fk.mid_stance, fk.anterior_axis, fk.pitch, fk.sampling_rate_hz,
+                   params)
+
+
 def _anterior_axis(traj: TrajectoryResult, runs, w, fs: float, params: FootParams):
     """K1 over the mid-stances of ``runs``; (u_S, found) with u_S = sensor x when no stride is long enough."""
     mids = [a + int(np.argmin(w[a:b])) for a, b in runs]
@@ -216,9 +320,10 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt) if swing_rules else ev0
     if swing_rules:
         ev = complete_swing_events(ev, s, stance, sampling_rate_hz=fs, max_swing_s=params.max_stride_time_s,
-                                   gyr_norm=w, onset_fraction=params.toe_off_onset_fraction)
-    if params.toe_off_refine and len(ev.tc_idx):
-        ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
+                                   gyr_norm=w)
+    elif params.weak_push_off_steps:
+        ev = _weak_push_off_steps(ev, s, fs, params)
+    ev = _refine(ev, gyr, traj, mids, u, s, fs, params)
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None

@@ -24,7 +24,8 @@ HEEL_STRIKER_FRACTION = 0.5 of the foot's swings end in an Algorithm-1 heel stri
 heel-striking foot keeps Algorithm 1 everywhere (its other swings are turns, shuffles, first and last steps).
 M = ``IcTcParams.flat_lift_margin`` (0.05 ≈ 3°, R4's margin: a few times the stance pitch noise) and n_ref = the
 refractory period: both a priori, none fitted. Strides keep needing one TC then one IC between mid-stances (K2).
-f_T1 is T1's onset fraction (``FootParams``). A normal push-off accelerates the rotation up to the toe-off, so |ω|
+f_T1 = ``ROTATION_STOP_FRACTION`` = 0.2, a priori (it was T1's a-priori onset fraction; T1's own fraction is now
+chosen on the Voisard subjects, W4's is not). A normal push-off accelerates the rotation up to the toe-off, so |ω|
 never nearly stops before its pitch minimum (W4 does not fire on heel-strike steps anyway).
 """
 from __future__ import annotations
@@ -35,13 +36,16 @@ import numpy as np
 
 from estimators.gait._events import GaitEvents
 
-__all__ = ["complete_swing_events", "swing_runs", "heel_strike_fraction", "MAX_LOADING_S", "HEEL_STRIKER_FRACTION"]
+__all__ = ["complete_swing_events", "swing_runs", "heel_strike_fraction", "MAX_LOADING_S", "HEEL_STRIKER_FRACTION",
+           "ROTATION_STOP_FRACTION"]
 
 #: longest loading rotation (contact -> foot flat): loading response ≈ 10-12 % of the gait cycle (Perry & Burnfield
 #: 2010) of the slowest strides walked (≈ 2.5 s); a priori
 MAX_LOADING_S = 0.3
 #: a foot whose swings end in an Algorithm-1 heel strike at least this often keeps Algorithm 1 everywhere (majority)
 HEEL_STRIKER_FRACTION = 0.5
+#: f_T1 of (W4): |ω| below this share of its maximum since the lift = the push-off's rotation stopped (a priori)
+ROTATION_STOP_FRACTION = 0.2
 
 
 def swing_runs(still: np.ndarray, *, min_samples: int, max_samples: int) -> np.ndarray:
@@ -124,7 +128,7 @@ def heel_strike_fraction(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sa
 
 def complete_swing_events(ev: GaitEvents, s: np.ndarray, still: np.ndarray, *, sampling_rate_hz: float,
                           max_swing_s: float = 3.0, gyr_norm: np.ndarray | None = None,
-                          onset_fraction: float = 0.2) -> GaitEvents:
+                          onset_fraction: float = ROTATION_STOP_FRACTION) -> GaitEvents:
     """(W0)–(W4) on the events ``ev`` of pitch signal ``s`` with the stance mask ``still`` (module docstring).
     Added / moved events get a detection index = event + 1 (a pitch extremum, refined by T1 like Algorithm 1's)."""
     fs = float(sampling_rate_hz)

@@ -82,7 +82,7 @@ def _gait_metrics(root, stage):
 
 def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch):
     """IC/TC vs Voisard's annotations inside TrialBoundaries at the bench's ±100 ms, the shipped FootParams (the
-    bench's ``in_sample_defaults``); trial 3-1: no dropped packet on the left foot, one on the right."""
+    bench's ``shipped_defaults``); trial 3-1: no dropped packet on the left foot, one on the right."""
     from validation.bench.gait import VOISARD_TOL_S, voisard_benchmark
     from pipeline.stages import gait
     src = shared_data("voisard_gait")
@@ -94,7 +94,7 @@ def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch
     params = {**gait.default_params(), "event_tolerance_s": VOISARD_TOL_S}
     run_with(monkeypatch, tmp_path / "wh", res.written, [dataclasses.replace(gait.STAGE, default_params=lambda: params)])
     stage = _gait_metrics(tmp_path / "wh", "gait_events")
-    bench = voisard_benchmark(d, show_progress=False)["in_sample_defaults"]
+    bench = voisard_benchmark(d, show_progress=False)["shipped_defaults"]
     for typ in ("ic", "tc"):
         for m in ("sensitivity", "precision", "timing_mae_ms"):
             assert stage[f"{typ}_{m}"] == pytest.approx(bench[f"{typ}_{m}"], rel=0.01), f"{typ}_{m}"

@@ -486,13 +486,22 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
     ``fit_model_path``: refit the default's window model on every participant in ``directory`` and write it
     there (``fit_model`` key) before scoring."""
     from estimators.activity import PRESETS, classify_day
-    from pipeline.formats.uci_chest import load_uci_chest
-    parts = []
+    from pipeline.formats.uci_chest import load_uci_participant
+    parts, skipped = [], []
     if directory is not None:
-        try:
-            parts = load_uci_chest(directory)
-        except ValueError as e:
-            raise UserError(str(e)) from e
+        # file by file, as load_uci_chest orders them: a file that cannot be read is listed and the bench goes on
+        files = sorted(Path(directory).glob("*.csv"),
+                       key=lambda f: (0, int(f.stem)) if f.stem.isdigit() else (1, f.stem))
+        if not files:
+            raise UserError(f"no UCI chest CSV files (*.csv) in {directory}")
+        for f in files:
+            try:
+                parts.append(load_uci_participant(f))
+            except ValueError as e:
+                skipped.append({"file": str(f), "reason": str(e).splitlines()[0] if str(e) else "unreadable"})
+        if not parts:
+            raise UserError(f"{directory}: no UCI chest file could be read: "
+                            + "; ".join(f"{x['file']}: {x['reason']}" for x in skipped))
     methods, out_extra = {}, {}
     stairs_lean = PRESETS["default"].stairs_lean_deg
     with progress(show_progress) as p:
@@ -537,7 +546,7 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
                # what pipeline.stages.activity runs: pipeline.activity_model.classify_recording
                "default": "default",
                "best_balanced_accuracy": max(scored, key=scored.get) if scored else None,
-               "reference_random_forest_loso_balanced_accuracy": 0.59, **out_extra}
+               "reference_random_forest_loso_balanced_accuracy": 0.59, "skipped_files": skipped, **out_extra}
         if parts:
             out["label_consistency"] = consistency
         if speed:
@@ -595,6 +604,8 @@ def command(uci: Path, no_speed: bool, no_uci: bool, simulated: int, no_tuned_rf
         err_console.print(f"labels contradicted by the signal (sitting/standing/walking/stairs): {lc['contradicted']} "
                           f"of {lc['windows']} windows; balanced accuracy ceiling {lc['ceiling_balanced_accuracy']:.3f}"
                           + (f" (held out {lc['held_out']['ceiling_balanced_accuracy']:.3f})" if "held_out" in lc else ""))
+    for x in result.get("skipped_files", []):
+        err_console.print(f"skipped {x['file']}: {x['reason']}", markup=False)
     if "seconds_24h_100hz" in result:
         err_console.print(f"24 h at 100 Hz: {result['seconds_24h_100hz']:.2f} s")
     if "simulated" in result:

@@ -66,3 +66,23 @@ def test_recording_cut_mid_stride_anywhere():
         st = fk.strides.idx
         assert np.all((st[:, 0] < st[:, 2]) & (st[:, 2] < st[:, 3]) & (st[:, 3] < st[:, 1]))
         assert np.all((st[:, :4] >= 0) & (st[:, :4] < end - cut))
+
+
+@pytest.mark.parametrize("ic, tc", [
+    ([30, 130, 230], []),                     # ICs only (no TC to bound the heel-strike refinement)
+    ([80, 180], [55, 155, 255]),              # TC first, TC last
+    ([30, 130, 230], [55, 155]),              # IC last, with no TC after it
+    ([599], [55]),                            # an IC on the last sample
+    ([], []),
+])
+def test_heel_strike_refinement_on_any_event_sequence(ic, tc):
+    from estimators.gait._kinematics import _refine_ics
+    gyr, traj, mids, fs = _fake_foot()
+    ic, tc = np.array(ic, np.int64), np.array(tc, np.int64)
+    s = -np.cos(2 * np.pi * np.arange(len(gyr)) / fs)       # any pitch signal: falls after some ICs, not others
+    ev = GaitEvents(ic, tc, ic + 1, tc + 1, IcTcParams())
+    out = _refine_ics(ev, gyr, traj, mids, np.array([1.0, 0, 0]), s, fs, FootParams())
+    assert len(out.ic_idx) == len(ic) and out.tc_idx.tolist() == tc.tolist()
+    for k, j in enumerate(ic):                # refined IC stays at/after the pitch maximum, before the next TC / mid
+        nxt = [x for x in (*tc[tc > j], *mids[mids > j]) if x > j]
+        assert j <= out.ic_idx[k] <= (min(nxt) - 1 if nxt else len(s) - 1)
