@@ -1,0 +1,215 @@
+"""A live session: source -> frame aligner -> engine -> (published to the page, recorded to MCAP).
+
+Threads: the source; the engine thread (``run``) which aligns, computes and publishes every frame; the
+recorder thread (the MCAP chunks, off the latency path); the web server (:mod:`pipeline.live.server`). The
+input queue is bounded (``queue_s`` of samples); what does not fit is counted as dropped by the source.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.live.align import FrameAligner
+from pipeline.live.engine import LiveEngine, LiveParams, LiveOutput
+
+#: what a display frame carries per joint: the sagittal (FE) angle
+DISPLAY_JOINTS = ("hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right")
+
+
+class LatencyStats:
+    """Latency histogram with fixed memory (10 µs bins up to 1 s, beyond counted in the last bin) and the max."""
+
+    def __init__(self):
+        self.bins = np.zeros(100_001, dtype=np.int64)
+        self.max_ns = 0
+        self.n = 0
+
+    def add(self, lat_ns: np.ndarray) -> None:
+        lat_ns = np.asarray(lat_ns, np.int64)
+        if not len(lat_ns):
+            return
+        np.add.at(self.bins, np.minimum(lat_ns // 10_000, len(self.bins) - 1).clip(0), 1)
+        self.max_ns = max(self.max_ns, int(lat_ns.max()))
+        self.n += len(lat_ns)
+
+    def quantile_ms(self, q: float) -> float:
+        if self.n == 0:
+            return float("nan")
+        c = np.cumsum(self.bins)
+        i = int(np.searchsorted(c, q * self.n))
+        return (i + 1) * 0.01            # upper edge of the bin, ms
+
+    def summary(self) -> dict:
+        return {"n": self.n, "p50_ms": self.quantile_ms(0.5), "p99_ms": self.quantile_ms(0.99),
+                "max_ms": self.max_ns / 1e6}
+
+
+@dataclass
+class Hub:
+    """What the page sees: recent display frames (bounded), events, strides, metrics, counters."""
+    keep_frames: int = 3000
+    frames: deque = field(default_factory=deque)
+    events: deque = field(default_factory=lambda: deque(maxlen=200))
+    strides: deque = field(default_factory=lambda: deque(maxlen=40))
+    state: dict = field(default_factory=dict)
+    seq: int = 0
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def publish(self, out: LiveOutput) -> None:
+        rows = np.full((out.n, len(DISPLAY_JOINTS)), np.nan)
+        for j, key in enumerate(DISPLAY_JOINTS):
+            if key in out.angles:
+                rows[:, j] = out.angles[key][:, 0]
+        rows = np.round(rows, 2)
+        t = (out.t_ns // 1_000_000).tolist()
+        with self.lock:
+            for i in range(out.n):
+                self.frames.append((self.seq, out.k0 + i, t[i], rows[i].tolist(), bool(out.offset_ready[i])))
+                self.seq += 1
+            while len(self.frames) > self.keep_frames:
+                self.frames.popleft()
+            for e in out.events:
+                self.events.append({**e, "seq": self.seq})
+            for s in out.strides:
+                self.strides.append(s)
+            if out.metrics:
+                self.state["metrics"] = out.metrics
+
+    def since(self, seq: int, limit: int = 400) -> tuple[list, list, dict]:
+        with self.lock:
+            fr = [f for f in self.frames if f[0] >= seq][-limit:]
+            ev = [e for e in self.events if e["seq"] > seq]
+            return fr, ev, dict(self.state)
+
+
+class LiveSession:
+    """Run one session: ``source`` (see :mod:`pipeline.live.sources`), ``placements`` computed, optional
+    ``recorder`` (:class:`pipeline.live.recorder.McapRecorder`)."""
+
+    def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
+                 params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
+                 max_wait_frames: int = 5):
+        self.source = source
+        self.placements = tuple(placements)
+        self.fs = float(sampling_rate_hz)
+        self.engine = LiveEngine(self.placements, sampling_rate_hz=self.fs, calibration=calibration, params=params)
+        self.aligner = FrameAligner(self.placements, sampling_rate_hz=self.fs, clock=clock,
+                                    max_wait_frames=max_wait_frames)
+        self.hub = Hub()
+        self.recorder = recorder
+        self.latency = LatencyStats()
+        self.event_latency = LatencyStats()
+        self.frames_done = 0
+        self.samples_in = 0
+        self._cap = int(queue_s * self.fs * max(1, len(self.placements)))
+        self._q: queue.Queue = queue.Queue()
+        self._queued = 0
+        self._qlock = threading.Lock()
+        self._rec_q: queue.Queue = queue.Queue(maxsize=256)
+        self._arrivals = np.zeros(256, dtype=np.int64)      # frame arrival times, for event latencies
+        self._stop = threading.Event()
+        self.cpu_s = 0.0
+        self.wall_s = 0.0
+        self.hub.state.update({"placements": list(self.placements), "sampling_rate_hz": self.fs,
+                               "calibration": None if calibration is None else calibration.status})
+
+    # the source's sink: never blocks
+    def sink(self, samples: list) -> bool:
+        with self._qlock:
+            if self._queued + len(samples) > self._cap:
+                return False
+            self._queued += len(samples)
+        self._q.put(samples)
+        return True
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.source.stop()
+
+    def run(self, *, until=None) -> dict:
+        """Process until the source ends (or ``stop()``, or ``until()`` is true); returns :meth:`summary`."""
+        rec_thread = None
+        if self.recorder is not None:
+            rec_thread = threading.Thread(target=self._record_loop, name="live-recorder", daemon=True)
+            rec_thread.start()
+        t_cpu, t_wall = time.thread_time(), time.perf_counter()
+        self.source.start(self.sink)
+        try:
+            while not self._stop.is_set():
+                try:
+                    samples = self._q.get(timeout=0.05)
+                except queue.Empty:
+                    if self.source.done.is_set() and self._q.empty():
+                        break
+                    if until is not None and until():
+                        break
+                    continue
+                with self._qlock:
+                    self._queued -= len(samples)
+                self.samples_in += len(samples)
+                for (p, t, h, arr, g, a, m) in samples:
+                    for b in self.aligner.add(p, t, h, arr, g, a, m):
+                        self._process(b)
+            for b in self.aligner.flush():
+                self._process(b)
+        finally:
+            self.source.stop()
+            self.cpu_s = time.thread_time() - t_cpu
+            self.wall_s = time.perf_counter() - t_wall
+            if rec_thread is not None:
+                self._rec_q.put(None)
+                rec_thread.join()
+        return self.summary()
+
+    def _process(self, b) -> None:
+        out = self.engine.process(b)
+        self.hub.publish(out)
+        now = time.perf_counter_ns()
+        arr = b.arrival_ns
+        ok = arr > 0
+        self.latency.add(now - arr[ok])
+        ks = np.arange(b.k0, b.k0 + b.n)
+        self._arrivals[ks % len(self._arrivals)] = arr
+        for e in out.events:
+            if b.k0 + b.n - e["k"] < len(self._arrivals):
+                a0 = self._arrivals[e["k"] % len(self._arrivals)]
+                if a0 > 0:
+                    self.event_latency.add(np.array([now - a0]))
+        self.frames_done += b.n
+        if self.recorder is not None:
+            self._rec_q.put((b, out))
+
+    def _record_loop(self) -> None:
+        while True:
+            item = self._rec_q.get()
+            if item is None:
+                return
+            b, out = item
+            host = b.t_ns      # log time: the frame's session time (host clock of the replay / device stamps)
+            for p in self.placements:
+                v = b.valid[p]
+                if v.any():
+                    self.recorder.add_imu(p, b.t_ns[v], host[v], b.gyr[p][v], b.acc[p][v],
+                                          b.mag[p][v] if b.has_mag.get(p) else None)
+            if out.angles:
+                self.recorder.add_json("/live/joint_angles", int(b.t_ns[0]), {
+                    "k0": out.k0, "t_ns": b.t_ns.tolist(),
+                    "angles_deg": {k: np.where(np.isfinite(v), np.round(v, 6), None).tolist()
+                                   for k, v in out.angles.items()},
+                    "offset_ready": out.offset_ready.tolist()})
+            for e in out.events:
+                self.recorder.add_json("/live/events", int(e["t_ns"]), e)
+
+    def summary(self) -> dict:
+        c = self.aligner.counters()
+        return {"frames": self.frames_done, "samples_in": self.samples_in,
+                "samples_dropped": int(getattr(self.source, "dropped", 0)),
+                "gaps": {p: v["gaps"] for p, v in c.items()}, "late": {p: v["late"] for p, v in c.items()},
+                "latency": self.latency.summary(), "event_latency": self.event_latency.summary(),
+                "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
+                "standing": self.engine.standing, "metrics": self.engine.metrics}
