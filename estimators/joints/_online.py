@@ -43,7 +43,7 @@ def _angles_kernel(q_prox, q_dist, r_prox, r_dist, sign, out):
         r20 = s * (x * z - w * y)
         r21 = s * (y * z + w * x)
         r22 = 1.0 - s * (x * x + y * y)
-        b = min(1.0, max(-1.0, r21))
+        b = 1.0 if r21 > 1.0 else (-1.0 if r21 < -1.0 else r21)      # clip; NaN stays NaN
         out[i, 0] = np.degrees(np.arctan2(-r01, r11)) * sign[0]
         out[i, 1] = np.degrees(np.arcsin(b)) * sign[1]
         out[i, 2] = np.degrees(np.arctan2(-r20, r22)) * sign[2]

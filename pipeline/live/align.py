@@ -76,8 +76,10 @@ class FrameAligner:
         return {p: {"received": int(self.received[i]), "gaps": int(self.gaps[i]), "late": int(self.late[i]),
                     "duplicate": int(self.duplicate[i])} for p, i in self._ix.items()}
 
-    def add(self, placement: str, t_ns: int, host_ns: int, arrival_ns: int, gyr, acc, mag=None) -> list[FrameBatch]:
-        """Add one sample; returns the batches it completed (often none, or one)."""
+    def add(self, placement: str, t_ns: int, host_ns: int, arrival_ns: int, gyr, acc, mag=None, *,
+            emit: bool = True) -> list[FrameBatch]:
+        """Add one sample; returns the batches it completed (often none, or one). ``emit=False`` only stores it
+        (call :meth:`ready` after a burst: one batch for the burst instead of one per frame)."""
         i = self._ix.get(placement)
         if i is None:
             return []
@@ -110,7 +112,8 @@ class FrameAligner:
         self._arr[i, j] = arrival_ns
         if k > self._newest[i]:
             self._newest[i] = k
-        out += self.ready()
+        if emit:
+            out += self.ready()
         return out
 
     def ready(self) -> list[FrameBatch]:

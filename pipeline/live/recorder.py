@@ -11,8 +11,9 @@ moved in by :func:`recover` (``stridelab live --recover``), after checking it wi
 Topics: the recording format's ``/imu/<placement>`` and ``/mag/<placement>`` (ROS 2 CDR, stamps = sensor
 time, log time = host time), plus the live outputs as JSON for the nightly comparison (docs/live.md):
 ``/live/joint_angles`` (one message per second of frames: t_ns, per joint [FE, AA, IE] deg lists) and
-``/live/events`` (one message per gait event). Their schemas are JSON schemas the ingest does not decode
-(it lists them as ignored topics), so the raw data ingests exactly as any other recording.
+``/live/events`` (one message per gait event), each a ``std_msgs/msg/String`` holding JSON: any MCAP or ROS 2
+tool reads them, and the ingest decodes no String topic (it lists them as ignored), so the raw data ingests
+exactly as any other recording.
 """
 from __future__ import annotations
 
@@ -33,7 +34,16 @@ from pipeline.formats.mcap_read import crc32
 from pipeline.formats.mcap_write import MAGIC, _message_index, _message_records, _record
 
 LIVE_DIR = ".live"
-JSON_TOPICS = {"/live/joint_angles": "stridelab/LiveJointAngles", "/live/events": "stridelab/LiveGaitEvent"}
+#: live outputs: ``std_msgs/msg/String`` (CDR) holding one JSON document each, readable by every ROS 2 / MCAP
+#: tool; the ingest decodes no String topic, so they never mix with the raw data
+JSON_TOPICS = ("/live/joint_angles", "/live/events")
+STRING_SCHEMA = "std_msgs/msg/String"
+
+
+def encode_string(text: str) -> bytes:
+    """One ``std_msgs/msg/String`` in CDR (little endian): encapsulation header, uint32 length with the NUL."""
+    b = text.encode() + b"\0"
+    return b"\x00\x01\x00\x00" + len(b).to_bytes(4, "little") + b
 
 
 class McapRecorder:
@@ -59,8 +69,8 @@ class McapRecorder:
                     continue
                 self._channel(f"/{kind}/{p}", schema, ros2_cdr.SCHEMAS[schema].encode(), "ros2msg", "cdr", schemas,
                               recs)
-        for topic, schema in JSON_TOPICS.items():
-            self._channel(topic, schema, json.dumps({"type": "object"}).encode(), "jsonschema", "json", schemas, recs)
+        for topic in JSON_TOPICS:
+            self._channel(topic, STRING_SCHEMA, b"string data", "ros2msg", "cdr", schemas, recs)
         self._schema_recs = [r for r in recs if isinstance(r, Schema)]
         self._channel_recs = [r for r in recs if isinstance(r, Channel)]
         head = MAGIC + _record(Header(profile="ros2", library="stridelab-live"))
@@ -107,7 +117,7 @@ class McapRecorder:
                 self._queue(self.channels[f"/mag/{placement}"], log_ns, m)
 
     def add_json(self, topic: str, log_ns: int, obj: dict) -> None:
-        data = json.dumps(obj, separators=(",", ":"), allow_nan=False, default=_plain).encode()
+        data = encode_string(json.dumps(obj, separators=(",", ":"), allow_nan=False, default=_plain))
         with self._lock:
             self._queue(self.channels[topic], np.array([log_ns], np.int64), [data])
 

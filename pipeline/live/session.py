@@ -115,8 +115,22 @@ class LiveSession:
         self._stop = threading.Event()
         self.cpu_s = 0.0
         self.wall_s = 0.0
+        self._warm_up(calibration, params)
         self.hub.state.update({"placements": list(self.placements), "sampling_rate_hz": self.fs,
                                "calibration": None if calibration is None else calibration.status})
+
+    def _warm_up(self, calibration, params) -> None:
+        """Run a throwaway engine over two seconds of rest so every compiled kernel is loaded before the
+        first real sample (the first call of a numba kernel loads it from the cache: ~1 s, a backlog otherwise)."""
+        n = int(2 * self.fs)
+        eng = LiveEngine(self.placements, sampling_rate_hz=self.fs, calibration=calibration, params=params)
+        al = FrameAligner(self.placements, sampling_rate_hz=self.fs)
+        g, a, m = np.zeros(3), np.array([0.0, 0.0, 9.81]), np.array([20.0, 0.0, -40.0])
+        for i in range(n):
+            for p in self.placements:
+                for b in al.add(p, i * 10_000_000, 0, 0, g, a, m):
+                    eng.process(b)
+        LatencyStats().add(np.array([1]))
 
     # the source's sink: never blocks
     def sink(self, samples: list) -> bool:
@@ -149,12 +163,23 @@ class LiveSession:
                     if until is not None and until():
                         break
                     continue
+                burst = [samples]
+                while len(burst) < 200:           # a backlog is taken in one go: one batch, not one per frame
+                    try:
+                        burst.append(self._q.get_nowait())
+                    except queue.Empty:
+                        break
+                n_in = sum(len(x) for x in burst)
                 with self._qlock:
-                    self._queued -= len(samples)
-                self.samples_in += len(samples)
-                for (p, t, h, arr, g, a, m) in samples:
-                    for b in self.aligner.add(p, t, h, arr, g, a, m):
-                        self._process(b)
+                    self._queued -= n_in
+                self.samples_in += n_in
+                add = self.aligner.add
+                for samples in burst:
+                    for (p, t, h, arr, g, a, m) in samples:
+                        for b in add(p, t, h, arr, g, a, m, emit=False):
+                            self._process(b)
+                for b in self.aligner.ready():
+                    self._process(b)
             for b in self.aligner.flush():
                 self._process(b)
         finally:
