@@ -4,6 +4,8 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import re
+import secrets
+import string
 import signal
 import threading
 from pathlib import Path
@@ -80,7 +82,8 @@ def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.
     today = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S")
     meta.setdefault("study", "live")
     meta.setdefault("participant", "P000")
-    meta["session"] = f"{meta['participant']}-live-{today}"
+    # letters only: the ingest refuses ids that look like dates (personal data)
+    meta["session"] = f"{meta['participant']}-live-" + "".join(secrets.choice(string.ascii_lowercase) for _ in range(8))
     meta["kind"] = "lab"
     meta["trial"] = "live"
     meta["live_source"] = "replay" if replay is not None else "ngimu_osc"
