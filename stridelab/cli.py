@@ -579,6 +579,8 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
 @click.option("--name", default=None, help="File name of the recording (without .mcap).")
 @click.option("--no-record", is_flag=True, help="Do not record the session.")
 @click.option("--recover", is_flag=True, help="Move recordings a crashed session left in INBOX/.live into the inbox.")
+@click.option("--compare", type=click.Path(exists=True, path_type=Path), default=None,
+              help="A recorded live session: its live outputs against the nightly's offline estimators.")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address of the live page (loopback by default).")
 @click.option("--port", type=int, default=8765, show_default=True, help="Port of the live page.")
 @click.option("--no-serve", is_flag=True, help="Compute (and record) without serving the page.")
@@ -590,7 +592,7 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
               help="OSC: stop after this many seconds without packets.")
 @click.option("--json", "as_json", is_flag=True, help="Print the session summary as JSON.")
 def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, calibration, calibration_from, participant, inbox, name,
-         no_record, recover, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
+         no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
     """Real-time session: IMU streams -> joint angles and gait events per sample, a biofeedback page
     (therapist: /, patient: /patient) and the session recorded to the inbox as it arrives.
 
@@ -600,6 +602,7 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, calibration, calibr
       stridelab live --replay bag_dir/ --speed 10 --no-record
       stridelab live --osc pelvis=9000 --osc foot_left=9001 --osc foot_right=9002 --osc-host 0.0.0.0
       stridelab live --recover
+      stridelab live --compare inbox/P003_live_x.mcap --calibration inbox/P003_lab1_calibration.mcap --json
     """
     from pipeline.config import default_inbox
     from pipeline.console import UserError
@@ -610,6 +613,30 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, calibration, calibr
         from pipeline.live.recorder import recover as _recover
         for path, outcome in _recover(inbox):
             click.echo(f"{path}: {outcome}")
+        return
+    if compare:
+        from pipeline.console import emit_json
+        from pipeline.live.agreement import live_vs_offline
+        from pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
+        try:
+            if calibration is not None:
+                cal = calibration_from_trial(calibration)
+            elif calibration_from is not None and participant:
+                cal = calibration_from_warehouse(calibration_from, participant)[0]
+            else:
+                raise ValueError("--compare needs --calibration TRIAL (or --calibration-from WAREHOUSE --participant)")
+            res = live_vs_offline(compare, cal)
+        except ValueError as e:
+            raise UserError(str(e).splitlines()[0]) from None
+        if as_json:
+            emit_json(res)
+        else:
+            for k, v in res["joints"].items():
+                click.echo(f"{k}: live - offline RMSE [FE, AA, IE] {v['rmse_deg']} deg")
+            for side, ev in res["events"].items():
+                for typ, m in ev.items():
+                    click.echo(f"{side} {typ}: {m['matched']} of {m['live']} live / {m['offline']} offline matched, "
+                               f"live - offline {m['mean_ms']} ± {m['sd_ms']} ms")
         return
     bands = {}
     for j in ("hip", "knee"):

@@ -31,7 +31,7 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
 
 from pipeline.formats import ros2_cdr
 from pipeline.formats.mcap_read import crc32
-from pipeline.formats.mcap_write import MAGIC, _message_index, _message_records, _record
+from pipeline.formats.mcap_write import MAGIC, _gather, _message_index, _message_records, _record
 
 LIVE_DIR = ".live"
 #: live outputs: ``std_msgs/msg/String`` (CDR) holding one JSON document each, readable by every ROS 2 / MCAP
@@ -82,6 +82,7 @@ class McapRecorder:
         self._pos = len(head)
         self._pending: dict[int, list] = {}         # channel id -> [(log_ns, payload bytes)]
         self._pending_t0 = None
+        self._pending_t1 = -1
         self._chunks: list[ChunkIndex] = []
         self._counts = {c.id: 0 for c in self._channel_recs}
         self._seq = {c.id: 0 for c in self._channel_recs}
@@ -115,20 +116,24 @@ class McapRecorder:
             if mag is not None and f"/mag/{placement}" in self.channels:
                 m = ros2_cdr.encode_mag(t_ns, np.asarray(mag, float), placement)
                 self._queue(self.channels[f"/mag/{placement}"], log_ns, m)
+            self._maybe_chunk()
 
     def add_json(self, topic: str, log_ns: int, obj: dict) -> None:
         data = encode_string(json.dumps(obj, separators=(",", ":"), allow_nan=False, default=_plain))
         with self._lock:
             self._queue(self.channels[topic], np.array([log_ns], np.int64), [data])
+            self._maybe_chunk()
 
     def _queue(self, cid: int, log_ns, payload) -> None:
+        """Keep a block of messages of one channel: ``payload`` an (n, L) uint8 array or a list of bytes."""
         log_ns = np.asarray(log_ns, np.int64)
-        lst = self._pending.setdefault(cid, [])
-        for i in range(len(log_ns)):
-            lst.append((int(log_ns[i]), bytes(payload[i])))
-        if self._pending_t0 is None:
-            self._pending_t0 = int(log_ns.min())
-        if int(log_ns.max()) - self._pending_t0 >= self.chunk_ns:
+        self._pending.setdefault(cid, []).append((log_ns, payload))
+        t0 = int(log_ns.min())
+        self._pending_t0 = t0 if self._pending_t0 is None else min(self._pending_t0, t0)
+        self._pending_t1 = max(self._pending_t1, int(log_ns.max()))
+
+    def _maybe_chunk(self) -> None:
+        if self._pending_t0 is not None and self._pending_t1 - self._pending_t0 >= self.chunk_ns:
             self._write_chunk()
 
     # ---- chunks ----------------------------------------------------------------------------------------
@@ -137,20 +142,41 @@ class McapRecorder:
             self._write_chunk()
 
     def _write_chunk(self) -> None:
+        """The pending messages as one chunk, in log-time order (ties: channel order), vectorised per channel as
+        ``mcap_write.write_mcap`` assembles its chunks."""
         if not self._pending:
             return
-        items = [(t, cid, data) for cid, lst in self._pending.items() for t, data in lst]
-        self._pending, self._pending_t0 = {}, None
-        items.sort(key=lambda x: (x[0], x[1]))
-        raw = bytearray()
-        index: dict[int, list] = {}
-        for t, cid, data in items:
-            index.setdefault(cid, []).append((t, len(raw)))
-            rec, _ = _message_records(cid, np.array([t], np.int64), self._seq[cid], [data])
-            self._seq[cid] += 1
-            self._counts[cid] += 1
-            raw += rec
-        raw = bytes(raw)
+        parts, sizes_l, times_l, ids_l = [], [], [], []
+        for cid in sorted(self._pending):
+            blocks = self._pending[cid]
+            t = np.concatenate([b[0] for b in blocks])
+            if all(isinstance(b[1], np.ndarray) for b in blocks):
+                pay = np.concatenate([b[1] for b in blocks])
+            else:
+                pay = [bytes(x) for b in blocks for x in b[1]]
+            order = np.argsort(t, kind="stable")
+            t = t[order]
+            pay = pay[order] if isinstance(pay, np.ndarray) else [pay[i] for i in order.tolist()]
+            data, sizes = _message_records(cid, t, self._seq[cid], pay)
+            self._seq[cid] += len(t)
+            self._counts[cid] += len(t)
+            parts.append(data)
+            sizes_l.append(sizes)
+            times_l.append(t)
+            ids_l.append(np.full(len(t), cid, dtype=np.int64))
+        self._pending, self._pending_t0, self._pending_t1 = {}, None, -1
+        src = np.frombuffer(b"".join(parts), dtype=np.uint8)
+        sizes = np.concatenate(sizes_l)
+        times = np.concatenate(times_l)
+        ids = np.concatenate(ids_l)
+        src_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        order = np.lexsort((ids, times))
+        dst = np.empty(len(src), dtype=np.uint8)
+        dst_off = np.empty(len(sizes), dtype=np.int64)
+        _gather(src, src_off, sizes, order, dst, dst_off)
+        raw = dst.tobytes()
+        index = {int(cid): (times[ids == cid], dst_off[ids == cid]) for cid in np.unique(ids)}
+        items = [(int(times.min()),), (int(times.max()),)]
         c_start, c_end = items[0][0], items[-1][0]
         self._t_min = c_start if self._t_min is None else min(self._t_min, c_start)
         self._t_max = c_end if self._t_max is None else max(self._t_max, c_end)
@@ -169,9 +195,7 @@ class McapRecorder:
         mi_offsets, mis = {}, bytearray()
         for cid in sorted(index):
             mi_offsets[cid] = self._pos + len(chunk) + len(mis)
-            ts = np.array([t for t, _ in index[cid]], np.int64)
-            offs = np.array([o for _, o in index[cid]], np.int64)
-            mis += _message_index(cid, ts, offs)
+            mis += _message_index(cid, *index[cid])
         body = chunk + bytes(mis)
         self._chunks.append(ChunkIndex(
             message_start_time=c_start, message_end_time=c_end, chunk_start_offset=self._pos,

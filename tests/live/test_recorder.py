@@ -70,6 +70,16 @@ def test_a_finished_session_is_valid_mcap_and_ingests(tmp_path, lab_files):
     assert r.exit_code == 0, r.output
     out = json.loads(r.stdout)
     assert out["ingested"] == 1 and not out["quarantined"], out
+    # live beside offline: the recorded live outputs against the nightly's estimators on the same raw data
+    r = CliRunner().invoke(main, ["live", "--compare", str(path), "--calibration", str(cal), "--json"])
+    assert r.exit_code == 0, r.output
+    agree = json.loads(r.stdout)
+    for side in ("left", "right"):
+        for typ in ("IC", "TC"):
+            m = agree["events"][side][typ]
+            assert m["live"] >= 8 and m["matched"] >= 0.9 * max(m["live"], m["offline"]), m
+    for key in ("hip_left", "hip_right", "knee_left", "knee_right"):
+        assert agree["joints"][key]["rmse_deg"][0] < 5.0, agree["joints"]     # flexion: online vs offline filter
 
 
 def test_kill_9_leaves_a_valid_file_up_to_the_last_chunk_and_recover_moves_it_in(tmp_path, lab_files):
