@@ -11,14 +11,17 @@ sensor's first stamp and ``k0_p`` where that first sample falls on the session g
   sensor's own stamps then place its later samples, so network jitter does not move them; clock *drift*
   between sensors (tens of ppm, about one sample per 10 minutes at 100 Hz) is not corrected.
 
-Frame ``k`` is handed on once every started sensor has delivered a sample at or after ``k``, or once any
-sensor is ``max_wait_frames`` beyond it (a sensor that stalls must not stop the others). A sensor that has
+Frame ``k`` is handed on once every sensor has delivered a sample at or after ``k``, or ``max_wait_ms`` of
+wall time after the first of its samples arrived, or once any sensor is ``max_wait_frames`` beyond it (a
+backlog bound): a sensor that stalls must not stop the others, and a network that delivers one sensor's
+packets in bursts (Wi-Fi) must not make its samples "lost" when they are only late by a few milliseconds. A sensor that has
 nothing at ``k`` then counts a lost sample at ``k`` (``gaps``): its row is NaN and ``valid`` False; the
 estimators see the loss, nothing is interpolated. A sample arriving after its frame was handed on is
 counted ``late`` and not used; a repeated index is counted ``duplicate``.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,8 +46,8 @@ class FrameBatch:
 class FrameAligner:
     """Collect samples of ``placements`` into :class:`FrameBatch` es (see the module docstring)."""
 
-    def __init__(self, placements, *, sampling_rate_hz: float, clock: str = "shared", max_wait_frames: int = 5,
-                 ring: int = 1024):
+    def __init__(self, placements, *, sampling_rate_hz: float, clock: str = "shared", max_wait_ms: float = 40.0,
+                 max_wait_frames: int = 100, ring: int = 1024):
         if clock not in ("shared", "host"):
             raise ValueError(f"clock must be 'shared' or 'host', got {clock!r}")
         if not sampling_rate_hz > 0:
@@ -53,12 +56,14 @@ class FrameAligner:
         self.period_ns = 1e9 / sampling_rate_hz
         self.clock = clock
         self.max_wait = int(max_wait_frames)
+        self.max_wait_ns = int(max_wait_ms * 1e6)
         self.W = int(ring)
         P = len(self.placements)
         self._ix = {p: i for i, p in enumerate(self.placements)}
         self._data = np.full((P, self.W, 9), np.nan)
         self._have = np.zeros((P, self.W), dtype=bool)
         self._arr = np.zeros((P, self.W), dtype=np.int64)
+        self._first = np.zeros(self.W, dtype=np.int64)      # arrival of the first sample of each frame (0: none)
         self._t0 = [None] * P                   # first stamp of each sensor
         self._k0 = [0] * P
         self._newest = np.full(P, -1, dtype=np.int64)   # highest frame index received per sensor
@@ -110,19 +115,31 @@ class FrameAligner:
             self._has_mag[i] = True
         self._have[i, j] = True
         self._arr[i, j] = arrival_ns
+        if self._first[j] == 0:
+            self._first[j] = max(int(arrival_ns), 1)
         if k > self._newest[i]:
             self._newest[i] = k
         if emit:
             out += self.ready()
         return out
 
-    def ready(self) -> list[FrameBatch]:
+    def ready(self, now_ns: int | None = None) -> list[FrameBatch]:
+        """Hand on the frames that are complete or waited long enough (``now_ns``: monotonic now, default
+        ``time.perf_counter_ns()``, the clock of ``arrival_ns``)."""
         newest = int(self._newest.max())
         if newest < 0:
             return []
-        # every sensor (started or not) holds the frames it has not reached, for at most max_wait frames
+        # every sensor (started or not) holds the frames it has not reached: at most max_wait_frames ...
         upto = max(int(self._newest.min()), newest - self.max_wait)
-        return self._emit_upto(upto)
+        # ... and at most max_wait_ms after the frame's first sample arrived
+        now = time.perf_counter_ns() if now_ns is None else int(now_ns)
+        k = max(upto + 1, self.next_k)
+        while k <= newest:
+            f = self._first[k % self.W]
+            if f == 0 or now - f < self.max_wait_ns:
+                break
+            k += 1
+        return self._emit_upto(max(upto, k - 1))
 
     def flush(self) -> list[FrameBatch]:
         """Hand on every frame up to the newest received (end of stream)."""
@@ -151,6 +168,7 @@ class FrameAligner:
             arrival = np.maximum(arrival, np.where(v, self._arr[i, j], 0))
             self._have[i, j] = False
             self._data[i, j] = np.nan
+        self._first[j] = 0
         self.next_k = upto + 1
         t = self.t0_ns + np.rint(ks * self.period_ns).astype(np.int64)
         return [FrameBatch(a, n, t, arrival, gyr, acc, mag, valid, hm)]

@@ -25,6 +25,7 @@ estimators run over the whole recording at once.
 """
 from __future__ import annotations
 
+import warnings
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -133,6 +134,7 @@ class LiveEngine:
         self._buf_gyr = {p: np.full((self._n_search, 3), np.nan) for p in self.placements}
         self._buf_ang = {k[0]: np.full((self._n_search, 3), np.nan) for k in self.joints}
         self._next_check = int(round(self.fs))
+        self._cal_params = calibration.params if calibration is not None else CalibrationParams()
         self.offset = None                  # joint key -> (3,) deg once found
         self.offset_frame = None            # first frame with the offset applied
         self.standing = None                # [start, end) frames of the standing used
@@ -207,7 +209,7 @@ class LiveEngine:
 
     def _try_standing(self, c: int) -> None:
         """The first quiet standing among frames [0, c), used once ended or ``target_standing_s`` long."""
-        cp = CalibrationParams()
+        cp = self._cal_params
         acc = {p: v[:c] for p, v in self._buf_acc.items()}
         gyr = {p: v[:c] for p, v in self._buf_gyr.items()}
         st = first_quiet_standing(acc, gyr, sampling_rate_hz=self.fs, params=cp)
@@ -216,11 +218,9 @@ class LiveEngine:
         ended = st[1] <= c - int(round(0.25 * self.fs))
         if not ended and st[1] - st[0] < self.params.target_standing_s * self.fs:
             return
-        with np.errstate(invalid="ignore"):
-            import warnings
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                self.offset = {k: np.nanmean(v[st[0]:st[1]], axis=0) for k, v in self._buf_ang.items()}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)      # an all-NaN joint (lost sensor): NaN offset
+            self.offset = {k: np.nanmean(v[st[0]:st[1]], axis=0) for k, v in self._buf_ang.items()}
         self.standing = (int(st[0]), int(st[1]))
 
     # ---- strides and asymmetry -------------------------------------------------------------------------

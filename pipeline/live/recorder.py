@@ -176,8 +176,7 @@ class McapRecorder:
         _gather(src, src_off, sizes, order, dst, dst_off)
         raw = dst.tobytes()
         index = {int(cid): (times[ids == cid], dst_off[ids == cid]) for cid in np.unique(ids)}
-        items = [(int(times.min()),), (int(times.max()),)]
-        c_start, c_end = items[0][0], items[-1][0]
+        c_start, c_end = int(times.min()), int(times.max())
         self._t_min = c_start if self._t_min is None else min(self._t_min, c_start)
         self._t_max = c_end if self._t_max is None else max(self._t_max, c_end)
         compressed = self._comp.compress(raw)

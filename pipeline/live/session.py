@@ -94,13 +94,13 @@ class LiveSession:
 
     def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
                  params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
-                 max_wait_frames: int = 5):
+                 max_wait_ms: float = 40.0):
         self.source = source
         self.placements = tuple(placements)
         self.fs = float(sampling_rate_hz)
         self.engine = LiveEngine(self.placements, sampling_rate_hz=self.fs, calibration=calibration, params=params)
         self.aligner = FrameAligner(self.placements, sampling_rate_hz=self.fs, clock=clock,
-                                    max_wait_frames=max_wait_frames)
+                                    max_wait_ms=max_wait_ms)
         self.hub = Hub()
         self.recorder = recorder
         self.latency = LatencyStats()

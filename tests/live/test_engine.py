@@ -1,6 +1,8 @@
 """The live computation is causal and equals the same estimators run over the whole recording at once."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -93,13 +95,14 @@ def test_lost_samples_are_counted_and_left_empty_not_filled(lab_streams, lab_cal
 def test_sensors_on_independent_clocks_meet_on_one_frame_grid():
     """Host clock mode: each sensor's own stamps (arbitrary offsets) placed by its first arrival."""
     fs = 100.0
-    al = FrameAligner(["a", "b"], sampling_rate_hz=fs, clock="host", max_wait_frames=3)
+    al = FrameAligner(["a", "b"], sampling_rate_hz=fs, clock="host")
     frames = []
+    now = time.perf_counter_ns()
     for i in range(50):
         host = 1_000_000_000 + i * 10_000_000
         if i != 20:                                     # b loses one sample
-            frames += al.add("b", 777_000_000_000 + i * 10_000_000, host + 2_000_000, 0, np.zeros(3), np.ones(3))
-        frames += al.add("a", 5_000 + i * 10_000_000, host, 0, np.zeros(3), np.ones(3))
+            frames += al.add("b", 777_000_000_000 + i * 10_000_000, host + 2_000_000, now, np.zeros(3), np.ones(3))
+        frames += al.add("a", 5_000 + i * 10_000_000, host, now, np.zeros(3), np.ones(3))
     frames += al.flush()
     valid_a = np.concatenate([f.valid["a"] for f in frames])
     valid_b = np.concatenate([f.valid["b"] for f in frames])
@@ -108,15 +111,28 @@ def test_sensors_on_independent_clocks_meet_on_one_frame_grid():
     assert al.counters()["b"] == {"received": 49, "gaps": 1, "late": 0, "duplicate": 0}
 
 
-def test_a_stalled_sensor_does_not_hold_the_others():
-    al = FrameAligner(["a", "b"], sampling_rate_hz=100.0, max_wait_frames=5)
+def test_a_stalled_sensor_holds_the_others_only_max_wait_ms():
+    al = FrameAligner(["a", "b"], sampling_rate_hz=100.0, max_wait_ms=40.0)
+    t0 = 1_000_000_000_000
     out = []
-    for i in range(30):
-        out += al.add("a", i * 10_000_000, 0, 0, np.zeros(3), np.ones(3))
+    for i in range(30):                                 # arrivals 10 ms apart (real time); b stops after 10
+        arr = t0 + i * 10_000_000
+        out += al.add("a", i * 10_000_000, 0, arr, np.zeros(3), np.ones(3), emit=False)
         if i < 10:
-            out += al.add("b", i * 10_000_000, 0, 0, np.zeros(3), np.ones(3))
-    n = sum(b.n for b in out)
-    assert n == 30 - 5                                  # held back only max_wait frames
-    assert al.counters()["b"]["gaps"] == n - 10
-    late = al.add("b", 12 * 10_000_000, 0, 0, np.zeros(3), np.ones(3))
-    assert late == [] and al.counters()["b"]["late"] == 1
+            out += al.add("b", i * 10_000_000, 0, arr, np.zeros(3), np.ones(3), emit=False)
+        out += al.ready(now_ns=arr)
+    # frames 0-9 complete at once; later ones leave 40 ms after their first sample: up to frame 29 - 4
+    assert sum(b.n for b in out) == 26
+    assert al.counters()["b"]["gaps"] == 16
+    # a packet of b still in flight for frame 12 is late: counted, not used
+    assert al.add("b", 12 * 10_000_000, 0, t0 + 10**9, np.zeros(3), np.ones(3)) == []
+    assert al.counters()["b"]["late"] == 1
+    # a sensor that sends in bursts is not lost: b's samples of frames 30-32 arrive together, 35 ms after a's first
+    for i in range(30, 33):
+        out += al.add("a", i * 10_000_000, 0, t0 + i * 10_000_000, np.zeros(3), np.ones(3), emit=False)
+    burst = al.ready(now_ns=t0 + 330_000_000)
+    for i in range(30, 33):
+        al.add("b", i * 10_000_000, 0, t0 + 335_000_000, np.zeros(3), np.ones(3), emit=False)
+    burst += al.ready(now_ns=t0 + 335_000_000)
+    late_frames = np.concatenate([b.valid["b"][b.k0 + np.arange(b.n) >= 30] for b in burst])
+    assert late_frames.all() and len(late_frames) == 3
