@@ -105,6 +105,7 @@ class LiveSession:
         self.recorder = recorder
         self.latency = LatencyStats()
         self.event_latency = LatencyStats()
+        self.compute = LatencyStats()          # wall time of engine + publish per batch (what the code costs)
         self.frames_done = 0
         self.samples_in = 0
         self._cap = int(queue_s * self.fs * max(1, len(self.placements)))
@@ -197,9 +198,11 @@ class LiveSession:
         return self.summary()
 
     def _process(self, b) -> None:
+        t0 = time.perf_counter_ns()
         out = self.engine.process(b)
         self.hub.publish(out)
         now = time.perf_counter_ns()
+        self.compute.add(np.array([now - t0]))
         arr = b.arrival_ns
         ok = arr > 0
         self.latency.add(now - arr[ok])
@@ -241,5 +244,6 @@ class LiveSession:
                 "samples_dropped": int(getattr(self.source, "dropped", 0)),
                 "gaps": {p: v["gaps"] for p, v in c.items()}, "late": {p: v["late"] for p, v in c.items()},
                 "latency": self.latency.summary(), "event_latency": self.event_latency.summary(),
+                "compute_per_batch": self.compute.summary(),
                 "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
                 "standing": self.engine.standing, "metrics": self.engine.metrics}

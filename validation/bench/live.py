@@ -9,6 +9,8 @@ source -> frame aligner -> engine -> hub, with the MCAP recorder writing into a 
   event being published (it is known one sample later: at 10× one sample lasts 1 ms of wall time, at 1×
   10 ms), CPU of the process (all threads: replay, engine, recorder) as % of one core over the session's
   wall time, and samples dropped (the bounded input queue full);
+  ``compute_ms_per_batch``: wall time of the engine and publishing per batch of frames (one frame at 1×): what
+  the code costs; the rest of the latency is waiting to be scheduled;
 * ``memory``: ``--minutes`` of session time (the walk looped) at ``--speed-memory`` (default max): resident
   memory sampled every 2 s; growth = the last sample minus the sample at the end of the warm-up (first
   10 % of the run).
@@ -81,12 +83,14 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
            "latency_ms": {k: round(v, 3) for k, v in summary["latency"].items() if k != "n"},
            "event_latency_ms": {k: round(v, 3) for k, v in summary["event_latency"].items() if k != "n"},
            "n_events_timed": summary["event_latency"]["n"],
+           "compute_ms_per_batch": {k: round(v, 3) for k, v in summary["compute_per_batch"].items() if k != "n"},
+           "n_batches": summary["compute_per_batch"]["n"],
            "sample_period_wall_ms": None if speed is None else round(1000.0 / fs / speed, 3),
            "cpu_pct_one_core": round(100.0 * cpu / summary["wall_s"], 1),
            "engine_thread_cpu_pct_one_core": round(100.0 * summary["engine_cpu_s"] / summary["wall_s"], 1),
            "samples_dropped": summary["samples_dropped"], "samples_lost": int(sum(summary["gaps"].values()))}
     if speed is None:      # as fast as possible: frames wait in the queue by design, latency means nothing
-        for k in ("latency_ms", "event_latency_ms", "n_events_timed"):
+        for k in ("latency_ms", "event_latency_ms", "n_events_timed", "compute_ms_per_batch", "n_batches"):
             out.pop(k)
     if sample_memory and mem:
         warm = [m for t, m in mem if t >= 0.1 * out["session_s"]]
