@@ -569,6 +569,9 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
 @click.option("--osc-host", default="127.0.0.1", show_default=True, help="Address the NGIMU ports listen on.")
 @click.option("--osc-rate", "osc_rate_hz", type=float, default=100.0, show_default=True,
               help="Sample rate the NGIMUs send /sensors at (Hz).")
+@click.option("--osc-clock", type=click.Choice(["host", "shared"]), default="host", show_default=True,
+              help="shared: the NGIMUs' clocks are synchronised (their time tags share one clock); host: "
+                   "each sensor placed by the arrival of its first packet.")
 @click.option("--calibration", type=click.Path(exists=True, path_type=Path), default=None,
               help="The session's calibration trial (MCAP or bag): standing + hip FE or straight walking.")
 @click.option("--calibration-from", type=click.Path(file_okay=False, path_type=Path), default=None,
@@ -591,8 +594,8 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
 @click.option("--duration", "duration_s", type=float, default=None,
               help="OSC: stop after this many seconds without packets.")
 @click.option("--json", "as_json", is_flag=True, help="Print the session summary as JSON.")
-def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, calibration, calibration_from, participant, inbox, name,
-         no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
+def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibration, calibration_from, participant,
+         inbox, name, no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
     """Real-time session: IMU streams -> joint angles and gait events per sample, a biofeedback page
     (therapist: /, patient: /patient) and the session recorded to the inbox as it arrives.
 
@@ -644,7 +647,8 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, calibration, calibr
         bands[j] = {"pct": pct.tolist(), "mean": mean.tolist(), "sd": sd.tolist()}
     try:
         summary = run_live(replay=replay, speed=speed, minutes=minutes, osc=osc, osc_host=osc_host,
-                           osc_rate_hz=osc_rate_hz, calibration=calibration, calibration_from=calibration_from,
+                           osc_rate_hz=osc_rate_hz, osc_clock=osc_clock, calibration=calibration,
+                           calibration_from=calibration_from,
                            participant=participant, inbox=inbox, name=name, record=not no_record, host=host,
                            port=port, serve=not no_serve, cue=cue, audio=audio, bands=bands, duration_s=duration_s,
                            band_note="grey: adult normative band at self-selected speed (reports/normative.py; "

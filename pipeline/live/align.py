@@ -14,9 +14,9 @@ sensor's first stamp and ``k0_p`` where that first sample falls on the session g
 Frame ``k`` is handed on once every sensor has delivered a sample at or after ``k``, or ``max_wait_ms`` of
 wall time after the first of its samples arrived, or once any sensor is ``max_wait_frames`` beyond it (a
 backlog bound): a sensor that stalls must not stop the others, and a network that delivers one sensor's
-packets in bursts (Wi-Fi) must not make its samples "lost" when they are only late by a few milliseconds. A sensor that has
-nothing at ``k`` then counts a lost sample at ``k`` (``gaps``): its row is NaN and ``valid`` False; the
-estimators see the loss, nothing is interpolated. A sample arriving after its frame was handed on is
+packets in bursts (Wi-Fi) must not make its samples "lost" when they are only late by a few milliseconds.
+A sensor that has nothing at ``k`` then counts a lost sample at ``k`` (``gaps``): its row is NaN and
+``valid`` False; the estimators see the loss, nothing is interpolated. A sample arriving after its frame was handed on is
 counted ``late`` and not used; a repeated index is counted ``duplicate``.
 """
 from __future__ import annotations

@@ -33,6 +33,7 @@ def parse_osc(items) -> dict[str, int]:
 
 
 def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.1", osc_rate_hz=100.0,
+             osc_clock="host",
              calibration=None, calibration_from=None, participant=None, inbox=None, name=None, record=True,
              host="127.0.0.1", port=8765, serve=True, cue="stance_asymmetry_pct:0:10", audio=False, session_fields=None,
              bands=None, band_note="", duration_s=None, on_ready=None) -> dict:
@@ -64,7 +65,7 @@ def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.
         fs = float(osc_rate_hz)
         source = NgimuUdpSource({p: ports[p] for p in placements}, host=osc_host,
                                 timeout_s=duration_s)
-        clock = "host"
+        clock = osc_clock
     if not placements:
         raise ValueError("no lower-limb sensor (pelvis, thigh, shank, foot) in the input")
     cal, cal_note = None, "none"

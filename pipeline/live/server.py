@@ -78,7 +78,8 @@ class LiveServer:
         self._thread.start()
         self._ready.wait(10)
         if self.error:
-            raise ValueError(f"cannot serve the live page on {self.host}:{self.port}: {self.error}; choose another --port")
+            raise ValueError(f"cannot serve the live page on {self.host}:{self.port}: {self.error}; "
+                             f"choose another --port")
 
     def stop(self) -> None:
         if self._loop is not None:

@@ -86,6 +86,7 @@ def read_streams(path: str | Path, topic_map: dict[str, str] | None = None) -> S
         sensors[placement] = SensorStream(t[keep], log[keep], np.ascontiguousarray(v[keep, 0:3]),
                                           np.ascontiguousarray(v[keep, 3:6]), mag)
     if not sensors:
-        raise ValueError(f"{path}: no IMU topic (/imu/<placement>) found; found {', '.join(res.found_topics()) or 'nothing'}")
+        found = ", ".join(res.found_topics()) or "nothing"
+        raise ValueError(f"{path}: no IMU topic (/imu/<placement>) found; found {found}")
     meta = dict(res.metadata.get("session", {}))
     return Streams(sensors, meta)

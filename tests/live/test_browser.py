@@ -35,7 +35,8 @@ def test_live_replay_in_chromium(lab_files, tmp_path_factory):
     shots = Path(os.environ.get("STRIDELAB_LIVE_SHOTS") or tmp_path_factory.mktemp("live_screenshots"))
     shots.mkdir(parents=True, exist_ok=True)
     port = _free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "stridelab", "live", "--replay", str(walk), "--calibration", str(cal),
+    proc = subprocess.Popen([sys.executable, "-m", "stridelab", "live", "--replay", str(walk),
+                             "--calibration", str(cal),
                              "--speed", "1", "--minutes", "3", "--port", str(port), "--no-record", "--audio",
                              "--cue", "stance_asymmetry_pct:0:10"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

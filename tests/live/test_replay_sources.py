@@ -29,7 +29,8 @@ def test_a_rosbag2_bag_replays_like_the_mcap_file(tmp_path, lab_streams, storage
         np.testing.assert_array_equal(a.sensors[p].t_ns, b.sensors[p].t_ns)
         np.testing.assert_array_equal(a.sensors[p].gyr, b.sensors[p].gyr)
         np.testing.assert_array_equal(a.sensors[p].acc, b.sensors[p].acc)
-    r = CliRunner().invoke(main, ["live", "--replay", str(bag), "--speed", "max", "--no-serve", "--no-record", "--json"])
+    r = CliRunner().invoke(main, ["live", "--replay", str(bag), "--speed", "max", "--no-serve", "--no-record",
+                                  "--json"])
     assert r.exit_code == 0, r.output
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["frames"] == n and out["samples_in"] == 7 * n and sum(out["gaps"].values()) == 0
