@@ -42,8 +42,11 @@ class _Ws(tornado.websocket.WebSocketHandler):
     def on_close(self):
         self.srv.clients.discard(self)
 
-    def check_origin(self, origin):          # pages come from this server only
-        return origin.split("://", 1)[-1].split("/")[0] in self.srv.origins
+    def check_origin(self, origin):          # pages come from this server only (any of its addresses on --host 0.0.0.0)
+        netloc = origin.split("://", 1)[-1].split("/")[0]
+        if self.srv.host in ("0.0.0.0", "::", ""):
+            return netloc.rsplit(":", 1)[-1] == str(self.srv.port)
+        return netloc in self.srv.origins
 
 
 class _State(tornado.web.RequestHandler):
