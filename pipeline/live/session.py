@@ -94,7 +94,7 @@ class LiveSession:
 
     def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
                  params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
-                 max_wait_ms: float = 40.0):
+                 max_wait_ms: float = 40.0, inline: bool = True):
         self.source = source
         self.placements = tuple(placements)
         self.fs = float(sampling_rate_hz)
@@ -115,6 +115,8 @@ class LiveSession:
         self._rec_q: queue.Queue = queue.Queue(maxsize=32)
         self._arrivals = np.zeros(256, dtype=np.int64)      # frame arrival times, for event latencies
         self._stop = threading.Event()
+        self.inline = inline
+        self._proc_lock = threading.Lock()
         self.cpu_s = 0.0
         self.wall_s = 0.0
         self._warm_up(calibration, params)
@@ -136,6 +138,14 @@ class LiveSession:
 
     # the source's sink: never blocks
     def sink(self, samples: list) -> bool:
+        """Inline (default): the source's thread computes the samples at once (no hand-over to another thread,
+        whose wake-up would add to every latency). Otherwise queued for ``run``; False when the queue is full."""
+        if self.inline:
+            c0 = time.thread_time()
+            with self._proc_lock:
+                self._ingest([samples])
+            self.cpu_s += time.thread_time() - c0
+            return True
         with self._qlock:
             if self._queued + len(samples) > self._cap:
                 return False
@@ -159,7 +169,10 @@ class LiveSession:
         t_cpu, t_wall = time.thread_time(), time.perf_counter()
         self.source.start(self.sink)
         try:
-            while not self._stop.is_set():
+            while self.inline and not self._stop.is_set():
+                if self.source.done.wait(0.05) or (until is not None and until()):
+                    break
+            while not self.inline and not self._stop.is_set():
                 try:
                     samples = self._q.get(timeout=0.05)
                 except queue.Empty:
@@ -174,28 +187,33 @@ class LiveSession:
                         burst.append(self._q.get_nowait())
                     except queue.Empty:
                         break
-                n_in = sum(len(x) for x in burst)
                 with self._qlock:
-                    self._queued -= n_in
-                self.samples_in += n_in
-                add = self.aligner.add
-                for samples in burst:
-                    for (p, t, h, arr, g, a, m) in samples:
-                        for b in add(p, t, h, arr, g, a, m, emit=False):
-                            self._process(b)
-                for b in self.aligner.ready():
+                    self._queued -= sum(len(x) for x in burst)
+                self._ingest(burst)
+            self.source.join(10)
+            with self._proc_lock:
+                for b in self.aligner.flush():
                     self._process(b)
-            for b in self.aligner.flush():
-                self._process(b)
         finally:
             sys.setswitchinterval(switch)
             self.source.stop()
-            self.cpu_s = time.thread_time() - t_cpu
+            self.cpu_s += time.thread_time() - t_cpu
             self.wall_s = time.perf_counter() - t_wall
             if rec_thread is not None:
                 self._rec_q.put(None)
                 rec_thread.join()
         return self.summary()
+
+    def _ingest(self, burst: list) -> None:
+        """Samples (lists of them) into the aligner, then the frames they completed through the engine."""
+        self.samples_in += sum(len(x) for x in burst)
+        add = self.aligner.add
+        for samples in burst:
+            for (p, t, h, arr, g, a, m) in samples:
+                for b in add(p, t, h, arr, g, a, m, emit=False):
+                    self._process(b)
+        for b in self.aligner.ready():
+            self._process(b)
 
     def _process(self, b) -> None:
         t0 = time.perf_counter_ns()

@@ -3,7 +3,8 @@
 A source runs in its own thread and hands lists of samples ``(placement, t_ns, host_ns, arrival_ns, gyr, acc,
 mag)`` to ``sink``; ``sink`` returns False when the session's input queue is full, and the source counts those
 samples as dropped (a device cannot be paused; neither is a replay at a fixed speed). ``arrival_ns`` is
-``time.perf_counter_ns()`` when the sample reached the host (latency is measured from it).
+``time.perf_counter_ns()`` when the packet was read (UDP) or the time it was due (replay at a fixed speed);
+latency is measured from it.
 """
 from __future__ import annotations
 
@@ -61,22 +62,34 @@ class ReplaySource:
             t0 = int(S[pl[0]].t_ns[0])
             wall0 = time.perf_counter_ns()
             i = 0
+
+            def due(f):             # when frame f is due (the device would deliver it), perf_counter ns
+                j, lap = f % self.n, f // self.n
+                return wall0 + (int(S[pl[0]].t_ns[j]) + lap * span - t0) / self.speed
+
             while i < total and not self._stop.is_set():
-                m = min(self.frames_per_put, total - i)
-                if self.speed is not None:
-                    j = i % self.n
-                    lap = i // self.n
-                    due = wall0 + ((int(S[pl[0]].t_ns[j]) + lap * span - t0) / self.speed)
-                    wait = (due - time.perf_counter_ns()) / 1e9
+                if self.speed is None:
+                    m = min(self.frames_per_put, total - i)
+                    now = time.perf_counter_ns()
+                    arrivals = [now] * m
+                else:
+                    wait = (due(i) - time.perf_counter_ns()) / 1e9
                     if wait > 0:
                         time.sleep(wait)
+                    # every frame due by now goes at once (a late wake-up of this thread, like one of a
+                    # receiving thread, releases what queued meanwhile); each "arrived" when it was due, so the
+                    # wake-up delay counts in the latency
+                    now = time.perf_counter_ns()
+                    m = 1
+                    while i + m < total and m < 200 and due(i + m) <= now:
+                        m += 1
+                    arrivals = [int(due(f)) for f in range(i, i + m)]
                 batch = []
-                arrival = time.perf_counter_ns()
-                for f in range(i, i + m):
+                for f, arrival in zip(range(i, i + m), arrivals):
                     j, lap = f % self.n, f // self.n
+                    off = lap * span
                     for p in pl:
                         s = S[p]
-                        off = lap * span
                         batch.append((p, int(s.t_ns[j]) + off, int(s.log_ns[j]) + off, arrival, s.gyr[j], s.acc[j],
                                       None if s.mag is None else s.mag[j]))
                 if self.speed is None:
