@@ -1,8 +1,10 @@
 """A live session: source -> frame aligner -> engine -> (published to the page, recorded to MCAP).
 
-Threads: the source; the engine thread (``run``) which aligns, computes and publishes every frame; the
-recorder thread (the MCAP chunks, off the latency path); the web server (:mod:`pipeline.live.server`). The
-input queue is bounded (``queue_s`` of samples); what does not fit is counted as dropped by the source.
+Threads: the source's thread, which (``inline``, the default) aligns, computes and publishes its samples as they
+arrive (no hand-over to another thread whose wake-up would add to every latency); the recorder thread (the MCAP
+chunks, off the latency path); the web server (:mod:`pipeline.live.server`); ``run`` waits. With
+``inline=False`` samples go through a bounded queue (``queue_s`` of samples) to ``run``'s thread, and what does
+not fit is counted as dropped by the source.
 """
 from __future__ import annotations
 
