@@ -175,6 +175,8 @@ class LiveEngine:
                     ev = {"side": side, "type": typ, "k": int(k_ev), "k_detect": int(k_det),
                           "t_ns": int(b.t_ns[0] + (k_ev - b.k0) * 1e9 / self.fs)}
                     events.append(ev)
+        # in time order (detection frame, then event frame), both feet interleaved: strides pair the feet's ICs
+        events.sort(key=lambda e: (e["k_detect"], e["k"], e["side"]))
         strides = self._strides_from(events)
         self.k += n
         return LiveOutput(b.k0, n, b.t_ns, b.arrival_ns, quat, angles, pitch, ready, events, strides,
@@ -241,7 +243,8 @@ class LiveEngine:
             stride_s = (ev["k"] - ic_prev) / fs
             tcs = [t for t in self._tc[side] if ic_prev < t < ev["k"]]
             stance_s = (tcs[0] - ic_prev) / fs if tcs else float("nan")
-            step_s = (ev["k"] - ic_other) / fs if ic_other is not None and ic_other > ic_prev else float("nan")
+            step_s = (ev["k"] - ic_other) / fs if ic_other is not None and ic_prev < ic_other < ev["k"] \
+                else float("nan")
             st = {"side": side, "k_start": int(ic_prev), "k_end": int(ev["k"]), "stride_time_s": stride_s,
                   "stance_time_s": stance_s, "stance_pct": 100.0 * stance_s / stride_s, "step_time_s": step_s}
             self._strides[side].append(st)

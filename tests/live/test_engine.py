@@ -136,3 +136,36 @@ def test_a_stalled_sensor_holds_the_others_only_max_wait_ms():
     burst += al.ready(now_ns=t0 + 335_000_000)
     late_frames = np.concatenate([b.valid["b"][b.k0 + np.arange(b.n) >= 30] for b in burst])
     assert late_frames.all() and len(late_frames) == 3
+
+
+def test_inline_and_queued_sessions_publish_the_same(lab_streams, lab_calibration):
+    """The source's thread computing (default) and a queue to run()'s thread: same frames, events, metrics."""
+    from pipeline.live.session import LiveSession
+    from pipeline.live.sources import ReplaySource
+    pl = [p for p in LEG_PLACEMENTS if p in lab_streams.sensors]
+    res = {}
+    for inline in (True, False):
+        s = LiveSession(ReplaySource(lab_streams, pl, speed=None), pl, sampling_rate_hz=lab_streams.sampling_rate_hz,
+                        calibration=lab_calibration, inline=inline)
+        summary = s.run()
+        res[inline] = (summary["frames"], summary["metrics"], [(e["side"], e["type"], e["k"]) for e in s.hub.events],
+                       [f[3] for f in s.hub.frames])
+    assert res[True][0] == res[False][0] == min(len(lab_streams.sensors[p].t_ns) for p in pl)
+    assert res[True][1] == res[False][1] and res[True][2] == res[False][2] and res[True][3] == res[False][3]
+    assert len(res[True][2]) > 10
+
+
+def test_stride_times_and_asymmetry_by_hand():
+    """Hand-computed strides: left IC 100 -> 220 (TC 170, right IC 160 between), right IC 160 -> 290 (TC 240,
+    left IC 220 between), 100 Hz."""
+    eng = LiveEngine(["foot_left", "foot_right"], sampling_rate_hz=100.0)
+    ev = [("left", "IC", 100), ("right", "TC", 120), ("right", "IC", 160), ("left", "TC", 170),
+          ("left", "IC", 220), ("right", "TC", 240), ("right", "IC", 290)]
+    strides = eng._strides_from([{"side": s, "type": t, "k": k, "k_detect": k + 1} for s, t, k in ev])
+    left, right = strides
+    assert (left["side"], left["stride_time_s"], left["stance_time_s"], left["step_time_s"]) == ("left", 1.2, 0.7, 0.6)
+    assert (right["side"], right["stride_time_s"], right["stance_time_s"], right["step_time_s"]) == \
+        ("right", 1.3, 0.8, 0.7)
+    m = eng.metrics
+    assert m["step_time_asymmetry_pct"] == pytest.approx(100 * (0.7 / 0.6 - 1))
+    assert m["stance_asymmetry_pct"] == pytest.approx(100 * ((0.8 / 1.3) / (0.7 / 1.2) - 1))
