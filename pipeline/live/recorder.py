@@ -4,7 +4,8 @@ Layout: magic, Header, Schemas, Channels, the ``session`` Metadata record, then 
 indexes) per ``chunk_s`` of samples. After every chunk the file is closed off with DataEnd + an empty-summary
 Footer + magic written in the same ``pwrite`` as the chunk, at the offset where the previous DataEnd stood: a
 session killed at any moment (``kill -9``, power loss after the fsync) leaves a valid MCAP holding every
-complete chunk. ``close`` writes the full summary (chunk indexes, statistics) and moves the file from
+complete chunk (a write the kernel cut short at the kill leaves half a chunk: :func:`repair`). ``close`` writes
+the full summary (chunk indexes, statistics) and moves the file from
 ``<inbox>/.live/`` into the inbox, where the nightly run picks it up; a file left in ``.live/`` by a crash is
 moved in by :func:`recover` (``stridelab live --recover``), after checking it with the ingest's reader.
 
@@ -256,17 +257,62 @@ def _plain(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+_KEEP = {int(Opcode.HEADER), int(Opcode.SCHEMA), int(Opcode.CHANNEL), int(Opcode.METADATA), int(Opcode.CHUNK),
+         int(Opcode.MESSAGE_INDEX)}
+
+
+def repair(path: str | Path) -> bool:
+    """Cut a recorder file after its last complete record and close it off (DataEnd + footer + magic).
+
+    For the rare file a kill left mid-write (a short ``pwrite``: the new chunk's record runs past the end of
+    the file): the records are walked from the start and the file is cut where the first incomplete or
+    foreign record begins; the chunks before it are intact (each carries its CRC). False when the file does
+    not start like a recorder file."""
+    path = Path(path)
+    data = path.read_bytes()
+    if not data.startswith(MAGIC):
+        return False
+    p, cut = len(MAGIC), None
+    while p + 9 <= len(data):
+        op, n = data[p], int.from_bytes(data[p + 1:p + 9], "little")
+        if op not in _KEEP or p + 9 + n > len(data):
+            break
+        p += 9 + n
+        cut = p
+    if cut is None:
+        return False
+    crc = crc32(data[:cut])
+    tail = _record(DataEnd(data_section_crc=crc)) + \
+        _record(Footer(summary_start=0, summary_offset_start=0, summary_crc=0)) + MAGIC
+    with open(path, "r+b") as f:
+        f.seek(cut)
+        f.write(tail)
+        f.truncate(cut + len(tail))
+        f.flush()
+        os.fsync(f.fileno())
+    return True
+
+
 def recover(inbox: str | Path) -> list[tuple[Path, str]]:
     """Move recordings a crashed live session left in ``<inbox>/.live/`` into the inbox once the ingest's reader
-    accepts them; returns (file, outcome) pairs. A file the reader refuses stays where it is, with the reason."""
+    accepts them (a file cut mid-write is first :func:`repair` ed to its last complete chunk); returns (file,
+    outcome) pairs. A file the reader still refuses stays where it is, with the reason."""
     from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
-    out = []
-    for p in sorted((Path(inbox) / LIVE_DIR).glob("*.mcap")):
+
+    def readable(p):
         try:
             for _ in iter_blocks(p, ReadResult()):
                 pass
+            return None
         except McapFormatError as e:
-            out.append((p, f"left in place: {e}"))
+            return str(e)
+    out = []
+    for p in sorted((Path(inbox) / LIVE_DIR).glob("*.mcap")):
+        err = readable(p)
+        if err is not None and repair(p):
+            err = readable(p)
+        if err is not None:
+            out.append((p, f"left in place: {err}"))
             continue
         dest = Path(inbox) / p.name
         if dest.exists():
