@@ -555,3 +555,107 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
     else:
         for k, v in paths.items():
             err_console.print(f"{k}: {v}", markup=False)
+
+
+# ---- live sessions (pipeline/live; docs/live.md) ----------------------------------------------
+
+@main.command()
+@click.option("--replay", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Replay a recording-format MCAP file or rosbag2 bag directory.")
+@click.option("--speed", default="1", show_default=True, help="Replay speed: a factor (1, 10, …) or 'max'.")
+@click.option("--minutes", type=click.FloatRange(0.01, 600), default=None,
+              help="Loop the replayed recording until this much time was replayed.")
+@click.option("--osc", multiple=True, metavar="PLACEMENT=PORT",
+              help="x-io NGIMU sending OSC to this UDP port (repeat per sensor), e.g. --osc foot_left=9001.")
+@click.option("--osc-host", default="127.0.0.1", show_default=True, help="Address the NGIMU ports listen on.")
+@click.option("--osc-rate", "osc_rate_hz", type=float, default=100.0, show_default=True,
+              help="Sample rate the NGIMUs send /sensors at (Hz).")
+@click.option("--osc-clock", type=click.Choice(["host", "shared"]), default="host", show_default=True,
+              help="shared: the NGIMUs' clocks are synchronised (their time tags share one clock); host: "
+                   "each sensor placed by the arrival of its first packet.")
+@click.option("--calibration", type=click.Path(exists=True, path_type=Path), default=None,
+              help="The session's calibration trial (MCAP or bag): standing + hip FE or straight walking.")
+@click.option("--calibration-from", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Use the participant's newest stored calibration in this warehouse (a previous visit).")
+@click.option("--participant", default=None, help="Participant pseudonym (default: the replayed file's).")
+@click.option("--inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the session recording goes [default: $STRIDELAB_HOME/inbox].")
+@click.option("--name", default=None, help="File name of the recording (without .mcap).")
+@click.option("--no-record", is_flag=True, help="Do not record the session.")
+@click.option("--recover", is_flag=True, help="Move recordings a crashed session left in INBOX/.live into the inbox.")
+@click.option("--compare", type=click.Path(exists=True, path_type=Path), default=None,
+              help="A recorded live session: its live outputs against the nightly's offline estimators.")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address of the live page (loopback by default).")
+@click.option("--port", type=int, default=8765, show_default=True, help="Port of the live page.")
+@click.option("--no-serve", is_flag=True, help="Compute (and record) without serving the page.")
+@click.option("--cue", default="stance_asymmetry_pct:0:10", show_default=True, metavar="MEASURE:LOW:HIGH",
+              help="Cue when MEASURE leaves [LOW, HIGH]: stance_asymmetry_pct, step_time_asymmetry_pct, "
+                   "knee_peak_left, knee_peak_right.")
+@click.option("--audio", is_flag=True, help="Cue with sound as well.")
+@click.option("--duration", "duration_s", type=float, default=None,
+              help="OSC: stop after this many seconds without packets.")
+@click.option("--json", "as_json", is_flag=True, help="Print the session summary as JSON.")
+def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibration, calibration_from, participant,
+         inbox, name, no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
+    """Real-time session: IMU streams -> joint angles and gait events per sample, a biofeedback page
+    (therapist: /, patient: /patient) and the session recorded to the inbox as it arrives.
+
+    \b
+    Examples:
+      stridelab live --replay inbox/P003_lab1_walk-1.mcap --calibration inbox/P003_lab1_calibration.mcap
+      stridelab live --replay bag_dir/ --speed 10 --no-record
+      stridelab live --osc pelvis=9000 --osc foot_left=9001 --osc foot_right=9002 --osc-host 0.0.0.0
+      stridelab live --recover
+      stridelab live --compare inbox/P003_live_x.mcap --calibration inbox/P003_lab1_calibration.mcap --json
+    """
+    from pipeline.config import default_inbox
+    from pipeline.console import UserError
+    from pipeline.live.command import print_summary, run_live
+    from reports.normative import normative_band     # the CLI is the one place that wires every layer
+    inbox = Path(inbox) if inbox else default_inbox()
+    if recover:
+        from pipeline.live.recorder import recover as _recover
+        for path, outcome in _recover(inbox):
+            click.echo(f"{path}: {outcome}")
+        return
+    if compare:
+        from pipeline.console import emit_json
+        from pipeline.live.agreement import live_vs_offline
+        from pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
+        try:
+            if calibration is not None:
+                cal = calibration_from_trial(calibration)
+            elif calibration_from is not None and participant:
+                cal = calibration_from_warehouse(calibration_from, participant)[0]
+            else:
+                raise ValueError("--compare needs --calibration TRIAL (or --calibration-from WAREHOUSE --participant)")
+            res = live_vs_offline(compare, cal)
+        except ValueError as e:
+            raise UserError(str(e).splitlines()[0]) from None
+        if as_json:
+            emit_json(res)
+        else:
+            for k, v in res["joints"].items():
+                click.echo(f"{k}: live - offline RMSE [FE, AA, IE] {v['rmse_deg']} deg")
+            for side, ev in res["events"].items():
+                for typ, m in ev.items():
+                    click.echo(f"{side} {typ}: {m['matched']} of {m['live']} live / {m['offline']} offline matched, "
+                               f"live - offline {m['mean_ms']} ± {m['sd_ms']} ms")
+        return
+    bands = {}
+    for j in ("hip", "knee"):
+        pct, mean, sd = normative_band(j)
+        bands[j] = {"pct": pct.tolist(), "mean": mean.tolist(), "sd": sd.tolist()}
+    try:
+        summary = run_live(replay=replay, speed=speed, minutes=minutes, osc=osc, osc_host=osc_host,
+                           osc_rate_hz=osc_rate_hz, osc_clock=osc_clock, calibration=calibration,
+                           calibration_from=calibration_from,
+                           participant=participant, inbox=inbox, name=name, record=not no_record, host=host,
+                           port=port, serve=not no_serve, cue=cue, audio=audio, bands=bands, duration_s=duration_s,
+                           band_note="grey: adult normative band at self-selected speed (reports/normative.py; "
+                                     "not speed-matched)",
+                           on_ready=lambda url, src: url and click.echo(f"live page: {url}  (patient: {url}patient)",
+                                                                        err=True))
+    except ValueError as e:
+        raise UserError(str(e).splitlines()[0]) from None
+    print_summary(summary, as_json)

@@ -9,9 +9,10 @@ from estimators.joints._cycles import N_POINTS, CycleCurves, normalise_cycles, p
 from estimators.joints._jcs import (ANGLE_NAMES, JOINTS, SIGN_RIGHT, JointAngles, clinical_to_matrix,
                                     compute_joint_angles, joint_angles_deg, remove_standing_offset,
                                     segment_orientations, sign_table, zxy_angles_deg, zxy_matrix)
+from estimators.joints._online import calibrated_joint_angles_deg
 from estimators.joints.evaluation import AngleError, angle_errors
 
 __all__ = ["ANGLE_NAMES", "JOINTS", "SIGN_RIGHT", "JointAngles", "clinical_to_matrix", "compute_joint_angles",
            "joint_angles_deg", "remove_standing_offset", "segment_orientations", "sign_table", "zxy_angles_deg",
            "zxy_matrix", "N_POINTS", "CycleCurves", "normalise_cycles", "pool_cycles", "session_gait_curves", "AngleError",
-           "angle_errors"]
+           "angle_errors", "calibrated_joint_angles_deg"]

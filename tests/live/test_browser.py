@@ -1,0 +1,90 @@
+"""``stridelab live --replay`` of the hemiparetic walk with the pages open in Debian's Chromium (Playwright):
+the stick figure moves, gait events appear, the stance-asymmetry cue triggers; screenshots saved."""
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+CHROMIUM = os.environ.get("STRIDELAB_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+        "--disable-sync", "--no-first-run", "--autoplay-policy=no-user-gesture-required"]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_live_replay_in_chromium(lab_files, tmp_path_factory):
+    if not Path(CHROMIUM).exists():
+        pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
+    pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")
+    from playwright.sync_api import sync_playwright
+    cal, walk = lab_files
+    shots = Path(os.environ.get("STRIDELAB_LIVE_SHOTS") or tmp_path_factory.mktemp("live_screenshots"))
+    shots.mkdir(parents=True, exist_ok=True)
+    port = _free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "stridelab", "live", "--replay", str(walk),
+                             "--calibration", str(cal),
+                             "--speed", "1", "--minutes", "3", "--port", str(port), "--no-record", "--audio",
+                             "--cue", "stance_asymmetry_pct:0:10"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(240):
+            if proc.poll() is not None:
+                pytest.fail(f"stridelab live exited: {proc.stdout.read()[-2000:]}")
+            try:
+                if urllib.request.urlopen(f"{url}/api/state", timeout=1).status == 200:
+                    break
+            except OSError:
+                time.sleep(0.25)
+        else:
+            pytest.fail("the live page did not come up within 60 s")
+        errors: list[str] = []
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+            try:
+                page = browser.new_page(viewport={"width": 1500, "height": 900})
+                page.on("pageerror", lambda e: errors.append(str(e)))
+                patient = browser.new_page(viewport={"width": 900, "height": 600})
+                patient.on("pageerror", lambda e: errors.append(str(e)))
+                page.goto(f"{url}/", wait_until="domcontentloaded")
+                patient.goto(f"{url}/patient", wait_until="domcontentloaded")
+                page.wait_for_function("() => window.liveStats && window.liveStats.events >= 6", timeout=90_000)
+                a = page.evaluate("document.getElementById('stick').toDataURL()")
+                page.wait_for_timeout(300)
+                b = page.evaluate("document.getElementById('stick').toDataURL()")
+                assert a != b, "the stick figure did not move"
+                page.wait_for_function("() => document.body.dataset.cue === 'on'", timeout=90_000)
+                stats = page.evaluate("({...window.liveStats})")
+                assert stats["cueCount"] >= 1 and stats["frames"] > 200
+                assert "IC" in page.evaluate("JSON.stringify(L.events.map(e => e.type))")
+                assert page.locator("#cue-banner").is_visible()
+                page.wait_for_timeout(1500)         # a few more strides drawn on the curves
+                page.screenshot(path=str(shots / "therapist.png"))
+                patient.wait_for_function("() => document.body.dataset.cue === 'on'", timeout=30_000)
+                patient.screenshot(path=str(shots / "patient.png"))
+                print(f"\nscreenshots in {shots}; page stats {stats}")
+            finally:
+                browser.close()
+        assert not errors, errors
+        assert (shots / "therapist.png").stat().st_size > 10_000
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
