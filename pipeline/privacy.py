@@ -216,6 +216,12 @@ def stored_name(path: str | Path) -> str:
     return f"rec-{_digest('name', name)[:16]}{suffix}"
 
 
+def name_token(name: str) -> str:
+    """10 letters (a-p) of the keyed hash of a file name, for names StrideLab gives in its place (an imported
+    recording's file name and trial): letters only, so that no digit run reads as a record number."""
+    return stored_name(name)[4:14].translate(str.maketrans("0123456789abcdef", "abcdefghijklmnop"))
+
+
 def stored_path(path: str | Path) -> str:
     """What the catalog keeps of a recording's absolute path (the re-ingest shortcut needs only equality)."""
     return f"path-{_digest('path', str(Path(path).resolve()))[:32]}"
