@@ -268,7 +268,7 @@ def _prepare(path, root, options) -> Prepared:
                 raise IngestRejected(f"topics {privacy.shown_topic(mapped[pl].topic)} and {privacy.shown_topic(s.topic)}"
                                      f" both map to {pl[1]} of placement{_shown(pl[0])}; map only one of them")
             if pl[0] not in privacy.placements(policy):
-                raise IngestRejected(f"{privacy.shown_topic(s.topic)} maps to a placement that is not in the study's "
+                raise IngestRejected(f"{privacy.shown_topic(s.topic, policy)} maps to a placement that is not in the study's "
                                      f"vocabulary ({', '.join(privacy.placements(policy))}); map it with --topic-map "
                                      f"TOPIC=PLACEMENT or the study manifest ([topics], [privacy] placements)")
             mapped[pl] = s

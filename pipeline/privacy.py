@@ -227,15 +227,31 @@ def stored_path(path: str | Path) -> str:
     return f"path-{_digest('path', str(Path(path).resolve()))[:32]}"
 
 
-def shown_topic(topic: str) -> str:
-    """A topic name as a stored reason or warning may show it: a name made of codes (``/imu/foot_left``,
-    ``/foot_left/imu/data_raw``: lower-case letters, digits, '_', no date or long number) as it is, any other
-    as ``a topic (name not shown, <8 hex digits of its keyed hash>)``. ``topic (schema)`` entries keep the
-    schema."""
+#: words a topic name may be made of to be shown as it is (beside the placements): ROS 2 conventions and sensor
+#: vocabulary; a topic with any other word (``/karl_huber/imu``) is shown as a keyed hash
+TOPIC_WORDS = frozenset((
+    "imu", "mag", "range", "reference", "pose", "events", "data", "data_raw", "raw", "filtered", "magnetic_field",
+    "sensor", "sensors", "device", "devices", "left", "right", "foot", "shank", "thigh", "pelvis", "chest", "back",
+    "lower_back", "wrist", "ankle", "knee", "hip", "trunk", "sternum", "lumbar", "head", "arm", "accel", "gyro",
+    "temperature", "temp", "tf", "tf_static", "clock", "rosout", "parameter_events", "diagnostics", "status",
+    "camera", "image", "points", "odom", "joint_states", "robot_description", "a", "b"))
+
+
+def _topic_word(w: str, vocabulary) -> bool:
+    return w in vocabulary or w in TOPIC_WORDS or w in ("A", "B") or bool(re.fullmatch(r"[a-z]{1,12}_?\d{1,3}|[ab]|\d{1,3}", w))
+
+
+def shown_topic(topic: str, policy: PrivacyPolicy | None = None) -> str:
+    """A topic name as a stored reason or warning may show it: made of known words only (the placements,
+    :data:`TOPIC_WORDS`, ``imu0``: ``/imu/foot_left``, ``/foot_left/imu/data_raw``), as it is; any other as
+    ``a topic (name not shown, <8 hex digits of its keyed hash>)`` (a topic may carry a device label or a name).
+    ``topic (schema)`` entries keep the schema."""
     t = str(topic)
     m = re.fullmatch(r"(.*) \(([\w/ ]{1,80})\)", t)
     if m:
-        return f"{shown_topic(m.group(1))} ({m.group(2)})"
-    if re.fullmatch(r"(?:/[a-z0-9_]{1,40}){1,6}(?:/[AB])?", t) and value_problem(t.replace("/", " "), names=False) is None:
+        return f"{shown_topic(m.group(1), policy)} ({m.group(2)})"
+    vocabulary = set(placements(policy or PrivacyPolicy()))
+    parts = t.split("/")
+    if len(t) <= 120 and t.startswith("/") and all(_topic_word(w, vocabulary) for w in parts[1:]):
         return t
     return f"a topic (name not shown, {_digest('topic', t)[:8]})"
