@@ -58,7 +58,8 @@ def study_policy(study: str) -> PrivacyPolicy:
 
 def placements(policy: PrivacyPolicy) -> tuple[str, ...]:
     """The placement vocabulary: DESIGN.md's plus the study's ``[privacy] placements``."""
-    return tuple(PLACEMENTS) + tuple(p for p in policy.placements if p not in PLACEMENTS)
+    base = tuple(PLACEMENTS) + tuple(p for p in ("lower_back",) if p not in PLACEMENTS)    # DESIGN.md's list
+    return base + tuple(p for p in policy.placements if p not in base)
 
 
 def event_labels(policy: PrivacyPolicy) -> tuple[str, ...]:
