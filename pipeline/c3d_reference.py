@@ -2,7 +2,8 @@
 format": a C3D file beside the recording is an accepted alternative for optical markers).
 
 ``stridelab import c3d markers.c3d --recording walk.mcap --segment foot_left=LHEE,LTOE,LMT5 [--offset-s S]``
-writes one MCAP into the inbox, ``<recording>+<c3d>.mcap``:
+writes one MCAP into the inbox, ``<recording>+c3d-<hash>.mcap`` (file names are not kept: keyed hashes of them,
+:func:`pipeline.privacy.stored_name`):
 
 * every record of the recording unchanged: its channels and messages (log times and header stamps as they were,
   topics StrideLab does not decode included), its metadata records and attachments;
@@ -51,6 +52,15 @@ class C3DImportRejected(ValueError):
 class Segment:
     placement: str
     markers: tuple[str, ...]
+
+
+def _output_name(recording: Path, c3d: Path) -> str:
+    """``<recording>+c3d-<keyed hash of the C3D's name>.mcap``: the recording's stem when StrideLab gave it (an
+    importer's ``xio-f<hash>``), else a keyed hash of it too (file names may hold a participant's name)."""
+    from pipeline.privacy import name_token
+    rec = recording.stem if re.fullmatch(r"[a-z0-9]+-f[a-p]{10}|rec-[a-p]{10}", recording.stem) else \
+        "rec-" + name_token(recording.name)
+    return f"{rec}+c3d-{name_token(c3d.name)}.mcap"
 
 
 def parse_segments(items) -> list[Segment]:
@@ -136,7 +146,7 @@ def import_c3d_reference(c3d: Path, recording: Path, inbox: Path, segments: list
         raise C3DImportRejected(f"{c3d}: its {n / markers.rate_hz:.1f} s of markers at --offset-s {offset_s:g} do "
                                 f"not overlap the recording's {(t1 - t0) / 1e9:.1f} s; check --offset-s")
     inbox.mkdir(parents=True, exist_ok=True)
-    out = inbox / f"{recording.stem}+{c3d.stem}.mcap"
+    out = inbox / _output_name(recording, c3d)
     tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
     try:
         with open(recording, "rb") as src, open(tmp, "wb") as dst:
@@ -171,7 +181,7 @@ def import_c3d_reference(c3d: Path, recording: Path, inbox: Path, segments: list
                 raise C3DImportRejected(f"{recording}: no 'session' metadata record; import or ingest it with "
                                         f"--session fields first")
             desc = "; ".join(f"{pl} = {'/'.join(s.markers)}" for s in segments for pl in [s.placement])
-            meta["session"].update({"reference": f"C3D markers {c3d.name} ({desc}; {markers.units} -> m, "
+            meta["session"].update({"reference": f"C3D markers ({desc}; {markers.units} -> m, "
                                                  f"{markers.rate_hz:g} Hz, offset {offset_s:g} s)",
                                     "reference_frame": "segment_lab"})
             for name, md in meta.items():

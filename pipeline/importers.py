@@ -173,16 +173,19 @@ def _broad(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _apdm(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.apdm import load_apdm
+    from pipeline.formats.apdm import LABEL_PLACEMENTS, load_apdm
     r = load_apdm(path)
     imu = {}
     for s in r.sensors:
         pl = s.placement
         if placement and len(r.sensors) == 1:
             pl = placement
+        if not pl:
+            raise ImportRejected(f"{path}: a monitor label is not a known placement (known: "
+                                 f"{', '.join(sorted(set(LABEL_PLACEMENTS)))}, case and spaces ignored); relabel the "
+                                 f"monitor, or give --placement for a file with one sensor")
         if pl in imu:
-            raise ImportRejected(f"{path}: two sensors map to placement '{pl}' (labels "
-                                 f"{', '.join(x.label for x in r.sensors)}); relabel them")
+            raise ImportRejected(f"{path}: two sensors map to placement '{pl}'; relabel them")
         imu[pl] = ImuData(s.t_ns - r.t0_ns, s.acc, s.gyr, s.mag)
     rec = Recording(metadata={}, imu=imu, name=path.stem)
     return [Converted(rec, {"participant": "apdm01", "trial": _slug(path.stem), "kind": "lab",
@@ -453,6 +456,8 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
             for c in converted:
                 if limit is not None and len(res.written) >= limit:
                     break
+                if study != PUBLIC_STUDY:
+                    c = _without_file_name(c, path)
                 meta, t0 = session_record(c, path, study, sidecar, dict(session or {}))
                 c.rec.metadata = meta
                 _shift(c.rec, t0)
@@ -464,11 +469,24 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
                     raise ImportRejected(f"{path}: cannot be written as a recording ({msg}); the file is "
                                          "left out, the others go on") from None
                 res.written.append(out)
-                on_file(f"wrote {out} (session {meta['session']}, {', '.join(sorted(c.rec.imu))})")
+                on_file(f"wrote {out} from {path.name} (session {meta['session']}, {', '.join(sorted(c.rec.imu))})")
         except ImportRejected as e:
             res.errors.append(str(e))
             on_file(str(e))
     return res
+
+
+def _without_file_name(c: Converted, path: Path) -> Converted:
+    """``c`` with the export's file name replaced, wherever a converter used it (output name, default trial), by
+    ``f`` + 10 letters of its keyed hash (:func:`pipeline.privacy.name_token`): a user's file name may hold
+    a name or a birth date, and the inbox, the catalog and the reports keep what the importer writes. Public data
+    sets (study ``public``) keep their authors' names."""
+    from dataclasses import replace as _replace
+    from pipeline.privacy import name_token
+    slug, token = _slug(path.stem), "f" + name_token(path.name)
+    defaults = {k: (token if k in ("trial", "session") and v == slug else v) for k, v in c.defaults.items()}
+    stem = c.stem[:-len(slug)] + token if c.stem.endswith(slug) else c.stem
+    return _replace(c, defaults=defaults, stem=stem)
 
 
 def events_json(events: list[dict]) -> str:

@@ -23,10 +23,11 @@ from pathlib import Path
 import numpy as np
 import xxhash
 
-from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from estimators.recording import SESSION_KEYS_REQUIRED, SESSION_KINDS
 from pipeline import supersede
+from pipeline import privacy
 from pipeline.privacy import screen_session, study_policy
-from studies.privacy import value_problem
+from studies.privacy import shown as _safe_shown
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
 from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
 from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
@@ -46,8 +47,8 @@ class IngestRejected(ValueError):
 @dataclass
 class Prepared:
     """What a worker hands back to the writer for one file."""
-    source_path: str
-    file_name: str
+    source_path: str                         # stored: a keyed hash of the path (pipeline.privacy.stored_path)
+    file_name: str                           # stored: a keyed hash of the name (pipeline.privacy.stored_name)
     size_bytes: int
     mtime_ns: int
     content_hash: str = ""
@@ -63,6 +64,7 @@ class Prepared:
     ignored_topics: list[str] = field(default_factory=list)
     sample_hash: str = ""                    # XXH3-128 over the decoded samples of every topic (re-export check)
     legacy_sample_hash: str = ""             # their SHA-256 identity of before, when asked for (IngestOptions)
+    display_name: str = ""                   # the file's own name, for the console only (never stored)
 
 
 def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
@@ -121,14 +123,9 @@ def _check_stage_fields(s: dict) -> None:
 
 
 def _shown(value) -> str:
-    """`` 'value'`` for a refused enum-like value that is safe to repeat (a short token that holds no
-    personal data), else nothing: reasons never echo what could be personal data."""
-    v = str(value)
-    ok = re.fullmatch(r"[A-Za-z0-9_/+-]{1,40}", v) and value_problem(v) is None and not _TITLE_WORDS.search(v)
-    return f" '{v}'" if ok else ""
-
-
-_TITLE_WORDS = re.compile(r"[A-Z][a-z]+[_ .-][A-Z][a-z]+$")
+    """`` 'value'`` for a refused enum-like value that is safe to repeat (a code that holds no personal data),
+    else nothing: reasons never echo what could be personal data."""
+    return _safe_shown(value)
 
 
 @dataclass
@@ -230,7 +227,8 @@ def _prepare(path, root, options) -> Prepared:
         options = IngestOptions(**options)
     options = options or IngestOptions()
     size, mtime = _stat_signature(path)
-    out = Prepared(source_path=str(path.resolve()), file_name=path.name, size_bytes=size, mtime_ns=mtime)
+    out = Prepared(source_path=privacy.stored_path(path), file_name=privacy.stored_name(path), size_bytes=size,
+                   mtime_ns=mtime, display_name=path.name)
     states: dict[str, TopicSeries] = {}
     res = ReadResult()
     try:
@@ -254,6 +252,8 @@ def _prepare(path, root, options) -> Prepared:
         out.metadata = session
         for s in states.values():
             s.finish()
+        policy = study_policy(session["study"])
+        out.events = privacy.screen_events(out.events, policy, out.issues)
         topic_map = {**_manifest_topics(session["study"]), **options.topic_map}
         mapped: dict[tuple[str, str], TopicSeries] = {}
         placement_of: dict[str, tuple[str, str]] = {}
@@ -265,13 +265,17 @@ def _prepare(path, root, options) -> Prepared:
                 s.abort()
                 continue
             if pl in mapped:
-                raise IngestRejected(f"topics {mapped[pl].topic} and {s.topic} both map to {pl[1]} of placement "
-                                     f"{pl[0]}; map only one of them")
+                raise IngestRejected(f"topics {privacy.shown_topic(mapped[pl].topic)} and {privacy.shown_topic(s.topic)}"
+                                     f" both map to {pl[1]} of placement{_shown(pl[0])}; map only one of them")
+            if pl[0] not in privacy.placements(policy):
+                raise IngestRejected(f"{privacy.shown_topic(s.topic, policy)} maps to a placement that is not in the study's "
+                                     f"vocabulary ({', '.join(privacy.placements(policy))}); map it with --topic-map "
+                                     f"TOPIC=PLACEMENT or the study manifest ([topics], [privacy] placements)")
             mapped[pl] = s
             placement_of[s.topic] = pl
         imu = [s for s in mapped.values() if s.kind == "imu"]
         if not imu:
-            found = ", ".join(res.found_topics()[:8]) or "none"
+            found = ", ".join(privacy.shown_topic(t) for t in res.found_topics()[:8]) or "none"
             raise IngestRejected(f"no IMU topic with samples mapped to a placement (topics found: {found}); "
                                  f"name them /imu/<placement> or map them with --topic-map TOPIC=PLACEMENT "
                                  f"(or a [topics] table in the study manifest)")
@@ -283,9 +287,6 @@ def _prepare(path, root, options) -> Prepared:
             if s.kind in ("imu", "mag") and not (RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]):
                 raise IngestRejected(f"{s.topic}: sample rate {rate:.2f} Hz is outside "
                                      f"{RATE_RANGE_HZ[0]:g}–{RATE_RANGE_HZ[1]:g} Hz")
-            if s.kind == "imu" and placement not in PLACEMENTS:
-                out.issues.append({"severity": "warning", "topic": s.topic,
-                                   "message": f"placement '{placement}' is not a standard placement"})
             check_identifier(placement, f"placement of topic {s.topic}")
             declared = session.get("sampling_rate_hz")
             if declared and s.kind == "imu" and abs(rate / float(declared) - 1.0) > RATE_TOLERANCE:
@@ -304,16 +305,17 @@ def _prepare(path, root, options) -> Prepared:
                                           f"{prefix}-{res.sha256[:16]}") for (placement, prefix), _ in ordered])
         for ((placement, prefix), s), rel in zip(ordered, rels):
             for m in s.warnings():
-                out.issues.append({"severity": "warning", "topic": s.topic, "message": m})
+                out.issues.append({"severity": "warning", "topic": _stored_topic(s.topic, placement, prefix),
+                                   "message": m})
             s.writer = None
-            out.sensors.append({"topic": s.topic, "placement": placement, "kind": s.kind, "n_samples": s.n,
+            out.sensors.append({"topic": _stored_topic(s.topic, placement, prefix), "placement": placement, "kind": s.kind, "n_samples": s.n,
                                 "sampling_rate_hz": s.rate_hz, "start_ns": s.t0, "end_ns": s.last_t,
                                 "series_path": rel})
             if s.kind == "imu":
                 out.n_samples += s.n
         out.start_ns = min(s.t0 for s in imu)
         out.end_ns = max(s.last_t for s in imu)
-        out.ignored_topics = sorted(set(out.ignored_topics) | set(res.ignored_topics))
+        out.ignored_topics = sorted({privacy.shown_topic(t) for t in set(out.ignored_topics) | set(res.ignored_topics)})
         by_key = {placement_of[t]: s for t, s in ((s.topic, s) for s in mapped.values())}
         out.sample_hash = sample_hash(by_key)
         if options.legacy_sample_hash:
@@ -325,7 +327,8 @@ def _prepare(path, root, options) -> Prepared:
         for s in states.values():
             s.abort()
         out.status = "quarantined"
-        out.reason = str(e).splitlines()[0] if str(e) else type(e).__name__
+        out.reason = _redacted(str(e).splitlines()[0] if str(e) else type(e).__name__, path,
+                               list(states) + list(res.found_topics()))
         out.sensors, out.events = [], []
         if not out.content_hash:
             out.content_hash = _content_hash(path)
@@ -334,6 +337,28 @@ def _prepare(path, root, options) -> Prepared:
             s.abort()
         raise
     return out
+
+
+def _stored_topic(topic: str, placement: str, prefix: str) -> str:
+    """The topic as the catalog keeps it: a standard name as it is, any other (a mapped topic, which may carry a
+    device label or a name) as the standard name of its placement."""
+    if privacy.shown_topic(topic) == topic:
+        return topic
+    if prefix.startswith("range-"):
+        return f"/range/{placement}/{prefix[len('range-'):]}"
+    return f"/{prefix.replace('reference_pose', 'reference/pose')}/{placement}"
+
+
+def _redacted(reason: str, path: Path, topics) -> str:
+    """A quarantine reason without the file's name or path and without non-standard topic names (a reader's
+    message may quote them); the console names the file to the operator."""
+    for t in sorted(set(topics), key=len, reverse=True):
+        if t and privacy.shown_topic(t) != t:
+            reason = reason.replace(t, privacy.shown_topic(t))
+    for x in sorted({str(path), str(path.resolve()), str(path.parent), path.name}, key=len, reverse=True):
+        if len(x) > 3:
+            reason = reason.replace(x, "the file")
+    return reason
 
 
 def _manifest_topics(study: str) -> dict[str, str]:
@@ -400,6 +425,11 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _console(p: Prepared) -> str:
+    """How the console names a file: its own name (the operator's; the catalog keeps only a keyed hash of it)."""
+    return p.display_name or p.file_name
+
+
 @dataclass
 class CommitResult:
     status: str          # ingested | duplicate | quarantined
@@ -410,7 +440,7 @@ def known_hash(wh: Warehouse, path: Path) -> str | None:
     """Content hash of a file (or bag directory) seen before with the same path, size and mtime (no read needed)."""
     size, mtime = _stat_signature(path)
     r = first(wh.con.execute("SELECT content_hash FROM inbox_seen WHERE source_path = ? AND size_bytes = ? AND mtime_ns = ?",
-                       [str(path.resolve()), size, mtime]))
+                       [privacy.stored_path(path), size, mtime]))
     return r[0] if r else None
 
 
@@ -429,7 +459,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             con.execute("DELETE FROM recordings WHERE content_hash = ?", [p.content_hash])   # now deliberate
             prev = None
         if prev is not None:
-            return CommitResult("duplicate", f"{p.file_name}: already {prev[0]} (same content), nothing changed")
+            return CommitResult("duplicate", f"{_console(p)}: already {prev[0]} (same content), nothing changed")
         if not wh.has_column("recordings", "sample_hash"):
             p.sample_hash = p.legacy_sample_hash = ""   # a catalog before migration 009 (only tests open one
             #                                             without migrating)
@@ -440,12 +470,12 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                                                  p.legacy_sample_hash or p.sample_hash]))
             if same is not None:
                 reason = (f"same samples as {same[0]} (session {same[1]}), ingested before: a re-export, not "
-                          f"ingested again; to correct that recording, rerun with --replace {p.file_name}")
+                          f"ingested again; to correct that recording, rerun with --replace and this file")
                 wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                           "source_path": p.source_path, "size_bytes": p.size_bytes,
                                           "status": "reexport", "reason": reason, "sample_hash": p.sample_hash,
                                           "ingested_at": now}])
-                return CommitResult("reexport", f"{p.file_name}: {reason}")
+                return CommitResult("reexport", f"{_console(p)}: {reason}")
         emptied = supersede.sessions_emptied(con, old)
         if p.status == "ingested" and not old:
             clash = first(con.execute("SELECT content_hash, session_id FROM recordings WHERE file_name = ? "
@@ -471,7 +501,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
                                       "status": "quarantined", "reason": p.reason, "ingested_at": now}])
-            return CommitResult("quarantined", f"{p.file_name}: quarantined: {p.reason}")
+            return CommitResult("quarantined", f"{_console(p)}: quarantined: {p.reason}")
         superseded = supersede.supersede(con, old, p, emptied)
         s = p.metadata
         con.execute("INSERT OR IGNORE INTO participants VALUES (?, ?)", [s["study"], s["participant"]])
@@ -499,7 +529,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             "payload": json.dumps(e, sort_keys=True)} for e in p.events])
         if superseded:
             supersede.refresh_session_span(con, s["session"])
-    msg = f"{p.file_name}: ingested {p.n_samples:,} IMU samples into session {s['session']}"
+    msg = f"{_console(p)}: ingested {p.n_samples:,} IMU samples into session {s['session']}"
     if superseded:
         msg += f", superseding {', '.join(superseded)}"
     if p.issues:

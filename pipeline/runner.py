@@ -23,6 +23,7 @@ from importlib.metadata import version as pkg_version
 from pathlib import Path
 from typing import Callable, Iterable
 
+from pipeline.privacy import stored_name, stored_path
 from pipeline import ingest as ingest_mod
 from pipeline.formats.rosbag2 import is_bag
 from pipeline.engines import make_engine
@@ -185,13 +186,14 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
         if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
             raise StorageError(f"cannot write the warehouse while ingesting {Path(item[0]).name}: {res}")
         if isinstance(res, Exception):
-            res = ingest_mod.Prepared(source_path=item[0], file_name=Path(item[0]).name, size_bytes=0, mtime_ns=0,
-                                      content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
-                                      reason=f"internal error while reading: {res}")
+            res = ingest_mod.Prepared(source_path=stored_path(item[0]), file_name=stored_name(item[0]), size_bytes=0,
+                                      mtime_ns=0, content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
+                                      reason=ingest_mod._redacted(f"internal error while reading: {res}", Path(item[0]), ()),
+                                      display_name=Path(item[0]).name)
         r = ingest_mod.commit(wh, res, replace=str(Path(item[0]).resolve()) in replacing)
         {"ingested": summary.ingested, "duplicate": summary.duplicates, "reexport": summary.reexports,
          "quarantined": summary.quarantined}[r.status].append(
-            r.message if r.status in ("quarantined", "reexport") else res.file_name)
+            r.message if r.status in ("quarantined", "reexport") else (res.display_name or res.file_name))
         summary.messages.append(r.message)
         publisher.due()
         on_progress(r.message)

@@ -4,7 +4,8 @@ Layout read (v5): ``/Sensors/<case id>/Accelerometer`` (N, 3) m/s², ``Gyroscope
 (N, 3) µT (optional), ``Time`` (N,) uint64 µs since 1970-01-01 UTC; ``/Sensors/<case id>/Configuration`` attributes
 ``Label 0`` (the monitor label, e.g. ``Right Foot``, ``Lumbar``, ``Sternum``) and ``Sample Rate`` (Hz). Units are
 already StrideLab's; times become int64 ns. Labels map to placements by :data:`LABEL_PLACEMENTS` (case and
-spaces ignored); an unknown label becomes a placement named after it (ingest warns about non-standard ones).
+spaces ignored); an unknown label maps to no placement (the importer refuses the file, or takes ``--placement``
+for a single sensor): a label is never taken as a placement.
 Older layouts (v3/v4: ``/<case id>/Calibrated/...``) are refused with a line saying so.
 """
 from __future__ import annotations
@@ -54,8 +55,10 @@ def _attr_str(v) -> str:
 
 
 def placement_of(label: str) -> str:
+    """The placement of a monitor label, "" when the label is not in :data:`LABEL_PLACEMENTS` (a label is
+    free text, e.g. a participant's name: never taken as a placement)."""
     key = re.sub(r"[^a-z]", "", label.lower())
-    return LABEL_PLACEMENTS.get(key) or (re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_") or "unknown")
+    return LABEL_PLACEMENTS.get(key, "")
 
 
 def load_apdm(path: str | Path) -> ApdmRecording:

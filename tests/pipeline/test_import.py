@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from stridelab.cli import main
+from pipeline.privacy import name_token as T
 from pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
 from pipeline.importers import import_paths
 from tests.conftest import shared_data
@@ -338,12 +339,12 @@ def test_bad_files_one_line_each_nothing_written(tmp_path):
                                   str(tmp_path / "good.csv"), "--inbox", str(inbox), "--json"])
     assert r.exit_code == 1
     out = json.loads(r.stdout)
-    assert [p.rsplit("/", 1)[1] for p in out["written"]] == ["xio-good.mcap"]
+    assert [p.rsplit("/", 1)[1] for p in out["written"]] == [f"xio-f{T('good.csv')}.mcap"]   # no file name kept
     assert len(out["errors"]) == 2 and all("\n" not in e for e in out["errors"])
     assert "empty.csv" in out["errors"][0] and "wrong.csv" in out["errors"][1] and "missing column" in out["errors"][1]
     res = import_paths("broad", [tmp_path / "bin.hdf5"], inbox)
     assert res.errors and "bin.hdf5" in res.errors[0]
-    assert sorted(p.name for p in inbox.iterdir()) == ["xio-good.mcap"]
+    assert sorted(p.name for p in inbox.iterdir()) == [f"xio-f{T('good.csv')}.mcap"]
 
 
 def test_bad_session_field_is_refused_before_writing(tmp_path):
@@ -418,7 +419,7 @@ def test_xsens_single_file_placement_from_the_name(tmp_path):
     _write_xsens(tmp_path / "walk_rf.txt")
     _write_xsens(tmp_path / "walk.txt")
     res = import_paths("xsens", [tmp_path], tmp_path / "inbox")
-    assert [p.name for p in res.written] == ["xsens-walk_rf.mcap"]
+    assert [p.name for p in res.written] == [f"xsens-f{T('walk_rf.txt')}.mcap"]
     assert len(res.errors) == 1 and "walk.txt" in res.errors[0] and "--placement" in res.errors[0]
 
 

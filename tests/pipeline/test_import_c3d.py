@@ -4,6 +4,7 @@ and the stages using them as they use the gaitmap markers."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from click.testing import CliRunner
 
 from estimators.recording import ImuData, Recording
 from stridelab.cli import main
+from pipeline.privacy import name_token as T
 from pipeline.formats.mcap_write import write_recording
 from tests.conftest import shared_data
 from tests.pipeline.test_import import read_mcap
@@ -67,7 +69,7 @@ def test_c3d_markers_become_reference_poses_on_the_recording_clock(tmp_path):
                                   "--inbox", str(tmp_path / "inbox"), "--json"])
     assert r.exit_code == 0, r.output
     out = json.loads(r.stdout)["written"][0]
-    assert out.endswith("walk+walk.mcap")
+    assert Path(out).name == f"rec-{T('walk.mcap')}+c3d-{T('walk.c3d')}.mcap"    # no file name kept
     src, _, sess0 = read_mcap(rec)
     topics, _, sess = read_mcap(out)
     for k in ("/imu/foot_left",):                                   # the recording's messages unchanged
@@ -81,7 +83,7 @@ def test_c3d_markers_become_reference_poses_on_the_recording_clock(tmp_path):
     assert ok.sum() == n - 1 and not ok[7]                          # the occluded toe frame: no orientation
     # cluster frame: x = heel->toe, z = x × heel->5th metatarsal (down here: the 5th metatarsal is at -y), y = z × x
     np.testing.assert_allclose(quat_to_matrix(v[ok, 3:]), R[ok] @ np.diag([1.0, -1.0, -1.0]), atol=1e-5)
-    assert sess["reference_frame"] == "segment_lab" and "walk.c3d" in sess["reference"] and "mm -> m" in sess["reference"]
+    assert sess["reference_frame"] == "segment_lab" and "walk" not in sess["reference"] and "mm -> m" in sess["reference"]
     assert {k: sess[k] for k in sess0} == sess0
 
 

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 from pipeline import runner
 from pipeline.formats.mcap_write import write_recording
+from pipeline.privacy import stored_name
 from tests.corpus import build_bad_corpus, gap_recording, small_recording
 from warehouse.read import connect_snapshot, read_imu
 from warehouse.catalog import first
@@ -79,7 +80,7 @@ def test_every_bad_input_is_quarantined_with_a_one_line_reason(tmp_path):
     con = connect_snapshot(tmp_path / "wh")
     rows = dict(con.execute("SELECT file_name, reason FROM recordings WHERE status = 'quarantined'").fetchall())
     for name, needle in EXPECTED_REASONS.items():
-        reason = rows[f"{name}.mcap"]
+        reason = rows[stored_name(f"{name}.mcap")]
         assert needle in reason, (name, reason)
         assert "\n" not in reason and len(reason) < 300
     # nothing of a quarantined file reaches the catalog or the store
@@ -120,8 +121,8 @@ def test_session_id_claimed_by_another_participant_is_quarantined(tmp_path):
 
 
 def test_hostile_file_names_are_stored_as_data(tmp_path):
-    """A file name carrying SQL or a path is only ever a parameter and a label: the file is ingested under
-    its content hash, its series land inside the warehouse, and the catalog is intact."""
+    """A file name carrying SQL or a path is never even stored (only a keyed hash of it): the file is ingested
+    under its content hash, its series land inside the warehouse, and the catalog is intact."""
     inbox = tmp_path / "in"
     inbox.mkdir()
     names = ["x'; DROP TABLE recordings; --.mcap", "..%2F..%2Fetc%2Fpasswd.mcap"]
@@ -130,7 +131,9 @@ def test_hostile_file_names_are_stored_as_data(tmp_path):
     s = _ingest(tmp_path / "wh", files)
     assert sorted(s.ingested) == sorted(names) and not s.quarantined
     con = connect_snapshot(tmp_path / "wh")
-    assert sorted(r[0] for r in con.execute("SELECT file_name FROM recordings").fetchall()) == sorted(names)
+    # stored under a keyed hash of the name (pipeline.privacy.stored_name), never the name itself
+    assert sorted(r[0] for r in con.execute("SELECT file_name FROM recordings").fetchall()) == \
+        sorted(stored_name(n) for n in names)
     root = (tmp_path / "wh").resolve()
     for (p,) in con.execute("SELECT series_path FROM sensors").fetchall():
         assert (root / p).resolve().is_relative_to(root) and (root / p).is_file()
