@@ -217,14 +217,16 @@ def _without_gc_pauses():
             gc.enable()
 
 
-def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOptions | dict | None = None) -> Prepared:
+def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOptions | dict | None = None,
+            series_root: str | os.PathLike | None = None) -> Prepared:
     """Decode, validate and store one recording (MCAP file or rosbag2 bag directory); never raises for a
-    bad recording (quarantines it)."""
+    bad recording (quarantines it). ``series_root``: where the series files go if not under ``root`` (a
+    repair's scratch folder, pipeline/verify.py)."""
     with _without_gc_pauses():
-        return _prepare(path, root, options)
+        return _prepare(path, root, options, series_root)
 
 
-def _prepare(path, root, options) -> Prepared:
+def _prepare(path, root, options, series_root=None) -> Prepared:
     path = Path(path)
     if isinstance(options, dict):
         options = IngestOptions(**options)
@@ -241,7 +243,8 @@ def _prepare(path, root, options) -> Prepared:
                 continue
             s = states.get(b.topic)
             if s is None:
-                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(root), options.legacy_sample_hash)
+                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(series_root or root),
+                                                   options.legacy_sample_hash)
             s.add(b)
         out.content_hash = res.sha256
         if custom is None:

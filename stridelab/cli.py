@@ -220,6 +220,50 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_js
     raise SystemExit(exit_code(summary))
 
 
+# ---- integrity: verify / repair (pipeline/verify.py, docs/integrity.md) ------------------------------------
+
+@main.command()
+@_warehouse_option
+@click.option("--repair", is_flag=True,
+              help="Recompute damaged series: raw samples from their recording (when it is still where it was "
+                   "ingested from), stage outputs at the next `stridelab run`. Takes the run lock.")
+@click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
+def verify(warehouse_dir, repair, as_json) -> None:
+    """Check a whole warehouse: the catalog, every snapshot, and every series file in full (page checksums,
+    row counts). Exit 0 when all is well, 1 when something is damaged (and, with --repair, not repaired).
+
+    \b
+    Examples:
+      stridelab verify
+      stridelab verify --repair --warehouse /data/wh
+    """
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.verify import verify as run_verify
+    from warehouse.lock import WarehouseBusy
+    try:
+        rep = run_verify(_wh(warehouse_dir), repair=repair)
+    except WarehouseBusy as e:
+        raise UserError(str(e)) from None
+    if as_json:
+        emit_json(rep.as_dict())
+    else:
+        if rep.catalog != "ok":
+            err_console.print(f"catalog damaged: {rep.catalog}; recover with `stridelab repair-catalog` "
+                              f"(docs/integrity.md)", markup=False, highlight=False)
+        for s in rep.snapshots:
+            if s["status"] != "ok":
+                err_console.print(f"snapshot {s['snapshot']} damaged: {s['status']}", markup=False, highlight=False)
+        for d in rep.damaged:
+            err_console.print(f"damaged: {d['path']} ({d['detail']})" + (f": {d['repair']}" if d.get("repair") else ""),
+                              markup=False, highlight=False)
+        err_console.print(f"{rep.checked} series files checked, {len(rep.damaged)} damaged, {len(rep.repaired)} "
+                          f"recomputed, {len(rep.scheduled)} recomputed at the next run, {len(rep.unrepaired)} "
+                          f"not repairable", markup=False, highlight=False)
+    bad = rep.catalog != "ok" or any(s["status"] != "ok" for s in rep.snapshots)
+    bad = bad or (bool(rep.unrepaired) if repair else bool(rep.damaged))
+    raise SystemExit(1 if bad else 0)
+
+
 def _format_choices() -> list[str]:
     from pipeline.importers import FORMATS
     return sorted([*FORMATS, "c3d"])

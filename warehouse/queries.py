@@ -25,6 +25,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from warehouse.store import read_table, SeriesDamaged
+
 
 RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridelab demo --no-serve`)"
 
@@ -407,7 +409,12 @@ def foot_trajectories(con, root: str | Path, participant_id: str, study: str | N
         if root not in path.parents or not path.is_file():
             continue
         # the series layout of the migration (foot_trajectories.series_path): t_ns, px, py, pz (m), ...
-        df = con.execute("SELECT px AS x, py AS y, pz AS z FROM read_parquet(?)", [str(path)]).df()
+        try:         # through pyarrow: every page's checksum verified, a damaged file never served
+            t = read_table(root, rel, columns=["px", "py", "pz"])
+        except SeriesDamaged:
+            continue
+        df = pd.DataFrame({"x": t.column("px").to_numpy(), "y": t.column("py").to_numpy(),
+                           "z": t.column("pz").to_numpy()})
         step = max(1, len(df) // max_points)
         df = df.iloc[::step].reset_index(drop=True)
         df["session_id"], df["placement"] = sid, placement

@@ -9,7 +9,7 @@ import numpy as np
 
 from warehouse.catalog import first, LATEST, SNAPSHOT_DIR
 from warehouse.direct_io import open_for_read
-from warehouse.store import UNCACHE_BYTES, read_table
+from warehouse.store import UNCACHE_BYTES, damage_check, open_series, read_table
 
 
 def latest_snapshot(root: str | Path) -> Path | None:
@@ -55,8 +55,12 @@ class ImuSeries:
 def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
     """Read named column groups of a series file into preallocated arrays, one row group at a time, so the
     peak memory is the arrays themselves plus one row group (not a whole Arrow table beside them)."""
-    import pyarrow.parquet as pq
-    f = pq.ParquetFile(Path(root) / relpath)
+    with damage_check(relpath):
+        return _read_columns_checked(root, relpath, groups)
+
+
+def _read_columns_checked(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
+    f = open_series(root, relpath)
     n = f.metadata.num_rows
     out = {g: (np.empty(n, dtype=np.int64) if len(cols) == 1 else np.empty((n, len(cols))))
            for g, cols in groups.items()}
@@ -78,21 +82,21 @@ def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dic
 
 
 def series_rows(root, relpath: str) -> int:
-    import pyarrow.parquet as pq
-    return pq.ParquetFile(Path(root) / relpath).metadata.num_rows
+    return open_series(root, relpath).metadata.num_rows
 
 
 def read_column_range(root, relpath: str, columns: tuple[str, ...], start: int = 0, stop: int | None = None,
                       dtype=np.float64) -> np.ndarray:
     """Rows [start, stop) of ``columns`` of a series file as ``dtype`` ((n,) for one column, else (n, k)),
     reading only the row groups that overlap, so a slice of a week-long series costs the slice, not the week."""
-    import pyarrow.parquet as pq
-    src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
+    with damage_check(relpath):
+        src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
     try:
         # pre_buffer: a row group's column chunks in one coalesced read instead of one read each (the
         # accelerometer of a 24 h chest day from the disk: 0.20-0.23 s and 0.10-0.12 CPU-s instead of 0.26-0.43 s
         # and 0.13-0.28 CPU-s); still one row group at a time
-        return _read_column_range(pq.ParquetFile(src, pre_buffer=True), columns, start, stop, dtype)
+        with damage_check(relpath):
+            return _read_column_range(open_series(root, relpath, src, pre_buffer=True), columns, start, stop, dtype)
     finally:
         if not isinstance(src, Path):
             src.close()
