@@ -451,6 +451,15 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
             ex.close()
 
 
+def _record_failed(wh: Warehouse, run_id: str) -> None:
+    """Mark the run failed in the catalog, best effort (the disk may be full)."""
+    try:
+        with wh.transaction() as con:
+            con.execute("UPDATE pipeline_runs SET status = 'failed' WHERE run_id = ?", [run_id])
+    except Exception:  # noqa: BLE001 - the error that stopped the run is raised by the caller
+        pass
+
+
 def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stages: bool, command: str,
                 ingest_options, on_progress, on_phase, reports_dir, build_report, replace) -> RunSummary:
     """``run`` with the lock held, the engine made and the files to ingest listed (``todo``)."""
@@ -495,5 +504,8 @@ def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stage
                 wh.publish_snapshot()
             except Exception:  # noqa: BLE001 - the original error (e.g. disk full) matters more
                 if status == "ok":
+                    # the work is committed, but the run ends with an error (exit 2): the ledger must not say
+                    # 'ok' (issue #47: the final snapshot copy hitting a full disk was recorded 'ok')
+                    _record_failed(wh, run_id)
                     raise
     return summary

@@ -90,3 +90,29 @@ def test_a_damaged_stage_output_is_recomputed_by_the_next_run(tmp_path, monkeypa
     assert s.stage_runs == 1 and not s.failed
     assert read_table(wh, rel).equals(good)
     assert verify(wh).ok
+
+
+def test_a_run_whose_final_snapshot_fails_is_not_recorded_ok(tmp_path, monkeypatch):
+    """The run's recorded status matches its exit: the final snapshot copy hitting a full disk used to leave
+    the run recorded 'ok' while the command exited 2."""
+    import errno
+
+    import duckdb
+
+    from warehouse.catalog import Warehouse
+    (tmp_path / "in").mkdir()
+    f = write_recording(small_recording(), tmp_path / "in" / "a.mcap")
+    calls = {"n": 0}
+    real = Warehouse.publish_snapshot
+
+    def publish(self):
+        calls["n"] += 1
+        if calls["n"] >= 2:                     # the first is the ingest phase's; the run's final copy fails
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self)
+
+    monkeypatch.setattr(Warehouse, "publish_snapshot", publish)
+    with pytest.raises(OSError, match="No space"):
+        runner.run(tmp_path / "wh", None, files=[f], stages=False, command="ingest")
+    con = duckdb.connect(str(tmp_path / "wh" / "catalog.duckdb"), read_only=True)
+    assert con.execute("SELECT status FROM pipeline_runs").fetchall() == [("failed",)]
