@@ -175,7 +175,10 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
             continue
         h = ingest_mod.known_hash(wh, f)
-        if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
+        if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])) and (
+                not wh.has_column("recordings", "settings_hash")
+                or ingest_mod.stored_settings_hash(wh.con, h) == ingest_mod.settings_hash(options)):
+            # the same file with the same ingest settings (other settings: ingested again, superseding)
             summary.duplicates.append(f.name)
             continue
         todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))

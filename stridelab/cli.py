@@ -194,8 +194,13 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
 @click.option("--replace", is_flag=True,
               help="The files are corrections: each supersedes the ingested recording with the same samples or the "
                    "same file name (the next `run` recomputes what depended on it).")
+@click.option("--skip-topic", "skip_topics", multiple=True, metavar="TOPIC",
+              help="Leave out a topic that looks like IMU/magnetometer data but has no placement (otherwise the file "
+                   "is refused); repeatable. The skip is listed with the recording.")
+@click.option("--require-crc", is_flag=True,
+              help="Refuse files not covered by CRCs (MCAP allows writing none; such files are marked unverified).")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_json) -> None:
+def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_topics, require_crc, as_json) -> None:
     """Load recordings (MCAP files, rosbag2 bag directories, or folders holding them) into the
     warehouse; idempotent by content.
 
@@ -207,15 +212,19 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_js
       stridelab ingest session1.mcap session2.mcap --warehouse /data/wh
       stridelab ingest rosbag2_2026_03_02-09_00_00/ --session study=gait2026 --session participant=P001
       stridelab ingest walk.mcap --topic-map /foot_left/imu/data_raw=foot_left
+      stridelab ingest walk.mcap --skip-topic /imu/spare --require-crc
+      stridelab ingest walk.mcap --topic-map /foot_left/imu=foot_left --replace   # again, on purpose
     """
     from pipeline.formats.rosbag2 import is_bag
     from pipeline.runner import inbox_recordings
     files = []
     for p in paths:
         files += inbox_recordings(p) if p.is_dir() and not is_bag(p) else [p]
+    options = _ingest_options(session_fields, topic_map)
+    if skip_topics or require_crc:           # issue #47 (docs/integrity.md)
+        options = {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
-                                 command="ingest", ingest_options=_ingest_options(session_fields, topic_map),
-                                 replace=files if replace else None)
+                                 command="ingest", ingest_options=options, replace=files if replace else None)
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
 

@@ -133,6 +133,21 @@ class ReadResult:
     n_bytes: int = 0
     message_counts: dict[int, int] = field(default_factory=dict)
     statistics: Statistics | None = None
+    # CRC coverage (docs/integrity.md): chunks seen, of them with CRC 0 (the writer computed none), messages
+    # outside chunks, and whether the DataEnd record carries a data-section CRC
+    chunks: int = 0
+    chunks_without_crc: int = 0
+    unchunked_messages: bool = False
+    data_crc: bool = False
+
+    @property
+    def crc_verified(self) -> bool:
+        """Every message was covered by a CRC that was checked (its chunk's, or the data section's)."""
+        if self.chunks_without_crc:
+            return False
+        if self.unchunked_messages or not self.chunks:
+            return self.data_crc
+        return True
 
     def found_topics(self) -> list[str]:
         """``topic (schema)`` of every channel of the file, for messages that list what was found."""
@@ -825,6 +840,9 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                     raise McapFormatError(f"a chunk declares {usize} bytes uncompressed, above the "
                                           f"{MAX_CHUNK_BYTES >> 20} MiB limit; rewrite the file with smaller "
                                           f"chunks (`mcap compress`) if it is genuine")
+                result.chunks += 1
+                if not int.from_bytes(buf_bytes[s + 24:s + 28], "little"):
+                    result.chunks_without_crc += 1
                 yield "chunk", buf_bytes[s:s + n], usize
             elif op == OP_SCHEMA:
                 reg.add_schema(_parse(Schema, buf[s:s + n], "Schema"))
@@ -839,8 +857,10 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                 if n < 4:
                     raise McapFormatError(f"the DataEnd record is malformed; {_FIX}")
                 dataend_crc.append(int.from_bytes(buf_bytes[s:s + 4], "little"))
+                result.data_crc = bool(dataend_crc[-1])
                 crc_upto = offset + (s - 9 - p)
         if len(recs.m_ch):
+            result.unchunked_messages = True
             yield "messages", recs, int(recs.m_len.sum())
         hasher.feed(buf_bytes[p:consumed], crc_upto)
         offset += consumed - p

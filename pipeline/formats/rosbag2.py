@@ -96,6 +96,8 @@ def iter_bag_blocks(info: BagInfo, result: ReadResult, on_block=None) -> Iterato
                 if t.topic not in {x.topic for x in result.topics.values()}:
                     result.topics[len(result.topics) + 1] = t
             result.n_bytes += part.n_bytes
+            result.chunks += part.chunks
+            result.chunks_without_crc += part.chunks_without_crc + (0 if part.crc_verified else 1)
             shas.append(part.sha256)
         result.ignored_topics = sorted({t.topic for t in result.topics.values() if t.kind is None})
         result.sha256 = hashlib.sha256("\n".join(shas).encode()).hexdigest()
