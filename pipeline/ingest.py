@@ -350,12 +350,6 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
             else:
                 why = "no messages"
             out.skipped_topics.append({"topic": ti.topic, "reason": why})
-        if unmapped_imu:
-            t = unmapped_imu[0]
-            reason = next(d["reason"] for d in out.skipped_topics if d["topic"] == t)
-            raise IngestRejected(f"topic {t[:80]} looks like IMU/magnetometer data but would be skipped ({reason}): "
-                                 f"map it with --topic-map {t[:80]}=PLACEMENT, or pass --skip-topic {t[:80]} to "
-                                 f"ingest the file without it")
         imu_placements = {pl for (pl, prefix) in mapped if prefix == "imu"}
         for (pl, prefix), s in mapped.items():
             if prefix == "mag" and pl not in imu_placements:
@@ -368,6 +362,12 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
             raise IngestRejected(f"no IMU topic with samples mapped to a placement (topics found: {found}); "
                                  f"name them /imu/<placement> or map them with --topic-map TOPIC=PLACEMENT "
                                  f"(or a [topics] table in the study manifest)")
+        if unmapped_imu:
+            t = unmapped_imu[0]
+            reason = next(d["reason"] for d in out.skipped_topics if d["topic"] == t)
+            raise IngestRejected(f"topic {t[:80]} looks like IMU/magnetometer data but would be skipped ({reason}): "
+                                 f"map it with --topic-map {t[:80]}=PLACEMENT, or pass --skip-topic {t[:80]} to "
+                                 f"ingest the file without it")
         for s in mapped.values():
             placement = placement_of[s.topic][0]
             if s.kind == "imu":
@@ -415,6 +415,7 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
         for e in out.events:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
+        out.events = _unique_events(out.events, out.issues)
     except (IngestRejected, McapFormatError, SeriesRejected, SessionSourceError, ValueError) as e:
         for s in states.values():
             s.abort()
@@ -427,6 +428,21 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
         for s in states.values():
             s.abort()
         raise
+    return out
+
+
+def _unique_events(events: list[dict], notes: list[dict]) -> list[dict]:
+    """Reference events de-duplicated like samples: an annotation repeated exactly (a duplicated chunk, a
+    message written twice) is kept once, with a warning."""
+    seen, out = set(), []
+    for e in events:
+        key = json.dumps(e, sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            out.append(e)
+    if len(out) < len(events):
+        notes.append({"severity": "warning", "topic": "/reference/events",
+                      "message": f"{len(events) - len(out)} exact duplicate reference events dropped"})
     return out
 
 

@@ -111,3 +111,38 @@ def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_pat
     assert dict(_rows(wh, "SELECT file_name, crc_verified FROM recordings")) == {"a.mcap": True, "b.mcap": False}
     r = cli("ingest", without, "--warehouse", tmp_path / "strict", "--require-crc")
     assert r.returncode == 1 and "no CRCs" in r.stderr, r.stderr
+
+
+def test_reference_events_written_twice_are_stored_once(tmp_path):
+    """A chunk (here: its messages) written twice by the mcap library's writer: the IMU duplicates are dropped,
+    and so are the reference events (they were stored twice)."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+    from pipeline.formats.mcap_write import write_recording
+    (tmp_path / "in").mkdir()
+    src = write_recording(small_recording(seconds=5.0), tmp_path / "in" / "src.mcap")
+    with open(src, "rb") as f:
+        r = make_reader(f)
+        msgs = list(r.iter_messages())
+        meta = list(r.iter_metadata())
+    dst = tmp_path / "dup.mcap"
+    with open(dst, "wb") as f:
+        w = Writer(f, chunk_size=16 * 1024)
+        w.start(profile="ros2", library="test-duplicate")
+        sids, cids = {}, {}
+        for sch, ch, m in msgs:
+            if sch.id not in sids:
+                sids[sch.id] = w.register_schema(sch.name, sch.encoding, sch.data)
+            if ch.id not in cids:
+                cids[ch.id] = w.register_channel(ch.topic, ch.message_encoding, sids[sch.id], ch.metadata)
+            for _ in range(2 if ch.topic == "/reference/events" or m.sequence < 50 else 1):
+                w.add_message(cids[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
+        for md in meta:
+            w.add_metadata(md.name, md.metadata)
+        w.finish()
+    wh = tmp_path / "wh"
+    r = cli("ingest", dst, "--warehouse", wh)
+    assert r.returncode == 0, r.stderr
+    assert _rows(wh, "SELECT count(*) FROM reference_events") == [(2,)]
+    msgs = [m for (m,) in _rows(wh, "SELECT message FROM recording_issues")]
+    assert "2 exact duplicate reference events dropped" in msgs
