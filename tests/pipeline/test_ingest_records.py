@@ -78,6 +78,11 @@ def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_pa
     assert "/spare/imu: skipped on request" in r.stderr
     (skipped,) = _rows(wh, "SELECT skipped_topics FROM recordings WHERE status = 'ingested'")[0]
     assert json.loads(skipped) == [{"topic": "/spare/imu", "reason": "skipped on request (--skip-topic)"}]
+    from warehouse import queries as Q                  # what the dashboard's runs page lists
+    con = connect_snapshot(wh)
+    page = Q.skipped_topics(con)
+    con.close()
+    assert page[["file_name", "topic"]].values.tolist() == [["walk.mcap", "/spare/imu"]]
 
 
 def test_a_magnetometer_mapped_to_a_placement_without_imu_is_an_error(tmp_path):
@@ -109,6 +114,11 @@ def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_pat
     r = cli("ingest", with_crc, without, "--warehouse", wh)
     assert r.returncode == 0, r.stderr
     assert dict(_rows(wh, "SELECT file_name, crc_verified FROM recordings")) == {"a.mcap": True, "b.mcap": False}
+    from warehouse import queries as Q                  # the dashboard's recordings table flags it
+    con = connect_snapshot(wh)
+    page = Q.recordings(con, "P001")
+    con.close()
+    assert dict(zip(page["file_name"], page["crc"])) == {"a.mcap": "", "b.mcap": "unverified"}
     r = cli("ingest", without, "--warehouse", tmp_path / "strict", "--require-crc")
     assert r.returncode == 1 and "no CRCs" in r.stderr, r.stderr
 
