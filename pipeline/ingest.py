@@ -145,6 +145,8 @@ class IngestOptions:
     skip_topics: list[str] = field(default_factory=list)
     #: refuse a file not covered by CRCs (``--require-crc``, for strict studies)
     require_crc: bool = False
+    #: warnings to record with every recording of the run (what ``--recover`` lost, pipeline/recover.py)
+    notes: list[str] = field(default_factory=list)
     #: also compute the samples' SHA-256 identity that recordings ingested before the XXH3 one carry (set by
     #: the coordinator, :func:`pipeline.runner.ingest_files`, when the warehouse holds any)
     legacy_sample_hash: bool = False
@@ -302,6 +304,7 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
         session = check_session_metadata({"session": fields}, root, out.issues)
         _check_plausible(session)
         out.metadata = session
+        out.issues += [{"severity": "warning", "topic": None, "message": m} for m in options.notes]
         for s in states.values():
             s.finish()
         topic_map = {**_manifest_topics(session["study"]), **options.topic_map}

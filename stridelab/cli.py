@@ -199,8 +199,12 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
                    "is refused); repeatable. The skip is listed with the recording.")
 @click.option("--require-crc", is_flag=True,
               help="Refuse files not covered by CRCs (MCAP allows writing none; such files are marked unverified).")
+@click.option("--recover", is_flag=True,
+              help="A truncated or damaged MCAP: keep every complete, CRC-valid chunk (a copy under "
+                   "WAREHOUSE/recovered/) and ingest that, with what was lost as a warning.")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_topics, require_crc, as_json) -> None:
+def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_topics, require_crc, recover,
+           as_json) -> None:
     """Load recordings (MCAP files, rosbag2 bag directories, or folders holding them) into the
     warehouse; idempotent by content.
 
@@ -225,8 +229,78 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_
         options = {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
                                  command="ingest", ingest_options=options, replace=files if replace else None)
+    if recover:
+        summary = _recover_damaged(_wh(warehouse_dir), files, options, summary, jobs)
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
+
+
+def _recover_damaged(wh: Path, files, options, summary, jobs):
+    """``ingest --recover``: the files just quarantined as truncated or damaged are recovered
+    (pipeline/recover.py) and the recovered copies ingested; a file recovered counts as handled."""
+    import shutil
+    from pipeline.console import err_console
+    from pipeline.recover import recover
+    from pipeline.session_sources import sidecar_paths
+    from warehouse.read import connect_snapshot
+    con = connect_snapshot(wh)
+    if con is None:
+        return summary
+    try:
+        wanted = {str(Path(f).resolve()): Path(f) for f in files if Path(f).is_file()}
+        rows = [(p, r) for p, r in con.execute("SELECT source_path, reason FROM recordings WHERE status = "
+                                               "'quarantined'").fetchall() if p in wanted]
+    finally:
+        con.close()
+    marks = ("truncated", "CRC", "corrupt", "runs past", "ends inside", "ends before", "cannot be decompressed")
+    for src, reason in rows:
+        if not any(m in (reason or "") for m in marks):
+            continue
+        f = wanted[src]
+        out = wh / "recovered" / f"{f.stem}.recovered.mcap"
+        rep = recover(f, out)
+        err_console.print(f"recover: {rep.summary()}", markup=False, highlight=False)
+        if rep.messages_kept == 0:
+            continue
+        for side in sidecar_paths(f):
+            if side.is_file():
+                shutil.copyfile(side, sidecar_paths(out)[0])
+        opts = dict(options or {}, notes=[f"recovered from a damaged file: {rep.summary()}"])
+        again = _run_with_progress(root=wh, inbox=None, files=[out], jobs=jobs, stages=False, command="ingest",
+                                   ingest_options=opts)
+        if again.ingested:
+            summary.quarantined = [q for q in summary.quarantined if not q.startswith(f"{f.name}: ")]
+            summary.ingested += again.ingested
+        summary.quarantined += again.quarantined
+        summary.messages += again.messages
+    return summary
+
+
+@main.command("repair")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the recovered files go [default: beside each file, NAME.recovered.mcap].")
+@click.option("--json", "as_json", is_flag=True, help="Print what was kept and lost as JSON.")
+def repair(paths, out_dir, as_json) -> None:
+    """Recover a truncated or damaged MCAP: keep every complete, CRC-valid chunk in a new file and say what was
+    lost (chunks, messages, time range). Exit 0 when something was kept, 1 otherwise.
+
+    \b
+    Examples:
+      stridelab repair logger_2026-03-02.mcap
+      stridelab repair inbox/*.mcap --out recovered/ --json
+    """
+    from pipeline.console import emit_json, err_console
+    from pipeline.recover import recover
+    reps = []
+    for p in paths:
+        out = (out_dir or p.parent) / f"{p.stem}.recovered.mcap"
+        reps.append(recover(p, out))
+        if not as_json:
+            err_console.print(reps[-1].summary() + f" -> {out}", markup=False, highlight=False)
+    if as_json:
+        emit_json({"files": [r.as_dict() for r in reps]})
+    raise SystemExit(0 if all(r.messages_kept for r in reps) else 1)
 
 
 # ---- integrity: verify / repair (pipeline/verify.py, docs/integrity.md) ------------------------------------
