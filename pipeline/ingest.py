@@ -28,8 +28,9 @@ from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
 from studies.privacy import value_problem
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
-from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
+from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks, read_metadata
+from pipeline.formats.rosbag2 import (bag_info, custom_data_of_mcap, iter_bag_blocks, iter_message_compressed_blocks,
+                                      message_compression)
 from pipeline.ingest_series import (FLUSH_ROWS, GAP_WARN_S, SCHEMAS as _SCHEMAS, SeriesRejected,  # noqa: F401
                                      TopicSeries, check_block)
 from pipeline.session_sources import NO_SESSION, SessionSourceError, gather_session, placement_for
@@ -245,6 +246,15 @@ def _blocks(path: Path, res: ReadResult):
     return iter_blocks(path, res, on_block=check_block), None
 
 
+def _message_compressed(path: Path) -> str | None:
+    """After the fast reader refused a single file: its format when its messages are compressed one by one
+    (rosbags/rosbag2 ``compression_mode: message``: the reader took compressed bytes for CDR), else None. Asked
+    only then, so the common path reads no summary twice."""
+    if path.is_dir() or path.suffix == ".db3":
+        return None
+    return message_compression(read_metadata(path))
+
+
 @contextmanager
 def _without_gc_pauses():
     """The cyclic garbage collector off while a recording streams through. Each chunk allocates a few
@@ -281,15 +291,18 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
     res = ReadResult()
     try:
         blocks, custom = _blocks(path, res)
-        for b in blocks:
-            if b.kind == "events":
-                out.events += [dict(v) for v in b.values]
-                continue
-            s = states.get(b.topic)
-            if s is None:
-                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(series_root or root),
-                                                   options.legacy_sample_hash)
-            s.add(b)
+        try:
+            _consume(blocks, out, states, options, series_root or root)
+        except McapFormatError:
+            fmt = _message_compressed(path)
+            if fmt is None:
+                raise
+            for s in states.values():
+                s.abort()
+            states.clear()
+            out.events = []
+            res = ReadResult()
+            _consume(iter_message_compressed_blocks(path, res, fmt), out, states, options, series_root or root)
         out.content_hash = res.sha256
         out.crc_verified = res.crc_verified
         if options.require_crc and not out.crc_verified:
@@ -454,6 +467,17 @@ def _series_name(prefix: str, sha256: str, settings: str) -> str:
     (a re-ingest of the file with other settings writes new files; the old ones stay for the old snapshots)."""
     name = f"{prefix}-{sha256[:16]}"
     return name if settings in ("", DEFAULT_SETTINGS_HASH) else f"{name}-{settings[:8]}"
+
+
+def _consume(blocks, out: Prepared, states: dict, options: IngestOptions, series_root) -> None:
+    for b in blocks:
+        if b.kind == "events":
+            out.events += [dict(v) for v in b.values]
+            continue
+        s = states.get(b.topic)
+        if s is None:
+            s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(series_root), options.legacy_sample_hash)
+        s.add(b)
 
 
 def _manifest_topics(study: str) -> dict[str, str]:

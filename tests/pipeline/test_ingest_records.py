@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from tests.corpus import small_recording
 from tests.pipeline._interop import IMU_DEF, MAG_DEF, imu_dict, mag_dict
 from tests.pipeline.test_runner import cli
@@ -156,3 +158,25 @@ def test_reference_events_written_twice_are_stored_once(tmp_path):
     assert _rows(wh, "SELECT count(*) FROM reference_events") == [(2,)]
     msgs = [m for (m,) in _rows(wh, "SELECT message FROM recording_issues")]
     assert "2 exact duplicate reference events dropped" in msgs
+
+
+def test_message_compressed_mcap_by_rosbags_is_read_as_a_bag_and_as_a_file(tmp_path):
+    """rosbags writes MESSAGE-level compression (each message zstd-compressed): it was refused as corrupt."""
+    import shutil
+
+    from tests.pipeline._interop import rosbags_write, stored
+    rec = small_recording(seconds=5.0)
+    bag = rosbags_write(tmp_path / "bag", rec, compression="message")
+    session = [a for k in ("study", "participant", "session", "kind") for a in ("--session", f"{k}={rec.metadata[k]}")]
+    r = cli("ingest", bag, "--warehouse", tmp_path / "wh1", *session)
+    assert r.returncode == 0, r.stderr
+    x = rec.imu["foot_left"]
+    t = stored(tmp_path / "wh1", "foot_left")
+    assert np.array_equal(t.column("t_ns").to_numpy(), x.t_ns)
+    assert np.array_equal(t.column("acc_x").to_numpy(), x.acc[:, 0])
+    single = tmp_path / "single.mcap"
+    shutil.copyfile(next(bag.glob("*.mcap")), single)
+    r = cli("ingest", single, "--warehouse", tmp_path / "wh2", *session)
+    assert r.returncode == 0, r.stderr
+    t = stored(tmp_path / "wh2", "foot_left")
+    assert np.array_equal(t.column("gyr_z").to_numpy(), x.gyr[:, 2])
