@@ -207,3 +207,42 @@ def recover(src: str | Path, dst: str | Path) -> Recovery:
     tmp.replace(dst)
     rep.output = str(dst)
     return rep
+
+
+# ---- a damaged catalog ---------------------------------------------------------------------------------------
+
+def rebuild_catalog(root: str | Path) -> str:
+    """Replace a damaged ``catalog.duckdb`` by a copy of the newest snapshot that opens (under the run lock); the
+    damaged file (and its WAL) are kept beside it as ``catalog.damaged-<time>.duckdb``. What was committed after
+    that snapshot is no longer in the catalog: the next ``stridelab run`` ingests again the inbox files it does not
+    know (their series files are written again; orphans are garbage-collected) and recomputes what is stale.
+    Returns the one-line account."""
+    import shutil
+    import time as _time
+
+    from warehouse.catalog import CATALOG, Warehouse
+    from warehouse.lock import RunLock
+    from warehouse.read import snapshot_status
+    root = Path(root)
+    with RunLock(root, "repair-catalog"):
+        snap, problem = snapshot_status(root)
+        if snap is None:
+            raise RuntimeError(f"no snapshot of {root} opens ({problem or 'none published'}); the catalog cannot be "
+                               f"rebuilt from one: start a new warehouse and ingest the inbox again")
+        cat = root / CATALOG
+        stamp = _time.strftime("%Y%m%dT%H%M%S", _time.gmtime())
+        kept = []
+        for p in (cat, cat.with_name(cat.name + ".wal")):
+            if p.exists():
+                dst = p.with_name(p.name.replace("catalog", f"catalog.damaged-{stamp}", 1))
+                p.replace(dst)
+                kept.append(dst.name)
+        tmp = root / f".{CATALOG}.rebuild"
+        shutil.copyfile(snap, tmp)
+        tmp.replace(cat)
+        with Warehouse.open(root) as wh:
+            n = wh.con.execute("SELECT count(*) FROM recordings WHERE status = 'ingested'").fetchall()[0][0]
+            wh.publish_snapshot()
+    return (f"catalog rebuilt from snapshot {snap.name} ({n} ingested recordings); the damaged file is kept as "
+            f"{', '.join(kept) or 'nothing (it was missing)'}; run `stridelab run` to ingest again what arrived after "
+            f"that snapshot")

@@ -347,6 +347,25 @@ def verify(warehouse_dir, repair, as_json) -> None:
     raise SystemExit(1 if bad else 0)
 
 
+@main.command("repair-catalog")
+@_warehouse_option
+def repair_catalog(warehouse_dir) -> None:
+    """Rebuild a damaged catalog from the newest snapshot that opens (the damaged file is kept beside it); the
+    next `stridelab run` ingests again what arrived after that snapshot (docs/integrity.md).
+
+    \b
+    Examples:
+      stridelab repair-catalog --warehouse /data/wh && stridelab run --inbox /data/inbox --warehouse /data/wh
+    """
+    from pipeline.console import UserError, err_console
+    from pipeline.recover import rebuild_catalog
+    from warehouse.lock import WarehouseBusy
+    try:
+        err_console.print(rebuild_catalog(_wh(warehouse_dir)), markup=False, highlight=False)
+    except (WarehouseBusy, RuntimeError) as e:
+        raise UserError(str(e).splitlines()[0]) from None
+
+
 def _format_choices() -> list[str]:
     from pipeline.importers import FORMATS
     return sorted([*FORMATS, "c3d"])
@@ -672,6 +691,12 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
     from pipeline.config import default_reports
     from pipeline.console import UserError, emit_json, err_console
     from reports.participant import build_report   # the CLI is the one place that wires every layer
+    from warehouse.read import snapshot_status
+    snap, damaged = snapshot_status(_wh(warehouse_dir))    # a damaged newest snapshot: the previous one, said
+    if damaged:
+        err_console.print(f"warning: {damaged}", markup=False, highlight=False)
+        if snap is None:
+            raise UserError(damaged)
     try:
         paths = build_report(_wh(warehouse_dir), participant, out_dir or default_reports(), study=study)
     except (LookupError, ValueError) as e:

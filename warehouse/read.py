@@ -12,9 +12,8 @@ from warehouse.direct_io import open_for_read
 from warehouse.store import UNCACHE_BYTES, damage_check, open_series, read_table
 
 
-def latest_snapshot(root: str | Path) -> Path | None:
-    """Path of the newest published catalog snapshot, or None if the warehouse has none yet."""
-    root = Path(root)
+def _pointed(root: Path) -> Path | None:
+    """The snapshot the LATEST pointer names (or the newest file on disk when the pointer moved on)."""
     pointer = root / SNAPSHOT_DIR / LATEST
     try:
         name = pointer.read_text().strip()
@@ -26,6 +25,54 @@ def latest_snapshot(root: str | Path) -> Path | None:
     # the pointer moved on between our read and now: take the newest file on disk
     snaps = sorted((root / SNAPSHOT_DIR).glob("catalog-*.duckdb"))
     return snaps[-1] if snaps else None
+
+
+#: (path, size, mtime_ns) -> None when the snapshot opens and reads, else the problem (snapshots never change)
+_CHECKED: dict[tuple[str, int, int], str | None] = {}
+
+
+def snapshot_problem(path: Path) -> str | None:
+    """None when the snapshot file opens read-only and its catalog reads, else the problem in one line."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None                          # pruned meanwhile: not damage
+    key = (str(path), st.st_size, st.st_mtime_ns)
+    if key not in _CHECKED:
+        try:
+            with duckdb.connect(str(path), read_only=True) as c:
+                c.execute("SELECT count(*) FROM schema_migrations").fetchall()
+            _CHECKED[key] = None
+        except duckdb.Error as e:
+            if not path.exists():
+                return None
+            _CHECKED[key] = (str(e).splitlines()[0] if str(e) else type(e).__name__)[:200]
+    return _CHECKED[key]
+
+
+def snapshot_status(root: str | Path) -> tuple[Path | None, str | None]:
+    """(the newest snapshot that opens, a message when it is not the newest published one): a damaged newest
+    snapshot falls back to the previous one, and the message says so and what to do."""
+    root = Path(root)
+    newest = _pointed(root)
+    if newest is None:
+        return None, None
+    problem = snapshot_problem(newest)
+    if problem is None:
+        return newest, None
+    for older in sorted((root / SNAPSHOT_DIR).glob("catalog-*.duckdb"), reverse=True):
+        if older.name < newest.name and snapshot_problem(older) is None:
+            return older, (f"the newest snapshot {newest.name} is damaged ({problem}); showing the previous one, "
+                           f"{older.name}. The next `stridelab run` publishes a new one; `stridelab verify` "
+                           f"checks the warehouse (docs/integrity.md)")
+    return None, (f"every snapshot of {root} is damaged (newest: {newest.name}: {problem}); rebuild with "
+                  f"`stridelab repair-catalog` (docs/integrity.md)")
+
+
+def latest_snapshot(root: str | Path) -> Path | None:
+    """Path of the newest published catalog snapshot that opens (a damaged newest one falls back to the
+    previous one: :func:`snapshot_status` says so), or None if the warehouse has none yet."""
+    return snapshot_status(root)[0]
 
 
 def connect_snapshot(root: str | Path) -> duckdb.DuckDBPyConnection | None:

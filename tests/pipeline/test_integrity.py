@@ -116,3 +116,66 @@ def test_a_run_whose_final_snapshot_fails_is_not_recorded_ok(tmp_path, monkeypat
         runner.run(tmp_path / "wh", None, files=[f], stages=False, command="ingest")
     con = duckdb.connect(str(tmp_path / "wh" / "catalog.duckdb"), read_only=True)
     assert con.execute("SELECT status FROM pipeline_runs").fetchall() == [("failed",)]
+
+
+def _two_runs(tmp_path):
+    (tmp_path / "inbox").mkdir()
+    for k in range(2):
+        write_recording(small_recording(seconds=5.0, seed=k, session=f"S0{k}", trial=f"walk-{k}"),
+                        tmp_path / "inbox" / f"r{k}.mcap")
+        r = cli("ingest", tmp_path / "inbox", "--warehouse", tmp_path / "wh")
+        assert r.returncode == 0, r.stderr
+    return tmp_path / "wh"
+
+
+def test_a_corrupt_catalog_names_the_file_and_is_rebuilt_from_the_newest_snapshot(tmp_path):
+    wh = _two_runs(tmp_path)
+    con = connect_snapshot(wh)
+    before = sorted(con.execute("SELECT file_name, n_samples FROM recordings").fetchall())
+    con.close()
+    cat = wh / "catalog.duckdb"
+    b = bytearray(cat.read_bytes())
+    b[:64] = bytes(x ^ 0xFF for x in b[:64])
+    cat.write_bytes(bytes(b))
+    import duckdb
+    for snap in (wh / "snapshots").glob("catalog-*.duckdb"):       # the snapshots that hold r1 too: the rebuild
+        with duckdb.connect(str(snap), read_only=True) as c:        # falls back to one from before it
+            has_r1 = c.execute("SELECT count(*) FROM recordings WHERE file_name = 'r1.mcap'").fetchall()[0][0]
+        if has_r1:
+            snap.write_bytes(b"\0" * 4096)
+    r = cli("ingest", tmp_path / "inbox", "--warehouse", wh)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert str(cat) in r.stderr and "damaged" in r.stderr and "repair-catalog" in r.stderr
+    assert "free disk space" not in r.stderr
+    r = cli("repair-catalog", "--warehouse", wh)
+    assert r.returncode == 0 and "rebuilt from snapshot" in r.stderr, r.stderr
+    assert list(wh.glob("catalog.damaged-*.duckdb"))
+    con = connect_snapshot(wh)
+    assert len(con.execute("SELECT file_name FROM recordings").fetchall()) == 1      # r1 came after that snapshot
+    con.close()
+    r = cli("ingest", tmp_path / "inbox", "--warehouse", wh)
+    assert r.returncode == 0, r.stderr
+    con = connect_snapshot(wh)
+    assert sorted(con.execute("SELECT file_name, n_samples FROM recordings").fetchall()) == before
+    con.close()
+
+
+def test_a_corrupt_newest_snapshot_falls_back_to_the_previous_one_with_a_message(tmp_path):
+    from warehouse.read import latest_snapshot, snapshot_status
+    wh = _two_runs(tmp_path)
+    snaps = sorted((wh / "snapshots").glob("catalog-*.duckdb"))
+    assert len(snaps) >= 2
+    newest = snaps[-1]
+    b = bytearray(newest.read_bytes())
+    b[:64] = bytes(x ^ 0xFF for x in b[:64])
+    newest.write_bytes(bytes(b))
+    snap, msg = snapshot_status(wh)
+    assert snap == snaps[-2] and latest_snapshot(wh) == snaps[-2]
+    assert newest.name in msg and "damaged" in msg and snaps[-2].name in msg
+    con = connect_snapshot(wh)
+    assert con.execute("SELECT count(*) FROM recordings").fetchall()[0][0] >= 1
+    con.close()
+    r = cli("report", "P001", "--warehouse", wh, "--out", tmp_path / "reports")
+    assert "Traceback" not in r.stderr and f"the newest snapshot {newest.name} is damaged" in r.stderr, r.stderr
+    r = cli("verify", "--warehouse", wh)
+    assert r.returncode == 1 and newest.name in r.stderr
