@@ -163,6 +163,14 @@ def _count_messages(chunk) -> int | None:
         return None
 
 
+def recovered_name(src: str | Path) -> str:
+    """``NAME.recovered.mcap`` for ``NAME.mcap``, the name shortened to stay within 255 bytes."""
+    stem = Path(src).stem
+    while len(stem.encode()) > 255 - len(".recovered.mcap"):
+        stem = stem[:-1]
+    return f"{stem}.recovered.mcap"
+
+
 def recover(src: str | Path, dst: str | Path) -> Recovery:
     """Write the intact records of ``src`` to ``dst`` (the mcap library's writer, zstd chunks with CRCs)."""
     from mcap.records import Channel, Message, Schema

@@ -97,11 +97,19 @@ def _print_summary(summary, as_json: bool) -> None:
                       f"{len(d['quarantined'])} quarantined, {d['stage_runs']} stage runs, {d['fresh']} up to date, "
                       f"{len(d['failed'])} failed, {len(d['reports'])} reports, {d['seconds']} s")
     for q in d["reexports"]:
-        err_console.print(f"  re-export: {q}", markup=False)
+        err_console.print(f"  re-export: {safe_text(q)}", markup=False, highlight=False)
     for q in d["quarantined"]:
-        err_console.print(f"  quarantined: {q}", markup=False)
+        err_console.print(f"  quarantined: {safe_text(q)}", markup=False, highlight=False)
     for f in d["failed"]:
         err_console.print(f"  failed: {f}", markup=False)
+    for f in d.get("skipped", []):
+        err_console.print(f"  skipped: {safe_text(f)}", markup=False, highlight=False)
+
+
+def safe_text(text: str) -> str:
+    """``text`` with control characters (newlines, terminal escape codes) shown as escapes: a file name can
+    neither forge a log line nor drive the terminal (issue #47)."""
+    return "".join(c if c.isprintable() or c == " " else repr(c)[1:-1] for c in str(text))
 
 
 #: exit codes of ``ingest`` and ``run`` (docs/operations.md "Exit codes"); 2 is ``UserError``/click usage errors
@@ -131,6 +139,7 @@ def _run_with_progress(**kw):
                     current["task"] = bar.add_task(name, total=total)
 
             def on_progress(msg: str) -> None:
+                msg = safe_text(msg)          # a file name with a newline or escape codes forges no log line
                 if current["task"] is not None:
                     bar.advance(current["task"])
                 if bar.disable:
@@ -220,15 +229,21 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_
       stridelab ingest walk.mcap --topic-map /foot_left/imu=foot_left --replace   # again, on purpose
     """
     from pipeline.formats.rosbag2 import is_bag
-    from pipeline.runner import inbox_recordings
-    files = []
+    from pipeline.runner import inbox_entries
+    files, skipped = [], []
     for p in paths:
-        files += inbox_recordings(p) if p.is_dir() and not is_bag(p) else [p]
+        if p.is_dir() and not is_bag(p):
+            recs, skip = inbox_entries(p)
+            files += recs
+            skipped += [f"{q}: {why}" for q, why in skip]
+        else:
+            files.append(p)
     options = _ingest_options(session_fields, topic_map)
     if skip_topics or require_crc:           # issue #47 (docs/integrity.md)
         options = {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
-                                 command="ingest", ingest_options=options, replace=files if replace else None)
+                                 command="ingest", ingest_options=options, replace=files if replace else None,
+                                 skipped=skipped)
     if recover:
         summary = _recover_damaged(_wh(warehouse_dir), files, options, summary, jobs)
     _print_summary(summary, as_json)
@@ -240,7 +255,7 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
     (pipeline/recover.py) and the recovered copies ingested; a file recovered counts as handled."""
     import shutil
     from pipeline.console import err_console
-    from pipeline.recover import recover
+    from pipeline.recover import recover, recovered_name
     from pipeline.session_sources import sidecar_paths
     from warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
@@ -257,7 +272,7 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
         if not any(m in (reason or "") for m in marks):
             continue
         f = wanted[src]
-        out = wh / "recovered" / f"{f.stem}.recovered.mcap"
+        out = wh / "recovered" / recovered_name(f)
         rep = recover(f, out)
         err_console.print(f"recover: {rep.summary()}", markup=False, highlight=False)
         if rep.messages_kept == 0:
@@ -291,10 +306,10 @@ def repair(paths, out_dir, as_json) -> None:
       stridelab repair inbox/*.mcap --out recovered/ --json
     """
     from pipeline.console import emit_json, err_console
-    from pipeline.recover import recover
+    from pipeline.recover import recover, recovered_name
     reps = []
     for p in paths:
-        out = (out_dir or p.parent) / f"{p.stem}.recovered.mcap"
+        out = (out_dir or p.parent) / recovered_name(p)
         reps.append(recover(p, out))
         if not as_json:
             err_console.print(reps[-1].summary() + f" -> {out}", markup=False, highlight=False)
