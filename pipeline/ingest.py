@@ -28,8 +28,9 @@ from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
 from studies.privacy import value_problem
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks, read_metadata
+from pipeline.formats.mcap_read import McapFormatError, ReadResult, encoding_fix, iter_blocks, read_metadata
 from pipeline.formats.rosbag2 import (bag_info, custom_data_of_mcap, iter_bag_blocks, iter_message_compressed_blocks,
+                                      split_bag_parts,
                                       message_compression)
 from pipeline.ingest_series import (FLUSH_ROWS, GAP_WARN_S, SCHEMAS as _SCHEMAS, SeriesRejected,  # noqa: F401
                                      TopicSeries, check_block)
@@ -171,19 +172,19 @@ def settings_hash(options: "IngestOptions | dict | None") -> str:
 
 DEFAULT_SETTINGS_HASH = settings_hash(None)
 
-#: schema names (last part) and topic words that make a topic look like IMU or magnetometer data
-_IMU_SCHEMAS = ("Imu", "MagneticField")
+#: topic words that make a topic without a schema look like IMU or magnetometer data
 _IMU_WORDS = re.compile(r"imu|mag|gyro|accel", re.IGNORECASE)
 
 
 def looks_like_imu(topic: str, schema_name: str) -> bool:
     """Whether a topic StrideLab did not ingest looks like IMU or magnetometer data (then skipping it silently
     would lose a sensor): its schema is ``*/Imu`` or ``*/MagneticField`` in any package or encoding, or it has no
-    schema and its name says imu/mag/gyro/accel."""
-    name = (schema_name or "").rsplit("/", 1)[-1]
-    if name in _IMU_SCHEMAS:
-        return True
-    return not schema_name and bool(_IMU_WORDS.search(topic))
+    schema and its name says imu/mag/gyro/accel. (``sensor_msgs/msg/Imu``, ``foxglove.Imu``, ``ImuSample`` in any
+    encoding look like IMU data; ``sensor_msgs/msg/Temperature`` on ``/imu/temp`` does not.)"""
+    name = re.split(r"[/.:]", schema_name or "")[-1].lower()
+    if schema_name:
+        return "imu" in name or "magneticfield" in name
+    return bool(_IMU_WORDS.search(topic))
 
 
 #: IMU clocks whose offsets to the host clock (median log_time - header.stamp) differ by more than
@@ -223,7 +224,7 @@ def _check_units(st: TopicSeries) -> None:
     gyr = st.gyr_p99
     if gyr > 35.0:
         raise IngestRejected(f"{st.topic}: angular rate 99th percentile is {gyr:.0f}, which looks like deg/s; "
-                             f"the recording format needs rad/s")
+                             f"the recording format needs rad/s (multiply by pi/180 = 0.0174533 at export)")
 
 
 def _stat_signature(path: Path) -> tuple[int, int]:
@@ -243,6 +244,17 @@ def _blocks(path: Path, res: ReadResult):
     if path.suffix == ".db3":
         raise IngestRejected("a .db3 file is read with its bag directory: ingest the directory that holds "
                              "metadata.yaml")
+    if path.name == "metadata.yaml":
+        raise IngestRejected("metadata.yaml is the index of a rosbag2 bag, not a recording: ingest the bag folder "
+                             "that holds it instead")
+    with open(path, "rb") as f:
+        head = f.read(13)
+    if head.startswith(b"#ROSBAG V"):
+        raise IngestRejected("a ROS 1 bag, not MCAP: convert it to ROS 2 (`rosbags-convert --src FILE --dst FOLDER`) "
+                             "and ingest the folder")
+    split = split_bag_parts(path)
+    if split:
+        raise IngestRejected(split)
     return iter_blocks(path, res, on_block=check_block), None
 
 
@@ -358,7 +370,7 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
                 why = "skipped on request (--skip-topic)"
             elif ti.kind is None:
                 why = (f"{ti.schema_name or 'no schema'} in {ti.message_encoding or 'no'} encoding is not read by "
-                       f"StrideLab" + (" (it reads ROS 2 CDR: re-export with CDR, the rosbag2 default)"
+                       f"StrideLab" + (f" ({encoding_fix(ti.message_encoding)})"
                                        if looks_like_imu(ti.topic, ti.schema_name) and ti.message_encoding != "cdr"
                                        else ""))
                 if looks_like_imu(ti.topic, ti.schema_name):

@@ -267,6 +267,17 @@ def _normalise_schema(name: str) -> str:
     return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else name
 
 
+def encoding_fix(encoding: str) -> str:
+    """What to do about messages in an encoding StrideLab does not read (it reads ROS 2 CDR)."""
+    e = (encoding or "").lower()
+    if e in ("ros1", "ros1msg"):
+        return "ROS 1 messages: convert the bag to ROS 2 (`rosbags-convert --src BAG --dst FOLDER`) and ingest that"
+    if e in ("json", "protobuf", "flatbuffer", "cbor"):
+        return (f"{e} messages: StrideLab reads ROS 2 CDR; record with `ros2 bag record` (CDR by default) or write "
+                f"the file with the mcap_ros2 writer")
+    return f"'{e[:20]}' messages: StrideLab reads ROS 2 CDR; re-export with CDR encoding"
+
+
 def _topic_info(ch: Channel, sch: Schema | None) -> TopicInfo:
     name = _normalise_schema(sch.name) if sch else ""
     kind = SCHEMA_KINDS.get(name)
@@ -274,11 +285,12 @@ def _topic_info(ch: Channel, sch: Schema | None) -> TopicInfo:
         kind = "events"
     for prefix, expected in TOPIC_SCHEMAS.items():
         if ch.topic.startswith(prefix) and name != expected:
+            if ch.message_encoding != "cdr":
+                raise McapFormatError(f"topic {ch.topic} holds {encoding_fix(ch.message_encoding)}")
             raise McapFormatError(f"topic {ch.topic} has schema '{name or '(none)'}', expected {expected}; "
                                   f"fix the exporter or rename the topic")
     if kind is not None and kind != "events" and ch.message_encoding != "cdr":
-        raise McapFormatError(f"topic {ch.topic} ({name}) uses message encoding '{ch.message_encoding}', "
-                              f"expected cdr (ROS 2); convert it with a ROS 2 tool")
+        raise McapFormatError(f"topic {ch.topic} ({name}) holds {encoding_fix(ch.message_encoding)}")
     variance = bool(kind == "range" and sch is not None and b"float32 variance" in
                     bytes(sch.data).split(b"=" * 80)[0])
     return TopicInfo(ch.topic, name, ch.message_encoding, kind, variance)

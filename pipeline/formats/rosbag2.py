@@ -238,3 +238,59 @@ def iter_message_compressed_blocks(path: Path, result: ReadResult, fmt: str) -> 
     result.ignored_topics = sorted(t.topic for t in infos.values() if t.kind is None)
     result.sha256 = h.hexdigest()
     result.n_bytes = path.stat().st_size
+
+
+_PART = None
+
+
+def split_bag_parts(path: Path) -> str | None:
+    """The refusal of one part of a split rosbag2 bag whose metadata.yaml is missing, else None.
+
+    Recognised by the names rosbag2 gives the parts (``<bag>_0.mcap``, ``<bag>_1.mcap``, … all present, from 0)
+    and by their time continuity (each part starts within :data:`SPLIT_GAP_S` of the previous one's end, by the
+    files' Statistics records). Ingested one by one, the parts would become unrelated recordings (strides cut at
+    every split); files merely named alike but apart in time are left alone."""
+    import re
+    global _PART
+    if _PART is None:
+        _PART = re.compile(r"^(?P<base>.+)_(?P<k>\d+)\.mcap$")
+    m = _PART.match(path.name)
+    if m is None or (path.parent / "metadata.yaml").exists():
+        return None
+    base = m.group("base")
+    parts = {}
+    for p in path.parent.iterdir():
+        q = _PART.match(p.name)
+        if q is not None and q.group("base") == base and p.is_file():
+            parts[int(q.group("k"))] = p
+    n = len(parts)
+    if n < 2 or sorted(parts) != list(range(n)):
+        return None
+    spans = [_span(parts[k]) for k in range(n)]
+    if any(s is None for s in spans):
+        return None
+    for (a0, a1), (b0, b1) in zip(spans, spans[1:]):
+        if not (-SPLIT_GAP_S * 1e9 <= b0 - a1 <= SPLIT_GAP_S * 1e9):
+            return None
+    return (f"part {m.group('k')} of a split rosbag2 bag ({base}_0.mcap to {base}_{n - 1}.mcap, one continuous "
+            f"recording) without its metadata.yaml: ingested alone it would be a recording of its own; move the "
+            f"{n} parts into one folder, recreate metadata.yaml with `ros2 bag reindex FOLDER mcap`, and ingest the "
+            f"folder")
+
+
+#: most seconds between one part's last message and the next part's first for a split bag
+SPLIT_GAP_S = 2.0
+
+
+def _span(path: Path) -> tuple[int, int] | None:
+    """(first, last) message log time of an MCAP file from its Statistics record, None without one."""
+    from mcap.reader import make_reader
+    try:
+        with open(path, "rb") as f:
+            s = make_reader(f).get_summary()
+    except Exception:  # noqa: BLE001 - no readable summary: continuity unknown
+        return None
+    st = s.statistics if s is not None else None
+    if st is None or not st.message_count:
+        return None
+    return st.message_start_time, st.message_end_time
