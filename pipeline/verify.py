@@ -228,4 +228,4 @@ def _stored_options(wh, content_hash: str) -> dict:
         return {}
     r = first(wh.con.execute("SELECT ingest_settings FROM recordings WHERE content_hash = ?", [content_hash]))
     s = json.loads(r[0]) if r and r[0] else {}
-    return {k: s[k] for k in ("session", "topic_map") if k in s}
+    return {k: s[k] for k in ("session", "topic_map", "skip_topics") if k in s}
