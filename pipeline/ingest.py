@@ -28,7 +28,7 @@ from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
 from studies.privacy import value_problem
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, encoding_fix, iter_blocks, read_metadata
+from pipeline.formats.mcap_read import McapFormatError, ReadResult, encoding_fix, iter_blocks
 from pipeline.formats.rosbag2 import (bag_info, custom_data_of_mcap, iter_bag_blocks, iter_message_compressed_blocks,
                                       split_bag_parts,
                                       message_compression)
@@ -264,7 +264,15 @@ def _message_compressed(path: Path) -> str | None:
     only then, so the common path reads no summary twice."""
     if path.is_dir() or path.suffix == ".db3":
         return None
-    return message_compression(read_metadata(path))
+    from mcap.reader import make_reader
+    try:                        # the summary's metadata index only: a file without one (truncated, damaged) is
+        with open(path, "rb") as f:    # never scanned again here (the mcap library would, in pure Python)
+            r = make_reader(f)
+            if r.get_summary() is None:
+                return None
+            return message_compression({m.name: dict(m.metadata) for m in r.iter_metadata()})
+    except Exception:  # noqa: BLE001 - no readable summary: not this case; the first error stands
+        return None
 
 
 @contextmanager
