@@ -9,6 +9,7 @@ from pathlib import Path
 import streamlit as st
 
 from dashboard.snapshot import Snapshot, open_snapshot
+from warehouse.read import snapshot_status
 from warehouse import queries as Q
 
 ENV = "STRIDELAB_WAREHOUSE"
@@ -33,6 +34,11 @@ def snapshot() -> Snapshot | None:
     """The newest published snapshot, or None after telling the user what to run."""
     root = warehouse_root()
     snap = open_snapshot(root)
+    _, damaged = snapshot_status(root)          # a damaged newest snapshot: the previous one, said here
+    if damaged:
+        st.warning(damaged, icon=":material/warning:")
+    if snap is None and damaged:
+        return None
     if snap is None:
         st.info(f"The warehouse at `{root}` has no published data yet. To fill it, "
                 f"{Q.RUN_HINT.replace('WAREHOUSE', str(root))}.", icon=":material/info:")

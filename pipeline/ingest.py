@@ -29,8 +29,10 @@ from pipeline import privacy
 from pipeline.privacy import screen_session, study_policy
 from studies.privacy import shown as _safe_shown
 from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
-from pipeline.formats.rosbag2 import bag_info, custom_data_of_mcap, iter_bag_blocks
+from pipeline.formats.mcap_read import McapFormatError, ReadResult, encoding_fix, iter_blocks
+from pipeline.formats.rosbag2 import (bag_info, custom_data_of_mcap, iter_bag_blocks, iter_message_compressed_blocks,
+                                      split_bag_parts,
+                                      message_compression)
 from pipeline.ingest_series import (FLUSH_ROWS, GAP_WARN_S, SCHEMAS as _SCHEMAS, SeriesRejected,  # noqa: F401
                                      TopicSeries, check_block)
 from pipeline.session_sources import NO_SESSION, SessionSourceError, gather_session, placement_for
@@ -62,6 +64,10 @@ class Prepared:
     end_ns: int | None = None
     n_samples: int = 0
     ignored_topics: list[str] = field(default_factory=list)
+    skipped_topics: list[dict] = field(default_factory=list)   # every topic not ingested: {topic, reason}
+    crc_verified: bool | None = None         # every message covered by a checked CRC (False: "unverified")
+    settings_hash: str = ""                  # with content_hash, the idempotency key (:func:`settings_hash`)
+    settings: dict = field(default_factory=dict)
     sample_hash: str = ""                    # XXH3-128 over the decoded samples of every topic (re-export check)
     legacy_sample_hash: str = ""             # their SHA-256 identity of before, when asked for (IngestOptions)
     display_name: str = ""                   # the file's own name, for the console only (never stored)
@@ -134,9 +140,48 @@ class IngestOptions:
     TOPIC=PLACEMENT``) applied to every recording of the run."""
     session: dict[str, str] = field(default_factory=dict)
     topic_map: dict[str, str] = field(default_factory=dict)
+    #: topics the user agrees to leave out (``--skip-topic``): listed as skipped, never an error
+    skip_topics: list[str] = field(default_factory=list)
+    #: refuse a file not covered by CRCs (``--require-crc``, for strict studies)
+    require_crc: bool = False
+    #: warnings to record with every recording of the run (what ``--recover`` lost, pipeline/recover.py)
+    notes: list[str] = field(default_factory=list)
     #: also compute the samples' SHA-256 identity that recordings ingested before the XXH3 one carry (set by
     #: the coordinator, :func:`pipeline.runner.ingest_files`, when the warehouse holds any)
     legacy_sample_hash: bool = False
+
+
+def ingest_settings(options: "IngestOptions | dict | None") -> dict:
+    """The ingest settings that change what a file becomes in the warehouse (docs/integrity.md): the topic map and
+    session fields given on the command line and the topics skipped on request. With the file's content they are
+    the idempotency key: the same file ingested with other settings is ingested again (superseding)."""
+    if isinstance(options, dict):
+        options = IngestOptions(**options)
+    options = options or IngestOptions()
+    return {"topic_map": dict(sorted(options.topic_map.items())), "session": dict(sorted(options.session.items())),
+            "skip_topics": sorted(set(options.skip_topics))}
+
+
+def settings_hash(options: "IngestOptions | dict | None") -> str:
+    """SHA-256 (hex) of :func:`ingest_settings`; recordings ingested before it was kept count as the default."""
+    return hashlib.sha256(json.dumps(ingest_settings(options), sort_keys=True).encode()).hexdigest()
+
+
+DEFAULT_SETTINGS_HASH = settings_hash(None)
+
+#: topic words that make a topic without a schema look like IMU or magnetometer data
+_IMU_WORDS = re.compile(r"imu|mag|gyro|accel", re.IGNORECASE)
+
+
+def looks_like_imu(topic: str, schema_name: str) -> bool:
+    """Whether a topic StrideLab did not ingest looks like IMU or magnetometer data (then skipping it silently
+    would lose a sensor): its schema is ``*/Imu`` or ``*/MagneticField`` in any package or encoding, or it has no
+    schema and its name says imu/mag/gyro/accel. (``sensor_msgs/msg/Imu``, ``foxglove.Imu``, ``ImuSample`` in any
+    encoding look like IMU data; ``sensor_msgs/msg/Temperature`` on ``/imu/temp`` does not.)"""
+    name = re.split(r"[/.:]", schema_name or "")[-1].lower()
+    if schema_name:
+        return "imu" in name or "magneticfield" in name
+    return bool(_IMU_WORDS.search(topic))
 
 
 #: IMU clocks whose offsets to the host clock (median log_time - header.stamp) differ by more than
@@ -176,7 +221,7 @@ def _check_units(st: TopicSeries) -> None:
     gyr = st.gyr_p99
     if gyr > 35.0:
         raise IngestRejected(f"{st.topic}: angular rate 99th percentile is {gyr:.0f}, which looks like deg/s; "
-                             f"the recording format needs rad/s")
+                             f"the recording format needs rad/s (multiply by pi/180 = 0.0174533 at export)")
 
 
 def _stat_signature(path: Path) -> tuple[int, int]:
@@ -196,7 +241,35 @@ def _blocks(path: Path, res: ReadResult):
     if path.suffix == ".db3":
         raise IngestRejected("a .db3 file is read with its bag directory: ingest the directory that holds "
                              "metadata.yaml")
+    if path.name == "metadata.yaml":
+        raise IngestRejected("metadata.yaml is the index of a rosbag2 bag, not a recording: ingest the bag folder "
+                             "that holds it instead")
+    with open(path, "rb") as f:
+        head = f.read(13)
+    if head.startswith(b"#ROSBAG V"):
+        raise IngestRejected("a ROS 1 bag, not MCAP: convert it to ROS 2 (`rosbags-convert --src FILE --dst FOLDER`) "
+                             "and ingest the folder")
+    split = split_bag_parts(path)
+    if split:
+        raise IngestRejected(split)
     return iter_blocks(path, res, on_block=check_block), None
+
+
+def _message_compressed(path: Path) -> str | None:
+    """After the fast reader refused a single file: its format when its messages are compressed one by one
+    (rosbags/rosbag2 ``compression_mode: message``: the reader took compressed bytes for CDR), else None. Asked
+    only then, so the common path reads no summary twice."""
+    if path.is_dir() or path.suffix == ".db3":
+        return None
+    from mcap.reader import make_reader
+    try:                        # the summary's metadata index only: a file without one (truncated, damaged) is
+        with open(path, "rb") as f:    # never scanned again here (the mcap library would, in pure Python)
+            r = make_reader(f)
+            if r.get_summary() is None:
+                return None
+            return message_compression({m.name: dict(m.metadata) for m in r.iter_metadata()})
+    except Exception:  # noqa: BLE001 - no readable summary: not this case; the first error stands
+        return None
 
 
 @contextmanager
@@ -214,34 +287,46 @@ def _without_gc_pauses():
             gc.enable()
 
 
-def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOptions | dict | None = None) -> Prepared:
+def prepare(path: str | os.PathLike, root: str | os.PathLike, options: IngestOptions | dict | None = None,
+            series_root: str | os.PathLike | None = None) -> Prepared:
     """Decode, validate and store one recording (MCAP file or rosbag2 bag directory); never raises for a
-    bad recording (quarantines it)."""
+    bad recording (quarantines it). ``series_root``: where the series files go if not under ``root`` (a
+    repair's scratch folder, pipeline/verify.py)."""
     with _without_gc_pauses():
-        return _prepare(path, root, options)
+        return _prepare(path, root, options, series_root)
 
 
-def _prepare(path, root, options) -> Prepared:
+def _prepare(path, root, options, series_root=None) -> Prepared:
     path = Path(path)
     if isinstance(options, dict):
         options = IngestOptions(**options)
     options = options or IngestOptions()
     size, mtime = _stat_signature(path)
     out = Prepared(source_path=privacy.stored_path(path), file_name=privacy.stored_name(path), size_bytes=size,
-                   mtime_ns=mtime, display_name=path.name)
+                   mtime_ns=mtime, display_name=path.name, settings_hash=settings_hash(options),
+                   settings=ingest_settings(options))
     states: dict[str, TopicSeries] = {}
     res = ReadResult()
     try:
         blocks, custom = _blocks(path, res)
-        for b in blocks:
-            if b.kind == "events":
-                out.events += [dict(v) for v in b.values]
-                continue
-            s = states.get(b.topic)
-            if s is None:
-                s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(root), options.legacy_sample_hash)
-            s.add(b)
+        try:
+            _consume(blocks, out, states, options, series_root or root)
+        except McapFormatError:
+            fmt = _message_compressed(path)
+            if fmt is None:
+                raise
+            for s in states.values():
+                s.abort()
+            states.clear()
+            out.events = []
+            res = ReadResult()
+            _consume(iter_message_compressed_blocks(path, res, fmt), out, states, options, series_root or root)
         out.content_hash = res.sha256
+        out.crc_verified = res.crc_verified
+        if options.require_crc and not out.crc_verified:
+            raise IngestRejected("the file carries no CRCs (allowed by MCAP, but a changed byte cannot be detected) "
+                                 "and --require-crc was given: re-export it with CRCs (the mcap library, mcap_ros2 and "
+                                 "rosbag2 write them by default) or ingest it without --require-crc")
         if custom is None:
             custom = custom_data_of_mcap(res.metadata)
         fields, _sources = gather_session(path, res.metadata, custom, options.session)
@@ -250,18 +335,35 @@ def _prepare(path, root, options) -> Prepared:
         session = check_session_metadata({"session": fields}, root, out.issues)
         _check_plausible(session)
         out.metadata = session
+        out.issues += [{"severity": "warning", "topic": None, "message": m} for m in options.notes]
         for s in states.values():
             s.finish()
         policy = study_policy(session["study"])
         out.events = privacy.screen_events(out.events, policy, out.issues)
         topic_map = {**_manifest_topics(session["study"]), **options.topic_map}
+        in_file = {t.topic for t in res.topics.values()}
+        for t in sorted(set(options.topic_map) - in_file):
+            raise IngestRejected(f"--topic-map names {t[:80]}, which this file does not have (topics found: "
+                                 f"{', '.join(res.found_topics()[:8]) or 'none'}); fix the map (a typo would drop "
+                                 f"that sensor)")
+        skip_req = set(options.skip_topics)
+        unmapped_imu: list[str] = []
         mapped: dict[tuple[str, str], TopicSeries] = {}
         placement_of: dict[str, tuple[str, str]] = {}
         for s in states.values():
             pl = placement_for(s.topic, s.kind, topic_map)
-            if pl is None or s.n == 0:
-                if pl is None:
+            if s.topic in skip_req or pl is None or s.n == 0:
+                if s.topic in skip_req:
+                    why = "skipped on request (--skip-topic)"
+                elif pl is None:
                     out.ignored_topics.append(s.topic)
+                    why = (f"{s.kind} topic without a placement (not named /{s.kind}/<placement> and no --topic-map "
+                           f"or manifest [topics] entry)")
+                    if s.kind in ("imu", "mag"):
+                        unmapped_imu.append(s.topic)
+                else:
+                    why = "no messages"
+                out.skipped_topics.append({"topic": s.topic, "reason": why})
                 s.abort()
                 continue
             if pl in mapped:
@@ -273,12 +375,39 @@ def _prepare(path, root, options) -> Prepared:
                                      f"TOPIC=PLACEMENT or the study manifest ([topics], [privacy] placements)")
             mapped[pl] = s
             placement_of[s.topic] = pl
+        for ti in res.topics.values():                 # topics the reader did not decode, or without messages
+            if ti.kind == "events" or ti.topic in states or ti.topic in {d["topic"] for d in out.skipped_topics}:
+                continue
+            if ti.topic in skip_req:
+                why = "skipped on request (--skip-topic)"
+            elif ti.kind is None:
+                why = (f"{ti.schema_name or 'no schema'} in {ti.message_encoding or 'no'} encoding is not read by "
+                       f"StrideLab" + (f" ({encoding_fix(ti.message_encoding)})"
+                                       if looks_like_imu(ti.topic, ti.schema_name) and ti.message_encoding != "cdr"
+                                       else ""))
+                if looks_like_imu(ti.topic, ti.schema_name):
+                    unmapped_imu.append(ti.topic)
+            else:
+                why = "no messages"
+            out.skipped_topics.append({"topic": ti.topic, "reason": why})
+        imu_placements = {pl for (pl, prefix) in mapped if prefix == "imu"}
+        for (pl, prefix), s in mapped.items():
+            if prefix == "mag" and pl not in imu_placements:
+                raise IngestRejected(f"{s.topic}: magnetometer mapped to placement {pl[:40]}, which has no IMU in "
+                                     f"this file; map it to its IMU's placement (--topic-map {s.topic[:80]}=PLACEMENT)")
+        out.skipped_topics.sort(key=lambda d: d["topic"])
         imu = [s for s in mapped.values() if s.kind == "imu"]
         if not imu:
             found = ", ".join(privacy.shown_topic(t) for t in res.found_topics()[:8]) or "none"
             raise IngestRejected(f"no IMU topic with samples mapped to a placement (topics found: {found}); "
                                  f"name them /imu/<placement> or map them with --topic-map TOPIC=PLACEMENT "
                                  f"(or a [topics] table in the study manifest)")
+        if unmapped_imu:
+            t = unmapped_imu[0]
+            reason = next(d["reason"] for d in out.skipped_topics if d["topic"] == t)
+            raise IngestRejected(f"topic {t[:80]} looks like IMU/magnetometer data but would be skipped ({reason}): "
+                                 f"map it with --topic-map {t[:80]}=PLACEMENT, or pass --skip-topic {t[:80]} to "
+                                 f"ingest the file without it")
         for s in mapped.values():
             placement = placement_of[s.topic][0]
             if s.kind == "imu":
@@ -302,7 +431,8 @@ def _prepare(path, root, options) -> Prepared:
         ordered = sorted(mapped.items(), key=lambda kv: kv[1].topic)
         rels = commit_all([s.writer for _, s in ordered],
                           [series_relpath(session["study"], session["participant"], session["session"], placement,
-                                          f"{prefix}-{res.sha256[:16]}") for (placement, prefix), _ in ordered])
+                                          _series_name(prefix, res.sha256, out.settings_hash))
+                           for (placement, prefix), _ in ordered])
         for ((placement, prefix), s), rel in zip(ordered, rels):
             for m in s.warnings():
                 out.issues.append({"severity": "warning", "topic": _stored_topic(s.topic, placement, prefix),
@@ -323,6 +453,7 @@ def _prepare(path, root, options) -> Prepared:
         for e in out.events:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
+        out.events = _unique_events(out.events, out.issues)
     except (IngestRejected, McapFormatError, SeriesRejected, SessionSourceError, ValueError) as e:
         for s in states.values():
             s.abort()
@@ -359,6 +490,39 @@ def _redacted(reason: str, path: Path, topics) -> str:
         if len(x) > 3:
             reason = reason.replace(x, "the file")
     return reason
+
+
+def _unique_events(events: list[dict], notes: list[dict]) -> list[dict]:
+    """Reference events de-duplicated like samples: an annotation repeated exactly (a duplicated chunk, a
+    message written twice) is kept once, with a warning."""
+    seen, out = set(), []
+    for e in events:
+        key = json.dumps(e, sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            out.append(e)
+    if len(out) < len(events):
+        notes.append({"severity": "warning", "topic": "/reference/events",
+                      "message": f"{len(events) - len(out)} exact duplicate reference events dropped"})
+    return out
+
+
+def _series_name(prefix: str, sha256: str, settings: str) -> str:
+    """A series file's name: kind and content hash, and the settings hash when the settings are not the default
+    (a re-ingest of the file with other settings writes new files; the old ones stay for the old snapshots)."""
+    name = f"{prefix}-{sha256[:16]}"
+    return name if settings in ("", DEFAULT_SETTINGS_HASH) else f"{name}-{settings[:8]}"
+
+
+def _consume(blocks, out: Prepared, states: dict, options: IngestOptions, series_root) -> None:
+    for b in blocks:
+        if b.kind == "events":
+            out.events += [dict(v) for v in b.values]
+            continue
+        s = states.get(b.topic)
+        if s is None:
+            s = states[b.topic] = TopicSeries(b.topic, b.kind, Path(series_root), options.legacy_sample_hash)
+        s.add(b)
 
 
 def _manifest_topics(study: str) -> dict[str, str]:
@@ -430,6 +594,49 @@ def _console(p: Prepared) -> str:
     return p.display_name or p.file_name
 
 
+def stored_settings_hash(con, content_hash: str) -> str:
+    """The settings hash a recording was ingested with (the default for recordings from before migration 013)."""
+    r = first(con.execute("SELECT settings_hash FROM recordings WHERE content_hash = ?", [content_hash]))
+    return (r[0] if r else None) or DEFAULT_SETTINGS_HASH
+
+
+def _integrity_columns(wh: Warehouse, p: Prepared) -> dict:
+    """The recordings columns of migration 013 (none on an older catalog)."""
+    if not wh.has_column("recordings", "settings_hash"):
+        return {}
+    return {"crc_verified": p.crc_verified, "settings_hash": p.settings_hash or DEFAULT_SETTINGS_HASH,
+            "ingest_settings": json.dumps(p.settings, sort_keys=True),
+            # topic names as the catalog may keep them (a non-standard topic may carry a name: pipeline.privacy)
+            "skipped_topics": json.dumps([{**d, "topic": privacy.shown_topic(d["topic"])} for d in p.skipped_topics])
+            if p.skipped_topics else None}
+
+
+def _supersede_same_file(con, p: Prepared, why: str, now) -> str:
+    """The same file ingested again (``--replace``, or other ingest settings): the earlier ingest is kept in
+    ``superseded_ingests``, its rows go, and its session's stages rerun. Returns the phrase for the report."""
+    old = first(con.execute("SELECT settings_hash, ingest_settings, file_name, session_id, n_samples, ingested_at, "
+                            "status FROM recordings WHERE content_hash = ?", [p.content_hash]))
+    sensors = [dict(zip(("topic", "placement", "kind", "n_samples"), r)) for r in con.execute(
+        "SELECT topic, placement, kind, n_samples FROM sensors WHERE content_hash = ? ORDER BY topic",
+        [p.content_hash]).fetchall()]
+    con.execute("INSERT INTO superseded_ingests VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                [p.content_hash, old[0] or DEFAULT_SETTINGS_HASH, old[1], old[2], old[3], old[4],
+                 json.dumps(sensors), old[5], now, f"ingested again with {why}"])
+    for t in ("sensors", "recording_issues", "reference_events", "recordings"):
+        con.execute(f'DELETE FROM "{t}" WHERE content_hash = ?', [p.content_hash])
+    sid = old[3]
+    if sid is not None:
+        left = first(con.execute("SELECT count(*) FROM recordings WHERE session_id = ? AND status = 'ingested'",
+                                 [sid]))[0]
+        if left == 0 and sid != p.metadata.get("session"):
+            supersede.supersede(con, [], p, {sid})               # the session held only this file
+        else:
+            con.execute("DELETE FROM stage_state WHERE session_id = ?", [sid])   # same inputs' hash: rerun
+            if left:
+                supersede.refresh_session_span(con, sid)
+    return f"superseding its earlier ingest ({old[6]}, {why})"
+
+
 @dataclass
 class CommitResult:
     status: str          # ingested | duplicate | quarantined
@@ -458,6 +665,14 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
         if prev is not None and replace and prev[0] == "reexport":
             con.execute("DELETE FROM recordings WHERE content_hash = ?", [p.content_hash])   # now deliberate
             prev = None
+        again = ""
+        if prev is not None and wh.has_column("recordings", "settings_hash"):
+            if replace or stored_settings_hash(con, p.content_hash) != (p.settings_hash or DEFAULT_SETTINGS_HASH):
+                if p.status != "ingested":
+                    return CommitResult("quarantined", f"{_console(p)}: ingesting it again failed, the earlier "
+                                                       f"ingest ({prev[0]}) stays: {p.reason}")
+                again = _supersede_same_file(con, p, "--replace" if replace else "other ingest settings", now)
+                prev = None
         if prev is not None:
             return CommitResult("duplicate", f"{_console(p)}: already {prev[0]} (same content), nothing changed")
         if not wh.has_column("recordings", "sample_hash"):
@@ -497,10 +712,11 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                 p.status = "quarantined"
                 p.reason = (f"session {p.metadata['session']} is a '{owner[2]}' session but this recording says kind "
                             f"'{p.metadata['kind']}'; all recordings of a session need the same kind")
+        extra = _integrity_columns(wh, p)
         if p.status == "quarantined":
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
-                                      "status": "quarantined", "reason": p.reason, "ingested_at": now}])
+                                      "status": "quarantined", "reason": p.reason, "ingested_at": now, **extra}])
             return CommitResult("quarantined", f"{_console(p)}: quarantined: {p.reason}")
         superseded = supersede.supersede(con, old, p, emptied)
         s = p.metadata
@@ -518,7 +734,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                   "source_path": p.source_path, "size_bytes": p.size_bytes, "status": "ingested",
                                   "session_id": s["session"], "trial": s.get("trial"),
                                   "metadata": json.dumps(s, sort_keys=True), "start_ns": p.start_ns,
-                                  "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now,
+                                  "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now, **extra,
                                   **({"sample_hash": p.sample_hash} if p.sample_hash else {})}])
         wh.insert("sensors", [dict(r, content_hash=p.content_hash) for r in p.sensors])
         wh.insert("recording_issues", [dict(r, content_hash=p.content_hash) for r in p.issues])
@@ -527,11 +743,16 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             "end_ns": int(e["end_ns"]) if e.get("end_ns") is not None else None, "type": str(e["type"]),
             "side": e.get("side"), "placement": e.get("placement"), "label": e.get("label"),
             "payload": json.dumps(e, sort_keys=True)} for e in p.events])
-        if superseded:
+        if superseded or again:
             supersede.refresh_session_span(con, s["session"])
     msg = f"{_console(p)}: ingested {p.n_samples:,} IMU samples into session {s['session']}"
+    if again:
+        msg += f", {again}"
     if superseded:
         msg += f", superseding {', '.join(superseded)}"
+    if p.skipped_topics:
+        msg += (f"; {len(p.skipped_topics)} topic{'s' if len(p.skipped_topics) > 1 else ''} skipped: "
+                + "; ".join(f"{d['topic']}: {d['reason']}" for d in p.skipped_topics[:4]))
     if p.issues:
         msg += f" ({len(p.issues)} warning{'s' if len(p.issues) > 1 else ''}: {p.issues[0]['message']})"
     return CommitResult("ingested", msg)

@@ -35,6 +35,7 @@ import pyarrow as pa
 import xxhash
 from numba import njit
 
+from pipeline import clock_policy
 from pipeline.formats.mcap_read import Block
 from warehouse.store import SeriesWriter
 
@@ -228,6 +229,9 @@ class TopicSeries:
         self.n_pose = 0
         self.n_zero = 0
         self.unsorted = False
+        self.clock: clock_policy.ClockDecision | None = None     # decided on the first block (pipeline/clock_policy.py)
+        self.n_clock_dropped = 0            # samples whose stamp is not wall-clock time, dropped as outliers
+        self._latest = clock_policy.latest_ns()
         # writing side (the topic's writing thread)
         self._held: list[_Piece] = []       # newest rows held back from the last slice (sorted)
         self.writer: SeriesWriter | None = None
@@ -265,16 +269,40 @@ class TopicSeries:
         self.n_no_quat += c.n_no_quat
         self.n_pose += c.n_pose
         self.n_zero += c.n_zero
-        if c.back:
-            self.unsorted = True
         if c.sub is not None:
             self._sub.append(c.sub)
             self._off.append(c.off)
+        t, log, v, back, rep = c.t, b.log_ns, b.values, c.back, c.rep
+        if not c.n_none:                    # (samples without any time base refuse the topic in _write)
+            t, log, v, back, rep = self._clock_sanity(t, log, v, back, rep)
         self.n_in += len(c.t)
-        self.buf.append(_Piece(c.t, b.log_ns, b.values, c.back, c.rep, c.n_none))
-        self.buf_rows += len(c.t)
+        if len(t) == 0:
+            return
+        if back:
+            self.unsorted = True
+        self.buf.append(_Piece(t, log, v, back, rep, c.n_none))
+        self.buf_rows += len(t)
         if self.buf_rows >= FLUSH_ROWS:
             self._submit(final=False)
+
+    def _clock_sanity(self, t, log, v, back, rep):
+        """Apply the topic's clock decision (pipeline/clock_policy.py) to one block."""
+        if self.clock is None:
+            d = clock_policy.decide(t, log, self._latest)
+            if isinstance(d, str):
+                raise SeriesRejected(f"{self.topic}: {d}")
+            self.clock = d
+        changed = False
+        if self.clock.mode == "log_time":
+            t, changed = log, True
+        bad = clock_policy.implausible(t, self._latest)
+        if bad.any():
+            keep = ~bad
+            self.n_clock_dropped += int(bad.sum())
+            t, log, v, changed = t[keep], log[keep], v[keep], True
+        if changed and len(t):
+            _, _, back, rep = _stamp_flags(np.ascontiguousarray(t), np.ascontiguousarray(log))
+        return t, log, v, back, rep
 
     def _submit(self, final: bool) -> None:
         pieces, self.buf, self.buf_rows = self.buf, [], 0
@@ -304,6 +332,9 @@ class TopicSeries:
     def finish(self) -> None:
         self._submit(final=True)
         self._wait()
+        if self.n_clock_dropped > 0.5 * self.n_in:
+            raise SeriesRejected(f"{self.topic}: {self.n_clock_dropped} of {self.n_in} samples have a header.stamp "
+                                 f"before 2000 or in the future: no wall-clock time base; export wall-clock stamps")
         if self.n_conflict > 0.5 * self.n_in:
             raise SeriesRejected(f"{self.topic}: {self.n_conflict} of {self.n_in} samples repeat a header.stamp "
                                  f"with different values: no usable time base; export sensor time stamps "
@@ -472,8 +503,13 @@ class TopicSeries:
 
     def warnings(self) -> list[str]:
         out = []
-        if self.n_zero:
+        if self.clock is not None and self.clock.mode == "log_time":
+            out.append(self.clock.reason)
+        elif self.n_zero:
             out.append(f"{self.n_zero} samples with an unset (zero) header.stamp: their log_time is used")
+        if self.n_clock_dropped:
+            out.append(f"{self.n_clock_dropped} samples with a {'log_time' if self.clock.mode == 'log_time' else 'time'}"
+                       f" before 2000 or in the future (not wall-clock time) dropped as outliers")
         if self.n_exact:
             out.append(f"{self.n_exact} exact duplicate samples dropped")
         if self.n_conflict:

@@ -58,6 +58,7 @@ class RunSummary:
     stage_runs: int = 0
     skipped_fresh: int = 0
     failed: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)          # inbox entries that cannot be recordings, with why
     messages: list[str] = field(default_factory=list)
     reports: list[str] = field(default_factory=list)
     seconds: float = 0.0
@@ -65,7 +66,8 @@ class RunSummary:
     def as_dict(self) -> dict:
         return {"run_id": self.run_id, "ingested": len(self.ingested), "duplicates": len(self.duplicates),
                 "reexports": self.reexports, "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
-                "failed": self.failed, "reports": self.reports, "seconds": round(self.seconds, 2)}
+                "failed": self.failed, "skipped": self.skipped, "reports": self.reports,
+                "seconds": round(self.seconds, 2)}
 
 
 def _now() -> datetime:
@@ -176,7 +178,10 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
             continue
         h = ingest_mod.known_hash(wh, f)
-        if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])):
+        if h is not None and first(wh.con.execute("SELECT 1 FROM recordings WHERE content_hash = ?", [h])) and (
+                not wh.has_column("recordings", "settings_hash")
+                or ingest_mod.stored_settings_hash(wh.con, h) == ingest_mod.settings_hash(options)):
+            # the same file with the same ingest settings (other settings: ingested again, superseding)
             summary.duplicates.append(f.name)
             continue
         todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
@@ -204,17 +209,69 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
 
 def inbox_recordings(inbox: Path) -> list[Path]:
     """Recordings of an inbox: ``*.mcap`` files and rosbag2 bag directories (a bag is one recording,
-    its files are not listed on their own); ``.db3`` files outside a bag are listed so that they are
-    reported, never skipped silently."""
-    bags = sorted(p.parent for p in inbox.rglob("metadata.yaml") if not p.parent.name.startswith("."))
-    out = list(bags)
-    for p in sorted(inbox.rglob("*")):
-        if p.name.startswith(".") or p.suffix not in (".mcap", ".db3") or not p.is_file():
+    its files are not listed on their own); ``.db3`` files outside a bag and ROS 1 ``.bag`` files are listed so
+    that they are reported (refused with the fix), never skipped silently. Entries that cannot be recordings are
+    listed by :func:`inbox_skipped`."""
+    return inbox_entries(inbox)[0]
+
+
+def inbox_skipped(inbox: Path) -> list[str]:
+    """``path: reason`` of every inbox entry that is skipped: dangling or looping symbolic links, links to
+    directories (not followed), FIFOs, sockets and devices, a directory with a recording's name that is no bag."""
+    return [f"{p}: {why}" for p, why in inbox_entries(inbox)[1]]
+
+
+RECORDING_SUFFIXES = (".mcap", ".db3", ".bag")
+
+
+def inbox_entries(inbox: Path) -> tuple[list[Path], list[tuple[Path, str]]]:
+    """(recordings, skipped entries with the reason) of an inbox, walked without following directory links
+    (a link loop can never hang the walk)."""
+    import stat as st_
+    recs: list[Path] = []
+    skipped: list[tuple[Path, str]] = []
+    for top, dirs, files in os.walk(inbox, followlinks=False):
+        top_p = Path(top)
+        if top_p != Path(inbox) and (top_p / "metadata.yaml").is_file():
+            recs.append(top_p)                       # a bag: one recording, not descended into
+            dirs[:] = []
             continue
-        if any(b == p.parent or b in p.parents for b in bags):
-            continue
-        out.append(p)
-    return sorted(out)
+        keep = []
+        for d in sorted(dirs):
+            p = top_p / d
+            if d.startswith("."):
+                continue
+            if p.is_symlink():
+                skipped.append((p, "a symbolic link to a directory: not followed (copy or move the folder into "
+                                   "the inbox)"))
+                continue
+            if Path(d).suffix in RECORDING_SUFFIXES and not (p / "metadata.yaml").is_file():
+                skipped.append((p, "a directory with a recording's name but no metadata.yaml: not a recording"))
+            keep.append(d)
+        dirs[:] = keep
+        for name in sorted(files):
+            if name.startswith("."):
+                continue
+            p = top_p / name
+            try:
+                mode = os.stat(p).st_mode                 # follows a link to its target
+            except OSError as e:
+                if p.is_symlink():
+                    skipped.append((p, "a symbolic link loop" if e.errno == errno.ELOOP
+                                    else "a dangling symbolic link (its target is missing)"))
+                elif Path(name).suffix in RECORDING_SUFFIXES:
+                    skipped.append((p, f"cannot be read ({e.strerror})"))
+                continue
+            if st_.S_ISDIR(mode):
+                skipped.append((p, "a symbolic link to a directory: not followed (copy or move the folder into "
+                                   "the inbox)"))
+            elif not st_.S_ISREG(mode):
+                kind = ("a FIFO" if st_.S_ISFIFO(mode) else "a socket" if st_.S_ISSOCK(mode)
+                        else "a device" if (st_.S_ISCHR(mode) or st_.S_ISBLK(mode)) else "not a regular file")
+                skipped.append((p, f"{kind}, not a regular file"))
+            elif Path(name).suffix in RECORDING_SUFFIXES:
+                recs.append(p)
+    return sorted(recs), sorted(skipped)
 
 
 def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInput:
@@ -423,7 +480,7 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
         on_progress: Callable[[str], None] = lambda m: None,
         on_phase: Callable[[str, int], None] = _no_phase,
         reports_dir: Path | None = None, build_report: ReportBuilder | None = None,
-        replace: list[Path] | None = None) -> RunSummary:
+        replace: list[Path] | None = None, skipped: list[str] | None = None) -> RunSummary:
     """One nightly run (or an ``ingest`` when ``stages`` is False). Holds the run lock throughout.
 
     With ``build_report`` and ``reports_dir``, the run ends by writing every participant report that is
@@ -440,17 +497,31 @@ def run(root: Path, inbox: Path | None, *, jobs: int = 1, files: list[Path] | No
     root.mkdir(parents=True, exist_ok=True)
     with RunLock(root, command):
         todo = list(files or []) + [Path(f) for f in replace or [] if Path(f) not in set(files or [])]
+        skipped = list(skipped or [])
         if inbox is not None and Path(inbox).is_dir():
-            todo += inbox_recordings(Path(inbox))
+            recs, skip = inbox_entries(Path(inbox))
+            todo += recs
+            skipped += [f"{p}: {why}" for p, why in skip]
         ex = make_engine(engine, jobs, scheduler)
         try:
             if todo:
                 ex.start()      # the workers start and import while the coordinator opens the warehouse
-            return _run_locked(root, todo, ex, t0, jobs=jobs, stages=stages, command=command,
-                               ingest_options=ingest_options, on_progress=on_progress, on_phase=on_phase,
-                               reports_dir=reports_dir, build_report=build_report, replace=replace)
+            summary = _run_locked(root, todo, ex, t0, jobs=jobs, stages=stages, command=command,
+                                  ingest_options=ingest_options, on_progress=on_progress, on_phase=on_phase,
+                                  reports_dir=reports_dir, build_report=build_report, replace=replace)
+            summary.skipped = skipped
+            return summary
         finally:
             ex.close()
+
+
+def _record_failed(wh: Warehouse, run_id: str) -> None:
+    """Mark the run failed in the catalog, best effort (the disk may be full)."""
+    try:
+        with wh.transaction() as con:
+            con.execute("UPDATE pipeline_runs SET status = 'failed' WHERE run_id = ?", [run_id])
+    except Exception:  # noqa: BLE001 - the error that stopped the run is raised by the caller
+        pass
 
 
 def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stages: bool, command: str,
@@ -497,5 +568,8 @@ def _run_locked(root: Path, todo: list[Path], ex, t0: float, *, jobs: int, stage
                 wh.publish_snapshot()
             except Exception:  # noqa: BLE001 - the original error (e.g. disk full) matters more
                 if status == "ok":
+                    # the work is committed, but the run ends with an error (exit 2): the ledger must not say
+                    # 'ok' (issue #47: the final snapshot copy hitting a full disk was recorded 'ok')
+                    _record_failed(wh, run_id)
                     raise
     return summary

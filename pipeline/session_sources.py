@@ -49,7 +49,7 @@ def sidecar_paths(path: Path) -> list[Path]:
     out = [path.with_name(f"{name}.session.toml")]
     if path.is_dir():
         out.append(path / "session.toml")
-    return out
+    return [p for p in out if len(p.name.encode()) <= 255]     # a longer sidecar name cannot exist (issue #47)
 
 
 def read_sidecar(p: Path) -> dict[str, str]:

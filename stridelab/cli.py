@@ -97,11 +97,19 @@ def _print_summary(summary, as_json: bool) -> None:
                       f"{len(d['quarantined'])} quarantined, {d['stage_runs']} stage runs, {d['fresh']} up to date, "
                       f"{len(d['failed'])} failed, {len(d['reports'])} reports, {d['seconds']} s")
     for q in d["reexports"]:
-        err_console.print(f"  re-export: {q}", markup=False)
+        err_console.print(f"  re-export: {safe_text(q)}", markup=False, highlight=False)
     for q in d["quarantined"]:
-        err_console.print(f"  quarantined: {q}", markup=False)
+        err_console.print(f"  quarantined: {safe_text(q)}", markup=False, highlight=False)
     for f in d["failed"]:
         err_console.print(f"  failed: {f}", markup=False)
+    for f in d.get("skipped", []):
+        err_console.print(f"  skipped: {safe_text(f)}", markup=False, highlight=False)
+
+
+def safe_text(text: str) -> str:
+    """``text`` with control characters (newlines, terminal escape codes) shown as escapes: a file name can
+    neither forge a log line nor drive the terminal (issue #47)."""
+    return "".join(c if c.isprintable() or c == " " else repr(c)[1:-1] for c in str(text))
 
 
 #: exit codes of ``ingest`` and ``run`` (docs/operations.md "Exit codes"); 2 is ``UserError``/click usage errors
@@ -131,6 +139,7 @@ def _run_with_progress(**kw):
                     current["task"] = bar.add_task(name, total=total)
 
             def on_progress(msg: str) -> None:
+                msg = safe_text(msg)          # a file name with a newline or escape codes forges no log line
                 if current["task"] is not None:
                     bar.advance(current["task"])
                 if bar.disable:
@@ -194,8 +203,17 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
 @click.option("--replace", is_flag=True,
               help="The files are corrections: each supersedes the ingested recording with the same samples or the "
                    "same file name (the next `run` recomputes what depended on it).")
+@click.option("--skip-topic", "skip_topics", multiple=True, metavar="TOPIC",
+              help="Leave out a topic that looks like IMU/magnetometer data but has no placement (otherwise the file "
+                   "is refused); repeatable. The skip is listed with the recording.")
+@click.option("--require-crc", is_flag=True,
+              help="Refuse files not covered by CRCs (MCAP allows writing none; such files are marked unverified).")
+@click.option("--recover", is_flag=True,
+              help="A truncated or damaged MCAP: keep every complete, CRC-valid chunk (a copy under "
+                   "WAREHOUSE/recovered/) and ingest that, with what was lost as a warning.")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_json) -> None:
+def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_topics, require_crc, recover,
+           as_json) -> None:
     """Load recordings (MCAP files, rosbag2 bag directories, or folders holding them) into the
     warehouse; idempotent by content.
 
@@ -207,17 +225,160 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, as_js
       stridelab ingest session1.mcap session2.mcap --warehouse /data/wh
       stridelab ingest rosbag2_2026_03_02-09_00_00/ --session study=gait2026 --session participant=P001
       stridelab ingest walk.mcap --topic-map /foot_left/imu/data_raw=foot_left
+      stridelab ingest walk.mcap --skip-topic /imu/spare --require-crc
+      stridelab ingest walk.mcap --topic-map /foot_left/imu=foot_left --replace   # again, on purpose
     """
     from pipeline.formats.rosbag2 import is_bag
-    from pipeline.runner import inbox_recordings
-    files = []
+    from pipeline.runner import inbox_entries
+    files, skipped = [], []
     for p in paths:
-        files += inbox_recordings(p) if p.is_dir() and not is_bag(p) else [p]
+        if p.is_dir() and not is_bag(p):
+            recs, skip = inbox_entries(p)
+            files += recs
+            skipped += [f"{q}: {why}" for q, why in skip]
+        else:
+            files.append(p)
+    options = _ingest_options(session_fields, topic_map)
+    if skip_topics or require_crc:           # issue #47 (docs/integrity.md)
+        options = {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
-                                 command="ingest", ingest_options=_ingest_options(session_fields, topic_map),
-                                 replace=files if replace else None)
+                                 command="ingest", ingest_options=options, replace=files if replace else None,
+                                 skipped=skipped)
+    if recover:
+        summary = _recover_damaged(_wh(warehouse_dir), files, options, summary, jobs)
     _print_summary(summary, as_json)
     raise SystemExit(exit_code(summary))
+
+
+def _recover_damaged(wh: Path, files, options, summary, jobs):
+    """``ingest --recover``: the files just quarantined as truncated or damaged are recovered
+    (pipeline/recover.py) and the recovered copies ingested; a file recovered counts as handled."""
+    import shutil
+    from pipeline.console import err_console
+    from pipeline.recover import recover, recovered_name
+    from pipeline.session_sources import sidecar_paths
+    from warehouse.read import connect_snapshot
+    con = connect_snapshot(wh)
+    if con is None:
+        return summary
+    try:
+        wanted = {str(Path(f).resolve()): Path(f) for f in files if Path(f).is_file()}
+        rows = [(p, r) for p, r in con.execute("SELECT source_path, reason FROM recordings WHERE status = "
+                                               "'quarantined'").fetchall() if p in wanted]
+    finally:
+        con.close()
+    marks = ("truncated", "CRC", "corrupt", "runs past", "ends inside", "ends before", "cannot be decompressed")
+    for src, reason in rows:
+        if not any(m in (reason or "") for m in marks):
+            continue
+        f = wanted[src]
+        out = wh / "recovered" / recovered_name(f)
+        rep = recover(f, out)
+        err_console.print(f"recover: {rep.summary()}", markup=False, highlight=False)
+        if rep.messages_kept == 0:
+            continue
+        for side in sidecar_paths(f):
+            if side.is_file():
+                shutil.copyfile(side, sidecar_paths(out)[0])
+        opts = dict(options or {}, notes=[f"recovered from a damaged file: {rep.summary()}"])
+        again = _run_with_progress(root=wh, inbox=None, files=[out], jobs=jobs, stages=False, command="ingest",
+                                   ingest_options=opts)
+        if again.ingested:
+            summary.quarantined = [q for q in summary.quarantined if not q.startswith(f"{f.name}: ")]
+            summary.ingested += again.ingested
+        summary.quarantined += again.quarantined
+        summary.messages += again.messages
+    return summary
+
+
+@main.command("repair")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the recovered files go [default: beside each file, NAME.recovered.mcap].")
+@click.option("--json", "as_json", is_flag=True, help="Print what was kept and lost as JSON.")
+def repair(paths, out_dir, as_json) -> None:
+    """Recover a truncated or damaged MCAP: keep every complete, CRC-valid chunk in a new file and say what was
+    lost (chunks, messages, time range). Exit 0 when something was kept, 1 otherwise.
+
+    \b
+    Examples:
+      stridelab repair logger_2026-03-02.mcap
+      stridelab repair inbox/*.mcap --out recovered/ --json
+    """
+    from pipeline.console import emit_json, err_console
+    from pipeline.recover import recover, recovered_name
+    reps = []
+    for p in paths:
+        out = (out_dir or p.parent) / recovered_name(p)
+        reps.append(recover(p, out))
+        if not as_json:
+            err_console.print(reps[-1].summary() + f" -> {out}", markup=False, highlight=False)
+    if as_json:
+        emit_json({"files": [r.as_dict() for r in reps]})
+    raise SystemExit(0 if all(r.messages_kept for r in reps) else 1)
+
+
+# ---- integrity: verify / repair (pipeline/verify.py, docs/integrity.md) ------------------------------------
+
+@main.command()
+@_warehouse_option
+@click.option("--repair", is_flag=True,
+              help="Recompute damaged series: raw samples from their recording (when it is still where it was "
+                   "ingested from), stage outputs at the next `stridelab run`. Takes the run lock.")
+@click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
+def verify(warehouse_dir, repair, as_json) -> None:
+    """Check a whole warehouse: the catalog, every snapshot, and every series file in full (page checksums,
+    row counts). Exit 0 when all is well, 1 when something is damaged (and, with --repair, not repaired).
+
+    \b
+    Examples:
+      stridelab verify
+      stridelab verify --repair --warehouse /data/wh
+    """
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.verify import verify as run_verify
+    from warehouse.lock import WarehouseBusy
+    try:
+        rep = run_verify(_wh(warehouse_dir), repair=repair)
+    except WarehouseBusy as e:
+        raise UserError(str(e)) from None
+    if as_json:
+        emit_json(rep.as_dict())
+    else:
+        if rep.catalog != "ok":
+            err_console.print(f"catalog damaged: {rep.catalog}; recover with `stridelab repair-catalog` "
+                              f"(docs/integrity.md)", markup=False, highlight=False)
+        for s in rep.snapshots:
+            if s["status"] != "ok":
+                err_console.print(f"snapshot {s['snapshot']} damaged: {s['status']}", markup=False, highlight=False)
+        for d in rep.damaged:
+            err_console.print(f"damaged: {d['path']} ({d['detail']})" + (f": {d['repair']}" if d.get("repair") else ""),
+                              markup=False, highlight=False)
+        err_console.print(f"{rep.checked} series files checked, {len(rep.damaged)} damaged, {len(rep.repaired)} "
+                          f"recomputed, {len(rep.scheduled)} recomputed at the next run, {len(rep.unrepaired)} "
+                          f"not repairable", markup=False, highlight=False)
+    bad = rep.catalog != "ok" or any(s["status"] != "ok" for s in rep.snapshots)
+    bad = bad or (bool(rep.unrepaired) if repair else bool(rep.damaged))
+    raise SystemExit(1 if bad else 0)
+
+
+@main.command("repair-catalog")
+@_warehouse_option
+def repair_catalog(warehouse_dir) -> None:
+    """Rebuild a damaged catalog from the newest snapshot that opens (the damaged file is kept beside it); the
+    next `stridelab run` ingests again what arrived after that snapshot (docs/integrity.md).
+
+    \b
+    Examples:
+      stridelab repair-catalog --warehouse /data/wh && stridelab run --inbox /data/inbox --warehouse /data/wh
+    """
+    from pipeline.console import UserError, err_console
+    from pipeline.recover import rebuild_catalog
+    from warehouse.lock import WarehouseBusy
+    try:
+        err_console.print(rebuild_catalog(_wh(warehouse_dir)), markup=False, highlight=False)
+    except (WarehouseBusy, RuntimeError) as e:
+        raise UserError(str(e).splitlines()[0]) from None
 
 
 def _format_choices() -> list[str]:
@@ -546,6 +707,12 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
     from pipeline.config import default_reports
     from pipeline.console import UserError, emit_json, err_console
     from reports.participant import build_report   # the CLI is the one place that wires every layer
+    from warehouse.read import snapshot_status
+    snap, damaged = snapshot_status(_wh(warehouse_dir))    # a damaged newest snapshot: the previous one, said
+    if damaged:
+        err_console.print(f"warning: {damaged}", markup=False, highlight=False)
+        if snap is None:
+            raise UserError(damaged)
     try:
         paths = build_report(_wh(warehouse_dir), participant, out_dir or default_reports(), study=study)
     except (LookupError, ValueError) as e:

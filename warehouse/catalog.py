@@ -58,6 +58,21 @@ def apply_migrations(con: duckdb.DuckDBPyConnection, upto: int | None = None) ->
     return applied
 
 
+def catalog_damaged(e: Exception) -> bool:
+    """Whether DuckDB's error opening the catalog says the file is damaged (not a lock, a full disk or
+    permissions)."""
+    text = str(e)
+    return any(m in text for m in ("not a valid DuckDB database", "checksum", "Corrupt", "corrupt",
+                                   "Serialization", "Failed to read", "INTERNAL Error"))
+
+
+def damaged_message(root: Path, e: Exception) -> str:
+    first_line = str(e).splitlines()[0][:160] if str(e) else type(e).__name__
+    return (f"cannot open the warehouse catalog {Path(root) / CATALOG}: it is damaged ({first_line}); rebuild it "
+            f"from the newest good snapshot with `stridelab repair-catalog --warehouse {root}`, then "
+            f"`stridelab run` ingests again what the inbox holds (docs/integrity.md)")
+
+
 class Warehouse:
     """Writer handle on a warehouse directory (catalog + Parquet store + snapshots)."""
 
@@ -84,9 +99,19 @@ class Warehouse:
         try:
             con = duckdb.connect(str(root / CATALOG))
         except duckdb.IOException as e:
+            if catalog_damaged(e):
+                raise RuntimeError(damaged_message(root, e)) from None
             raise RuntimeError(f"cannot open the warehouse catalog {root / CATALOG} for writing: "
                                f"{str(e).splitlines()[0]}") from None
-        apply_migrations(con, migrate_upto)
+        except duckdb.Error as e:
+            raise RuntimeError(damaged_message(root, e)) from None
+        try:
+            apply_migrations(con, migrate_upto)
+        except duckdb.Error as e:
+            con.close()
+            if isinstance(e, duckdb.IOException) and not catalog_damaged(e):
+                raise
+            raise RuntimeError(damaged_message(root, e)) from None
         return cls(root, con)
 
     def close(self) -> None:

@@ -25,6 +25,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from warehouse.store import read_table, SeriesDamaged
+
 
 RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridelab demo --no-serve`)"
 
@@ -292,9 +294,17 @@ def sessions(con, participant_id: str | None = None, study: str | None = None) -
         ORDER BY s.start_ns, s.session_id""", [participant_id, participant_id, study, study])
 
 
+def _has_column(con, table: str, column: str) -> bool:
+    return bool(con.execute("SELECT count(*) FROM information_schema.columns WHERE table_schema = 'main' "
+                            "AND table_name = ? AND column_name = ?", [table, column]).fetchall()[0][0])
+
+
 def recordings(con, participant_id: str, study: str | None = None) -> pd.DataFrame:
-    return _df(con, """
-        SELECT r.session_id, r.trial, r.file_name, r.status, r.n_samples,
+    # crc: 'unverified' for a file written without CRCs (migration 013), '' otherwise (and before 013)
+    crc = ("CASE WHEN r.crc_verified = false THEN 'unverified' ELSE '' END"
+           if _has_column(con, "recordings", "crc_verified") else "''")
+    return _df(con, f"""
+        SELECT r.session_id, r.trial, r.file_name, r.status, {crc} AS crc, r.n_samples,
                (r.end_ns - r.start_ns) / 1e9 AS seconds,
                (SELECT string_agg(DISTINCT placement, ', ' ORDER BY placement) FROM sensors x
                  WHERE x.content_hash = r.content_hash AND x.kind = 'imu') AS imus,
@@ -407,7 +417,12 @@ def foot_trajectories(con, root: str | Path, participant_id: str, study: str | N
         if root not in path.parents or not path.is_file():
             continue
         # the series layout of the migration (foot_trajectories.series_path): t_ns, px, py, pz (m), ...
-        df = con.execute("SELECT px AS x, py AS y, pz AS z FROM read_parquet(?)", [str(path)]).df()
+        try:         # through pyarrow: every page's checksum verified, a damaged file never served
+            t = read_table(root, rel, columns=["px", "py", "pz"])
+        except SeriesDamaged:
+            continue
+        df = pd.DataFrame({"x": t.column("px").to_numpy(), "y": t.column("py").to_numpy(),
+                           "z": t.column("pz").to_numpy()})
         step = max(1, len(df) // max_points)
         df = df.iloc[::step].reset_index(drop=True)
         df["session_id"], df["placement"] = sid, placement
@@ -782,6 +797,17 @@ def stage_durations(con) -> pd.DataFrame:
                avg(duration_s) AS mean_s, quantile_cont(duration_s, 0.5) AS median_s, max(duration_s) AS max_s,
                sum(duration_s) AS total_s, avg(cpu_s) AS mean_cpu_s, sum(cpu_s) AS total_cpu_s
         FROM stage_runs GROUP BY stage ORDER BY stage""")
+
+
+def skipped_topics(con, limit: int = 500) -> pd.DataFrame:
+    """Topics of ingested or refused files that were not ingested, each with its reason (migration 013)."""
+    if not _has_column(con, "recordings", "skipped_topics"):
+        return pd.DataFrame(columns=["file_name", "status", "topic", "reason", "ingested_at"])
+    return _df(con, """
+        SELECT r.file_name, r.status, s.value ->> 'topic' AS topic, s.value ->> 'reason' AS reason, r.ingested_at
+        FROM recordings r, json_each(r.skipped_topics) s
+        WHERE r.skipped_topics IS NOT NULL
+        ORDER BY r.ingested_at DESC NULLS LAST, r.file_name, topic LIMIT ?""", [limit])
 
 
 # ---- registry of the queries (the dashboard's cached access: dashboard/snapshot.py) ---------

@@ -9,12 +9,11 @@ import numpy as np
 
 from warehouse.catalog import first, LATEST, SNAPSHOT_DIR
 from warehouse.direct_io import open_for_read
-from warehouse.store import UNCACHE_BYTES, read_table
+from warehouse.store import UNCACHE_BYTES, damage_check, open_series, read_table
 
 
-def latest_snapshot(root: str | Path) -> Path | None:
-    """Path of the newest published catalog snapshot, or None if the warehouse has none yet."""
-    root = Path(root)
+def _pointed(root: Path) -> Path | None:
+    """The snapshot the LATEST pointer names (or the newest file on disk when the pointer moved on)."""
     pointer = root / SNAPSHOT_DIR / LATEST
     try:
         name = pointer.read_text().strip()
@@ -26,6 +25,54 @@ def latest_snapshot(root: str | Path) -> Path | None:
     # the pointer moved on between our read and now: take the newest file on disk
     snaps = sorted((root / SNAPSHOT_DIR).glob("catalog-*.duckdb"))
     return snaps[-1] if snaps else None
+
+
+#: (path, size, mtime_ns) -> None when the snapshot opens and reads, else the problem (snapshots never change)
+_CHECKED: dict[tuple[str, int, int], str | None] = {}
+
+
+def snapshot_problem(path: Path) -> str | None:
+    """None when the snapshot file opens read-only and its catalog reads, else the problem in one line."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None                          # pruned meanwhile: not damage
+    key = (str(path), st.st_size, st.st_mtime_ns)
+    if key not in _CHECKED:
+        try:
+            with duckdb.connect(str(path), read_only=True) as c:
+                c.execute("SELECT count(*) FROM schema_migrations").fetchall()
+            _CHECKED[key] = None
+        except duckdb.Error as e:
+            if not path.exists():
+                return None
+            _CHECKED[key] = (str(e).splitlines()[0] if str(e) else type(e).__name__)[:200]
+    return _CHECKED[key]
+
+
+def snapshot_status(root: str | Path) -> tuple[Path | None, str | None]:
+    """(the newest snapshot that opens, a message when it is not the newest published one): a damaged newest
+    snapshot falls back to the previous one, and the message says so and what to do."""
+    root = Path(root)
+    newest = _pointed(root)
+    if newest is None:
+        return None, None
+    problem = snapshot_problem(newest)
+    if problem is None:
+        return newest, None
+    for older in sorted((root / SNAPSHOT_DIR).glob("catalog-*.duckdb"), reverse=True):
+        if older.name < newest.name and snapshot_problem(older) is None:
+            return older, (f"the newest snapshot {newest.name} is damaged ({problem}); showing the previous one, "
+                           f"{older.name}. The next `stridelab run` publishes a new one; `stridelab verify` "
+                           f"checks the warehouse (docs/integrity.md)")
+    return None, (f"every snapshot of {root} is damaged (newest: {newest.name}: {problem}); rebuild with "
+                  f"`stridelab repair-catalog` (docs/integrity.md)")
+
+
+def latest_snapshot(root: str | Path) -> Path | None:
+    """Path of the newest published catalog snapshot that opens (a damaged newest one falls back to the
+    previous one: :func:`snapshot_status` says so), or None if the warehouse has none yet."""
+    return snapshot_status(root)[0]
 
 
 def connect_snapshot(root: str | Path) -> duckdb.DuckDBPyConnection | None:
@@ -55,8 +102,12 @@ class ImuSeries:
 def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
     """Read named column groups of a series file into preallocated arrays, one row group at a time, so the
     peak memory is the arrays themselves plus one row group (not a whole Arrow table beside them)."""
-    import pyarrow.parquet as pq
-    f = pq.ParquetFile(Path(root) / relpath)
+    with damage_check(relpath):
+        return _read_columns_checked(root, relpath, groups)
+
+
+def _read_columns_checked(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dict[str, np.ndarray]:
+    f = open_series(root, relpath)
     n = f.metadata.num_rows
     out = {g: (np.empty(n, dtype=np.int64) if len(cols) == 1 else np.empty((n, len(cols))))
            for g, cols in groups.items()}
@@ -78,21 +129,21 @@ def _read_columns(root, relpath: str, groups: dict[str, tuple[str, ...]]) -> dic
 
 
 def series_rows(root, relpath: str) -> int:
-    import pyarrow.parquet as pq
-    return pq.ParquetFile(Path(root) / relpath).metadata.num_rows
+    return open_series(root, relpath).metadata.num_rows
 
 
 def read_column_range(root, relpath: str, columns: tuple[str, ...], start: int = 0, stop: int | None = None,
                       dtype=np.float64) -> np.ndarray:
     """Rows [start, stop) of ``columns`` of a series file as ``dtype`` ((n,) for one column, else (n, k)),
     reading only the row groups that overlap, so a slice of a week-long series costs the slice, not the week."""
-    import pyarrow.parquet as pq
-    src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
+    with damage_check(relpath):
+        src = open_for_read(Path(root) / relpath, UNCACHE_BYTES)
     try:
         # pre_buffer: a row group's column chunks in one coalesced read instead of one read each (the
         # accelerometer of a 24 h chest day from the disk: 0.20-0.23 s and 0.10-0.12 CPU-s instead of 0.26-0.43 s
         # and 0.13-0.28 CPU-s); still one row group at a time
-        return _read_column_range(pq.ParquetFile(src, pre_buffer=True), columns, start, stop, dtype)
+        with damage_check(relpath):
+            return _read_column_range(open_series(root, relpath, src, pre_buffer=True), columns, start, stop, dtype)
     finally:
         if not isinstance(src, Path):
             src.close()

@@ -11,6 +11,7 @@ import os
 import re
 import uuid
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 import pyarrow as pa
@@ -84,7 +85,10 @@ class SeriesWriter:
             self._out = pa.PythonFile(self._sink, mode="w")
             self._w = pq.ParquetWriter(self._out, schema, compression=comp, compression_level=1,
                                        use_dictionary=dict_cols or False, column_encoding=delta or None,
-                                       write_statistics=["t_ns"] if "t_ns" in schema.names else True)
+                                       write_statistics=["t_ns"] if "t_ns" in schema.names else True,
+                                       # a CRC-32 per page, verified by every read (:func:`open_series`): a flipped
+                                       # bit on the disk is reported, never served (docs/integrity.md)
+                                       write_page_checksum=True)
         except BaseException:
             self._sink.close()
             self.tmp.unlink(missing_ok=True)
@@ -230,6 +234,42 @@ def write_table(root: Path, relpath: str, table: pa.Table) -> str:
     return w.commit()
 
 
+class SeriesDamaged(RuntimeError):
+    """A stored series file fails its checks (a page checksum, the footer, missing): it is not served.
+    ``str(err)`` is one line naming the file and what to do."""
+
+    def __init__(self, relpath: str, detail: str):
+        self.relpath, self.detail = relpath, detail
+        super().__init__(f"series file {relpath} is damaged ({detail}): not served; "
+                         f"run `stridelab verify --repair` (docs/integrity.md)")
+
+
+@contextmanager
+def damage_check(relpath: str):
+    """Turn what a damaged or missing series file raises while it is read into :class:`SeriesDamaged`."""
+    try:
+        yield
+    except SeriesDamaged:
+        raise
+    except FileNotFoundError:
+        raise SeriesDamaged(relpath, "the file is missing") from None
+    except (OSError, pa.ArrowException, ValueError, UnicodeDecodeError, EOFError) as e:
+        detail = str(e).splitlines()[0][:160] if str(e) else type(e).__name__
+        if "CRC" in detail or "checksum" in detail:
+            detail = "a page checksum does not match"
+        raise SeriesDamaged(relpath, detail) from None
+
+
+def open_series(root: Path, relpath: str, source=None, **kw) -> pq.ParquetFile:
+    """A series file opened with page checksum verification (every page read is checked; files written before
+    the checksums have none to check). ``source``: an already opened file (direct reads)."""
+    with damage_check(relpath):
+        return pq.ParquetFile(Path(root) / relpath if source is None else source,
+                              page_checksum_verification=True, **kw)
+
+
 def read_table(root: Path, relpath: str, columns: list[str] | None = None) -> pa.Table:
-    """Read a series file (relative to the warehouse root)."""
-    return pq.read_table(Path(root) / relpath, columns=columns)
+    """Read a series file (relative to the warehouse root), every page's checksum verified; raises
+    :class:`SeriesDamaged` for a damaged or missing file."""
+    with damage_check(relpath):
+        return pq.read_table(Path(root) / relpath, columns=columns, page_checksum_verification=True)

@@ -37,4 +37,11 @@ if snap is not None:
                 st.subheader("Errors")
                 for _, r in failed.head(50).iterrows():
                     st.error(f"{r['stage']} · {r['session_id']} · run {r['run_id']}: {r['error']}", icon=":material/error:")
+    skipped = snap.q(Q.skipped_topics)
+    if not skipped.empty:
+        st.subheader("Skipped topics")
+        st.caption("Topics of a file that were not ingested, with the reason (`stridelab ingest --skip-topic`, a topic "
+                   "without a placement, a schema StrideLab does not read); a topic that looks like IMU data is never "
+                   "skipped without being asked to.")
+        st.dataframe(skipped, hide_index=True)
 footer(snap)

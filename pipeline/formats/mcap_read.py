@@ -133,6 +133,21 @@ class ReadResult:
     n_bytes: int = 0
     message_counts: dict[int, int] = field(default_factory=dict)
     statistics: Statistics | None = None
+    # CRC coverage (docs/integrity.md): chunks seen, of them with CRC 0 (the writer computed none), messages
+    # outside chunks, and whether the DataEnd record carries a data-section CRC
+    chunks: int = 0
+    chunks_without_crc: int = 0
+    unchunked_messages: bool = False
+    data_crc: bool = False
+
+    @property
+    def crc_verified(self) -> bool:
+        """Every message was covered by a CRC that was checked (its chunk's, or the data section's)."""
+        if self.chunks_without_crc:
+            return False
+        if self.unchunked_messages or not self.chunks:
+            return self.data_crc
+        return True
 
     def found_topics(self) -> list[str]:
         """``topic (schema)`` of every channel of the file, for messages that list what was found."""
@@ -252,6 +267,17 @@ def _normalise_schema(name: str) -> str:
     return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else name
 
 
+def encoding_fix(encoding: str) -> str:
+    """What to do about messages in an encoding StrideLab does not read (it reads ROS 2 CDR)."""
+    e = (encoding or "").lower()
+    if e in ("ros1", "ros1msg"):
+        return "ROS 1 messages: convert the bag to ROS 2 (`rosbags-convert --src BAG --dst FOLDER`) and ingest that"
+    if e in ("json", "protobuf", "flatbuffer", "cbor"):
+        return (f"{e} messages: StrideLab reads ROS 2 CDR; record with `ros2 bag record` (CDR by default) or write "
+                f"the file with the mcap_ros2 writer")
+    return f"'{e[:20]}' messages: StrideLab reads ROS 2 CDR; re-export with CDR encoding"
+
+
 def _topic_info(ch: Channel, sch: Schema | None) -> TopicInfo:
     name = _normalise_schema(sch.name) if sch else ""
     kind = SCHEMA_KINDS.get(name)
@@ -259,11 +285,12 @@ def _topic_info(ch: Channel, sch: Schema | None) -> TopicInfo:
         kind = "events"
     for prefix, expected in TOPIC_SCHEMAS.items():
         if ch.topic.startswith(prefix) and name != expected:
+            if ch.message_encoding != "cdr":
+                raise McapFormatError(f"topic {ch.topic} holds {encoding_fix(ch.message_encoding)}")
             raise McapFormatError(f"topic {ch.topic} has schema '{name or '(none)'}', expected {expected}; "
                                   f"fix the exporter or rename the topic")
     if kind is not None and kind != "events" and ch.message_encoding != "cdr":
-        raise McapFormatError(f"topic {ch.topic} ({name}) uses message encoding '{ch.message_encoding}', "
-                              f"expected cdr (ROS 2); convert it with a ROS 2 tool")
+        raise McapFormatError(f"topic {ch.topic} ({name}) holds {encoding_fix(ch.message_encoding)}")
     variance = bool(kind == "range" and sch is not None and b"float32 variance" in
                     bytes(sch.data).split(b"=" * 80)[0])
     return TopicInfo(ch.topic, name, ch.message_encoding, kind, variance)
@@ -825,6 +852,9 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                     raise McapFormatError(f"a chunk declares {usize} bytes uncompressed, above the "
                                           f"{MAX_CHUNK_BYTES >> 20} MiB limit; rewrite the file with smaller "
                                           f"chunks (`mcap compress`) if it is genuine")
+                result.chunks += 1
+                if not int.from_bytes(buf_bytes[s + 24:s + 28], "little"):
+                    result.chunks_without_crc += 1
                 yield "chunk", buf_bytes[s:s + n], usize
             elif op == OP_SCHEMA:
                 reg.add_schema(_parse(Schema, buf[s:s + n], "Schema"))
@@ -839,8 +869,10 @@ def _top_level(f, size: int, summ: _Summary, hasher: _Hasher, reg: _Registry, re
                 if n < 4:
                     raise McapFormatError(f"the DataEnd record is malformed; {_FIX}")
                 dataend_crc.append(int.from_bytes(buf_bytes[s:s + 4], "little"))
+                result.data_crc = bool(dataend_crc[-1])
                 crc_upto = offset + (s - 9 - p)
         if len(recs.m_ch):
+            result.unchunked_messages = True
             yield "messages", recs, int(recs.m_len.sum())
         hasher.feed(buf_bytes[p:consumed], crc_upto)
         offset += consumed - p

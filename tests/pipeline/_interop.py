@@ -61,7 +61,7 @@ def write_mcap_ros2(path: Path, rec, *, topics=None, compression="zstd", chunk_s
     return path
 
 
-def rosbags_write(bag: Path, rec, *, storage="mcap", custom_data=None, topics=None, parts=1):
+def rosbags_write(bag: Path, rec, *, storage="mcap", custom_data=None, topics=None, parts=1, compression=None):
     """A rosbag2 bag written with rosbags; ``parts`` > 1 splits it into that many storage files
     (one metadata.yaml listing them all, as ``ros2 bag record --max-bag-duration`` leaves it)."""
     import yaml
@@ -76,7 +76,11 @@ def rosbags_write(bag: Path, rec, *, storage="mcap", custom_data=None, topics=No
     dirs = []
     for k in range(parts):
         d = bag.with_name(f"{bag.name}.part{k}") if parts > 1 else bag
-        with Writer(d, version=9, storage_plugin=plugin) as w:
+        w = Writer(d, version=9, storage_plugin=plugin)
+        if compression:                                   # "message" or "file" (zstd), as rosbags writes them
+            from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+            w.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+        with w:
             for key, v in (custom_data or {}).items():
                 w.set_custom_data(key, v)
             for pl, x in rec.imu.items():

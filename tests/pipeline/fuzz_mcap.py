@@ -87,7 +87,33 @@ def originals(d: Path) -> list[Path]:
     rec = small_recording(seconds=2.0, seed=3, session="P004-lab-1", participant="P004", trial="walk-1",
                           placements=("pelvis", "thigh_left"))
     out.append(write_mcap_ros2(d / "orig3_mcap_ros2.mcap", rec, chunk_size=16 << 10))
+    # a file without CRCs (allowed by MCAP; mcap_ros2's writer with enable_crcs=False): its mutants are counted
+    # apart (kinds ending in _without_crc): a changed value there is undetectable, so it may be stored, but the
+    # recording must then be marked unverified (crc_verified False), never passed off as checked (issue #47)
+    out.append(_write_without_crcs(d / "orig4_without_crc.mcap"))
     return out
+
+
+NO_CRC = "orig4_without_crc.mcap"
+
+
+def _write_without_crcs(path: Path) -> Path:
+    from mcap_ros2.writer import Writer
+    from tests.corpus import small_recording
+    from tests.pipeline._interop import IMU_DEF, imu_dict
+    rec = small_recording(seconds=2.0, seed=4, session="P005-lab-1", participant="P005", trial="walk-1",
+                          placements=("pelvis", "shank_left"))
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=16 << 10, enable_crcs=False)
+        w.add_metadata("session", dict(rec.metadata))
+        s = w.register_msgdef("sensor_msgs/msg/Imu", IMU_DEF)
+        msgs = sorted((t, pl, i) for pl, x in rec.imu.items() for i, t in enumerate(x.t_ns.tolist()))
+        for k, (t, pl, i) in enumerate(msgs):
+            x = rec.imu[pl]
+            w.write_message(f"/imu/{pl}", s, imu_dict(t, x.acc[i], x.gyr[i], pl), log_time=t, publish_time=t,
+                            sequence=k)
+        w.finish()
+    return path
 
 
 def _data_crc(buf: bytes) -> int:
@@ -148,12 +174,13 @@ def mutants(d: Path, origs: list[Path], seed: int, per_file: dict[str, int]) -> 
     for k, f in enumerate(origs):
         buf = f.read_bytes()
         recs = _walk(buf)
+        suffix = "_without_crc" if f.name == NO_CRC else ""
         meta = [(p, ln) for p, op, ln in recs if op in (0x03, 0x04, 0x0C) and ln > 0]   # Schema, Channel, Metadata
         for _ in range(per_file["bit_flip"]):
             b = bytearray(buf)
             i = int(rng.integers(0, len(b)))
             b[i] ^= 1 << int(rng.integers(0, 8))
-            out.append(("bit_flip", k, bytes(b)))
+            out.append(("bit_flip" + suffix, k, bytes(b)))
         unprotected = _data_crc(buf) == 0
         for _ in range(per_file["bit_flip_in_schema_channel_metadata"]):
             p, ln = meta[int(rng.integers(0, len(meta)))]
@@ -162,17 +189,18 @@ def mutants(d: Path, origs: list[Path], seed: int, per_file: dict[str, int]) -> 
             b[i] ^= 1 << int(rng.integers(0, 8))
             # a top-level Metadata record of a file without a data-section CRC is covered by no checksum:
             # a flipped value cannot be detected by any reader (counted apart, see docs/operations.md)
-            kind = ("bit_flip_in_metadata_without_data_crc" if unprotected and buf[p] == 0x0C
+            kind = ("bit_flip_in_schema_channel_metadata" + suffix if suffix else
+                    "bit_flip_in_metadata_without_data_crc" if unprotected and buf[p] == 0x0C
                     else "bit_flip_in_schema_channel_metadata")
             out.append((kind, k, bytes(b)))
         for _ in range(per_file["truncation"]):
-            out.append(("truncation", k, buf[:int(rng.integers(0, len(buf)))]))
+            out.append(("truncation" + suffix, k, buf[:int(rng.integers(0, len(buf)))]))
         for _ in range(per_file["zeroed_range"]):
             b = bytearray(buf)
             i = int(rng.integers(0, len(b)))
             n = int(rng.integers(1, 4097))
             b[i:i + n] = bytes(len(b[i:i + n]))
-            out.append(("zeroed_range", k, bytes(b)))
+            out.append(("zeroed_range" + suffix, k, bytes(b)))
     for kind, data in _special_mutants(d, origs[0], rng):
         out.append((kind, 0 if kind == "oversized_chunk" else -1, data))
     for kind, data in _controls(d, origs[0]):
@@ -238,6 +266,8 @@ def campaign(out_dir: Path, seed: int, per_file: dict[str, int]) -> dict:
                            "low_level_reason" if LOW_LEVEL.search(p.reason) else "quarantined")
             else:
                 outcome = "same" if k >= 0 and same(got, refs[k]) else "different"
+                if outcome == "different" and kind.endswith("_without_crc") and p.crc_verified is False:
+                    outcome = "different_unverified"      # undetectable without CRCs; marked as such
         except _Hang:
             outcome = "hang"
         except Exception as e:  # noqa: BLE001 - prepare must never raise for a bad file
@@ -252,12 +282,15 @@ def campaign(out_dir: Path, seed: int, per_file: dict[str, int]) -> dict:
         counts[kind][outcome] += 1
         f.unlink()
         shutil.rmtree(root, ignore_errors=True)
-    totals = Counter()
+    totals, totals_no_crc = Counter(), Counter()
     for kind, c in counts.items():
-        if not kind.startswith("control_") and not kind.endswith("_without_data_crc"):
+        if kind.endswith("_without_crc"):
+            totals_no_crc.update(c)
+        elif not kind.startswith("control_") and not kind.endswith("_without_data_crc"):
             totals.update(c)
     return {"seed": seed, "mutants": len(muts), "counts": {k: dict(v) for k, v in sorted(counts.items())},
-            "totals": dict(totals), "problems": problems, "slowest_s": round(slowest, 2),
+            "totals": dict(totals), "totals_without_crc": dict(totals_no_crc), "problems": problems,
+            "slowest_s": round(slowest, 2),
             "peak_rss_mb": _peak_rss_mb()}
 
 

@@ -1,0 +1,50 @@
+"""Odd inbox entries and file names (issue #47): skipped entries listed with the reason, long names and names with
+newlines or terminal escape codes ingested without a traceback or a forged log line."""
+from __future__ import annotations
+
+import json
+import os
+
+from pipeline.formats.mcap_write import write_recording
+from tests.corpus import small_recording
+from tests.pipeline.test_runner import cli
+from warehouse.read import connect_snapshot
+
+FORGED = "evil\nrun 20990101T000000Z-abcdef: 99 ingested\x1b[2J"
+
+
+def test_odd_inbox_entries_are_listed_with_the_reason_and_odd_names_forge_nothing(tmp_path):
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    long_name = "L" * 249 + ".mcap"                  # 254 bytes: its sidecar name would pass 255
+    short = write_recording(small_recording(seconds=3.0, seed=1, session="S01", trial="t1"), inbox / "short.mcap")
+    short.rename(inbox / long_name)          # (our writer's temporary name would pass 255 bytes)
+    write_recording(small_recording(seconds=3.0, seed=2, session="S02", trial="t2"), inbox / f"{FORGED}.mcap")
+    os.symlink(tmp_path / "missing.mcap", inbox / "dangling.mcap")
+    os.symlink(inbox / "loop.mcap", inbox / "loop.mcap")
+    (tmp_path / "elsewhere").mkdir()
+    os.symlink(tmp_path / "elsewhere", inbox / "linked_dir")
+    os.mkfifo(inbox / "fifo.mcap")
+    os.symlink("/dev/null", inbox / "device.mcap")
+    (inbox / "folder.mcap").mkdir()
+    r = cli("ingest", inbox, "--warehouse", tmp_path / "wh", "--json")
+    assert "Traceback" not in r.stderr, r.stderr
+    out = json.loads(r.stdout)
+    assert out["ingested"] == 2, r.stderr
+    reasons = {os.path.basename(s.split(": ")[0]): s.split(": ", 1)[1] for s in out["skipped"]}
+    assert reasons == {
+        "dangling.mcap": "a dangling symbolic link (its target is missing)",
+        "loop.mcap": "a symbolic link loop",
+        "linked_dir": "a symbolic link to a directory: not followed (copy or move the folder into the inbox)",
+        "fifo.mcap": "a FIFO, not a regular file",
+        "device.mcap": "a device, not a regular file",
+        "folder.mcap": "a directory with a recording's name but no metadata.yaml: not a recording"}
+    r = cli("ingest", inbox, "--warehouse", tmp_path / "wh2")
+    assert r.returncode == 0, r.stderr
+    assert not any(line.startswith("run 20990101") for line in r.stderr.splitlines())    # no forged line
+    assert "\x1b" not in r.stderr and "evil\\nrun" in r.stderr.replace("\\\\", "\\")
+    assert "skipped:" in r.stderr and "fifo.mcap: a FIFO" in r.stderr
+    con = connect_snapshot(tmp_path / "wh2")
+    assert sorted(n for (n,) in con.execute("SELECT file_name FROM recordings").fetchall()) == \
+        sorted([long_name, f"{FORGED}.mcap"])
+    con.close()
