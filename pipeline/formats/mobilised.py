@@ -57,7 +57,7 @@ class MobilisedReference:
     Per bout (B,): ``start_s``, ``end_s`` (s from the trial start), ``n_strides``, ``cadence_spm`` (steps/min),
     ``stride_length_m`` (bout average), ``walking_speed_m_s``; NaN where the file has no value.
     Initial contacts (I,): ``ic_s`` (s from the trial start), ``ic_side`` ('left'/'right'/''), ``ic_bout`` (index
-    of the bout). Turns (T,): ``turn_start_s``, ``turn_end_s``, ``turn_angle_deg`` (signed, as stored)."""
+    of the bout; contacts stored as NaN are dropped). Turns (T,): ``turn_start_s``, ``turn_end_s``, ``turn_angle_deg`` (signed, as stored)."""
     system: str
     kind: str
     start_s: np.ndarray
@@ -209,9 +209,11 @@ def _reference(path: Path, where: str, system: str, kind: str, node, fs: float) 
         if sides and len(sides) != t.size:
             raise ValueError(f"{path}: {where}.{system}.{kind}({i + 1}) has {t.size} InitialContact_Event but "
                              f"{len(sides)} InitialContact_LeftRight; they must pair one to one")
-        ic.extend(t.tolist())
-        side.extend(sides or [""] * t.size)
-        ib.extend([i] * t.size)
+        sides = sides or [""] * t.size
+        keep = np.isfinite(t)                 # Stereophoto marks a contact it could not time with NaN: dropped
+        ic.extend(t[keep].tolist())
+        side.extend(x for x, k in zip(sides, keep) if k)
+        ib.extend([i] * int(keep.sum()))
         t0, t1, ang = _arr(b.get("Turn_Start")), _arr(b.get("Turn_End")), _arr(b.get("Turn_Angle"))
         if t0.size == t1.size:
             ts.extend(t0.tolist())
