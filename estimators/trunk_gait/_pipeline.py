@@ -92,7 +92,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
-        left = assign_sides(gb[:, 0], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
+        left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
         ic_all.append(t)

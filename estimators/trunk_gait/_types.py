@@ -38,14 +38,14 @@ class TrunkGaitParams:
       ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
         the gait sequence.
       ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
-    Side (McCamley et al. 2012, roll-rate variant, see docs):
-      side_lag_s: the roll rate is read this long after each initial contact, s.
-      side_lowpass_hz: low-pass cut-off of the roll rate, Hz.
+    Side (McCamley et al. 2012: sign of the yaw rate):
+      side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
+      side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
     Stride length (Zijlstra & Hof 2003 inverted pendulum):
       sl_correction: multiplicative correction factor K of the pendulum step length.
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
     Walking-bout assembly (Kluge et al. 2021 consensus):
-      wb_min_strides: minimum number of strides of a walking bout.
+      wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
       stride_min_s, stride_max_s: plausible stride duration, s.
       stride_min_length_m: strides shorter than this are not counted as walking, m.
@@ -65,11 +65,11 @@ class TrunkGaitParams:
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.3
     ic_offset_s: float = -0.06
-    side_lag_s: float = 0.1
+    side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.25
     sl_highpass_hz: float = 0.1
-    wb_min_strides: int = 2
+    wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
     stride_max_s: float = 3.0

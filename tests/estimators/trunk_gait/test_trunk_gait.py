@@ -82,12 +82,14 @@ def test_no_walking_gives_an_empty_typed_result():
 
 def test_side_assignment_corrects_isolated_wrong_votes():
     ic = np.arange(10) * 50 + 20                                   # samples
-    roll = np.zeros(600)
+    yaw = np.zeros(600)
     truth_left = np.arange(10) % 2 == 1                            # starts with right
-    for k, i in enumerate(ic):
-        roll[i:i + 30] = 0.5 if truth_left[k] else -0.5
-    roll[ic[4]:ic[4] + 30] *= -1                                   # one wrong vote
-    left = assign_sides(roll, FS, ic, np.zeros(10, np.int64), lag_s=0.1, lowpass_hz=20.0)
+    for k, i in enumerate(ic):                                     # yaw before contact: > 0 right, < 0 left
+        yaw[i - 20:i] = -0.5 if truth_left[k] else 0.5
+    left = assign_sides(yaw, FS, ic, np.zeros(10, np.int64), lag_s=-0.1, lowpass_hz=20.0)
+    np.testing.assert_array_equal(left, truth_left)
+    yaw[ic[4] - 20:ic[4]] *= -1                                    # one wrong vote
+    left = assign_sides(yaw, FS, ic, np.zeros(10, np.int64), lag_s=-0.1, lowpass_hz=20.0)
     np.testing.assert_array_equal(left, truth_left)
     # two runs (a pause) are labelled independently
     runs = regular_runs(np.r_[np.arange(5) * 0.5, 10 + np.arange(5) * 0.5], max_step_s=1.5)
