@@ -25,21 +25,34 @@ which corrects isolated wrong votes.
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-from scipy.signal import butter, find_peaks, sosfiltfilt
+from scipy.ndimage import gaussian_filter1d, uniform_filter1d
+from scipy.signal import find_peaks, sosfiltfilt
+
+from estimators.trunk_gait._filters import butter_sos
 
 
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,
-                            prominence: float) -> np.ndarray:
-    """Sample indices of initial-contact peaks of the upward acceleration ``v_up`` (N,) m/s² (gravity removed)."""
+                            prominence: float, local_window_s: float = 0.0) -> np.ndarray:
+    """Sample indices of initial-contact peaks of the upward acceleration ``v_up`` (N,) m/s² (gravity removed).
+
+    The prominence threshold is ``prominence`` × the standard deviation of the smoothed signal over the sequence,
+    or, with ``local_window_s`` > 0, over a centred window of that length (slow turning steps keep their peaks
+    between faster straight steps)."""
     if len(v_up) < 3:
         return np.empty(0, np.int64)
     vs = gaussian_filter1d(v_up, smooth_s * fs_hz, mode="nearest")
     sd = float(vs.std())
     if sd <= 0:
         return np.empty(0, np.int64)
-    peaks, _ = find_peaks(vs, distance=max(1, int(round(min_step_s * fs_hz))), prominence=prominence * sd)
-    return peaks.astype(np.int64)
+    peaks, props = find_peaks(vs, distance=max(1, int(round(min_step_s * fs_hz))), prominence=0.0)
+    if local_window_s > 0:
+        w = max(3, int(round(local_window_s * fs_hz)))
+        m1 = uniform_filter1d(vs, w, mode="nearest")
+        m2 = uniform_filter1d(vs * vs, w, mode="nearest")
+        ref = np.sqrt(np.maximum(m2 - m1 * m1, 0.0))[peaks]
+    else:
+        ref = sd
+    return peaks[props["prominences"] >= prominence * ref].astype(np.int64)
 
 
 def regular_runs(ic_s: np.ndarray, *, max_step_s: float) -> np.ndarray:
@@ -57,7 +70,7 @@ def assign_sides(yaw_rate: np.ndarray, fs_hz: float, ic_idx: np.ndarray, runs: n
     if k == 0:
         return np.zeros(0, bool)
     if len(yaw_rate) > 12:
-        sos = butter(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs=fs_hz, output="sos")
+        sos = butter_sos(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs_hz)
         r = sosfiltfilt(sos, yaw_rate, padlen=min(len(yaw_rate) - 1, 3 * 6))
     else:
         r = yaw_rate

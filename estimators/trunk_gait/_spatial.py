@@ -13,14 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import sosfiltfilt
+
+from estimators.trunk_gait._filters import butter_sos
 
 
 def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.ndarray:
     """(N,) vertical position, m, from the upward acceleration (m/s², gravity removed) of one gait sequence."""
     if len(v_up) < 16:
         return np.zeros(len(v_up))
-    sos = butter(4, highpass_hz, "highpass", fs=fs_hz, output="sos")
+    sos = butter_sos(4, highpass_hz, "highpass", fs_hz)
     pad = min(len(v_up) - 1, int(3 * fs_hz))
     dt = 1.0 / fs_hz
     a = sosfiltfilt(sos, v_up, padlen=pad)
