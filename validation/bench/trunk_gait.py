@@ -46,6 +46,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from estimators.trunk_gait._frame import check_units
 from pipeline.console import UserError, emit_json, err_console
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -97,7 +98,8 @@ def load_voisard(directory: Path, failed: list, limit: int | None) -> list[Rec]:
             t = load_voisard_trial(directory, n)
             if t.lower_back is None:
                 raise ValueError(f"{directory / (n + '_lb.txt')}: missing (no lower-back sensor)")
-        except ValueError as e:
+            check_units(t.lower_back.acc, t.lower_back.gyr, t.lower_back.sampling_rate_hz)
+        except (ValueError, OSError, KeyError, IndexError) as e:
             failed.append({"file": str(directory / f"{n}_lb.txt"), "reason": str(e)})
             _say(f"[yellow]skipped Voisard {n}: {e}[/]")
             continue
@@ -130,11 +132,16 @@ def load_mobilised(root: Path, failed: list) -> list[Rec]:
     for f in files:
         try:
             trials = read_mobilised(f)
-        except ValueError as e:
+        except (ValueError, OSError, KeyError, IndexError) as e:
             failed.append({"file": str(f), "reason": str(e)})
             _say(f"[yellow]skipped {f}: {e}[/]")
             continue
         for t in trials:
+            try:
+                check_units(t.acc, t.gyr, t.fs_hz)
+            except ValueError as e:
+                failed.append({"file": f"{f}:{t.name}", "reason": str(e)})
+                continue
             ref = t.reference("INDIP", "MicroWB")
             if ref is None:
                 failed.append({"file": f"{f}:{t.name}", "reason": "no INDIP MicroWB reference"})
@@ -251,7 +258,7 @@ def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
     ug = sorted(set(groups))
     held = {}
     for g in ug:
-        train = [x for x in ug if x != g]
+        train = [x for x in ug if x != g] or [g]      # a single group: nothing to hold out (in-sample)
         losses = [loss_fn(train, c) for c in range(n_cand)]
         held[g] = int(np.argmin(losses))
     ins = int(np.argmin([loss_fn(ug, c) for c in range(n_cand)]))
