@@ -69,7 +69,7 @@ class TrunkGaitParams:
     ic_offset_s: float = -0.06
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.13
+    sl_correction: float = 1.19
     sl_highpass_hz: float = 0.1
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
@@ -112,7 +112,8 @@ class Bouts:
 
     start_s, end_s: first and last initial contact of the bout, s from the first sample.
     n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
-    cadence_spm: steps per minute (60 / median step time); stride_length_m: mean stride length, m; walking_speed_m_s: mean speed, m/s.
+    cadence_spm: steps per minute (60 / median step time); stride_length_m: mean stride length, m;
+    walking_speed_m_s: mean stride speed, m/s.
     n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
     flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
     """

@@ -15,14 +15,14 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
-one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); the stride-length factor
-``sl_correction`` only has a reference in the Mobilise-D data: leave-one-trial-out over the trials of its single
-participant (said so in the output). ``in_sample``: the same grid chosen on everything scored (marked in-sample).
-``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by the same matcher, each
-as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the input frame (as worn,
-mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC offset chosen by the same
-leave-one-group-out. mobgap runs in its own interpreter (``make .venv-mobgap``); when it is absent the block is
-``null`` with the reason.
+one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); the
+stride-length factor ``sl_correction`` only has a reference in the Mobilise-D data: leave-one-trial-out over the
+trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
+(marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
+the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
+input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
+offset chosen by the same leave-one-group-out. mobgap runs in its own interpreter (``make .venv-mobgap``); when it
+is absent the block is ``null`` with the reason.
 
 Loss for the IC constants (per group, pooled over its recordings): timing MAE in ms + 100 × ((1 - sensitivity) +
 (1 - precision)), i.e. one missed or extra contact in 100 costs as much as 1 ms of timing error.
@@ -34,6 +34,7 @@ Progress on stderr, JSON (``--json``) on stdout.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import subprocess
@@ -326,7 +327,8 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                                                           "ic_local_window_s", "ic_offset_s",
                                                                           "sl_correction")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
-                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_offset_s): leave-one-group-out "
+                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_offset_s): "
+                                      "leave-one-group-out "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
                                       "participant (the only stride-length reference)",
@@ -365,21 +367,38 @@ def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, 
         arrays[f"aligned_{key}/gyr"] = np.rad2deg(r.gyr @ M.T)
         arrays[f"aligned_{key}/meta"] = meta
     all_names = [f"{v}_{k}" for v in variants for k in names]
-    with tempfile.TemporaryDirectory(prefix="stridelab-mobgap-") as td:
-        src, dst = Path(td) / "in.npz", Path(td) / "out.json"
-        np.savez(src, names=np.array(all_names), **arrays)
+    # mobgap's output depends only on its inputs and its environment: cached beside that environment, keyed by
+    # the hash of the inputs, the runner and the interpreter (a rerun of the bench then costs seconds, not minutes)
+    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + str(python.resolve()).encode())
+    for n in all_names:
+        for part in ("acc", "gyr", "meta"):
+            h.update(np.ascontiguousarray(arrays[f"{n}/{part}"]).tobytes())
+    cache = python.resolve().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+    if cache.is_file():
+        out = json.loads(cache.read_text())
         if show:
-            _say(f"running mobgap on {len(all_names)} inputs x 2 pipelines in {python} …")
-        env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+            _say(f"mobgap results from the cache {cache}")
+    else:
+        with tempfile.TemporaryDirectory(prefix="stridelab-mobgap-") as td:
+            src, dst = Path(td) / "in.npz", Path(td) / "out.json"
+            np.savez(src, names=np.array(all_names), **arrays)
+            if show:
+                _say(f"running mobgap on {len(all_names)} inputs x 2 pipelines in {python} …")
+            env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+            try:
+                proc = subprocess.run([str(python), str(MOBGAP_RUNNER), str(src), str(dst)], env=env,
+                                      stdout=subprocess.PIPE, stderr=None if show else subprocess.DEVNULL, text=True,
+                                      timeout=3600)
+            except (OSError, subprocess.TimeoutExpired) as e:
+                return None, f"mobgap runner failed to run: {e}"
+            if proc.returncode != 0 or not dst.is_file():
+                return None, f"mobgap runner exited with {proc.returncode}"
+            out = json.loads(dst.read_text())
         try:
-            proc = subprocess.run([str(python), str(MOBGAP_RUNNER), str(src), str(dst)], env=env,
-                                  stdout=subprocess.PIPE, stderr=None if show else subprocess.DEVNULL, text=True,
-                                  timeout=3600)
-        except (OSError, subprocess.TimeoutExpired) as e:
-            return None, f"mobgap runner failed to run: {e}"
-        if proc.returncode != 0 or not dst.is_file():
-            return None, f"mobgap runner exited with {proc.returncode}"
-        out = json.loads(dst.read_text())
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            cache.write_text(json.dumps(out))
+        except OSError:
+            pass
     res: dict = {"_version": out.get("_mobgap_version")}
     for v in variants:
         res[v] = {}
@@ -433,6 +452,25 @@ def anchor_block(recs: list[Rec], mg: dict) -> dict:
     v, p, o = cands[logo["in_sample_choice"]]
     out["in_sample"] = {**blocks(recs, mg[v][p], offsets=[o] * len(recs)),
                         "marked": "in-sample", "choice": {"frame": v, "pipeline": p, "ic_offset_s": o}}
+    out["shipped_defaults"] = {**out["healthy_as_worn"],
+                               "note": "MobilisedPipelineHealthy as shipped (the pipeline mobgap recommends for "
+                                       "healthy adults, as both data sets are), input as worn"}
+    return out
+
+
+def gaps(res: dict) -> dict:
+    """StrideLab minus mobgap per key, data set and block (shipped vs shipped, cross-validated vs cross-validated);
+    positive is better for StrideLab on sensitivity and precision, negative is better on the error keys."""
+    a = res.get("anchor")
+    if not a:
+        return {}
+    out = {}
+    for blk in ("shipped_defaults", "cross_validated"):
+        out[blk] = {}
+        for ds in ("voisard", "mobilised", "overall"):
+            if ds in res[blk] and ds in a[blk]:
+                out[blk][ds] = {k: (None if res[blk][ds][k] is None or a[blk][ds][k] is None
+                                    else round(res[blk][ds][k] - a[blk][ds][k], 4)) for k in KEYS}
     return out
 
 
@@ -476,7 +514,8 @@ def day_speed(recs: list[Rec]) -> dict:
                    res.strides.speed_m_s, stride_bout=res.strides.bout)
     cpu = time.process_time() - t0
     return {"cpu_s": round(cpu, 3), "wall_s": round(time.perf_counter() - w0, 3), "target_cpu_s": 2.0,
-            "samples": n, "fs_hz": fs, "recordings_inserted": inserted, "recording_time_inserted_s": round(walking_src_s),
+            "samples": n, "fs_hz": fs, "recordings_inserted": inserted,
+            "recording_time_inserted_s": round(walking_src_s),
             "bouts_found": len(b), "walking_time_s": round(float(b.duration_s.sum()), 1),
             "composition": "24 h at 100 Hz: still periods (posture tilt, noise) with one real lower-back recording "
                            f"({', '.join(sorted({r.name for r in src}))}) inserted every 15 min"}
@@ -505,6 +544,8 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
         res["anchor"] = anchor_block(recs, mg) if mg is not None else None
         if mg is None:
             res["anchor_reason"] = reason
+        else:
+            res["gap_vs_anchor"] = gaps(res)
     else:
         res["anchor"] = None
         res["anchor_reason"] = "--no-anchor given"
