@@ -355,9 +355,9 @@ def summary_table(d) -> tuple[pd.DataFrame, list[str]]:
             has_prev = r["visits"] > 1
             rows.append([label, _num(r["latest"] if has_prev else r["baseline"]), _num(r["baseline"]) if has_prev
                          else "—", f"{r['change']:+.2f}" if has_prev and np.isfinite(r["change"]) else "—",
-                         _num(r["mdc95"]) if has_prev else "—",
+                         _num(r["mdc95"]) if has_prev and r["mdc_known"] else "—",
                          ("see *" if m == "step_length_m" else "yes" if r["beyond_mdc"] else "no")
-                         if has_prev and np.isfinite(r["change"]) else "—",
+                         if has_prev and np.isfinite(r["change"]) and r["mdc_known"] else "—",
                          _band_text(band, r["latest"] if has_prev else r["baseline"])])
         fl = sorted({f for f in latest["flag"].fillna("") if f})
         if "few_strides" in fl:
@@ -476,10 +476,11 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
                                  + Q.RUN_HINT + "."))
     else:
         pages[1].append(("table", "At the latest visit, and the change since the previous visit", summ))
-        pages[1].append(("note", "Change beyond noise = larger than the MDC95 of the change, 1.96·√(SEM₁² + SEM₂²) "
-                                 "from each session's stride-to-stride variation; day-to-day variation is not in it "
-                                 "(published test-retest MDC for gait speed after stroke: 0.18 m/s, Fulk & "
-                                 "Echternach 2008). Symmetry ratio = larger / smaller side (1 = symmetric, Patterson "
+        pages[1].append(("note", "Change beyond noise = larger than the MDC95 of the change from between-session "
+                                 "error: the study's repeated baseline sessions when it has them, else published "
+                                 "test-retest values (gait speed after stroke, chronic: 0.10 / 0.15 / 0.18 m/s for a "
+                                 "baseline < 0.4 / 0.4-0.8 / > 0.8 m/s, Lewek & Sykes 2019, J Neurol Phys Ther "
+                                 "43:122); '—' where no between-session error is known. Symmetry ratio = larger / smaller side (1 = symmetric, Patterson "
                                  "et al. 2010). Bands are orientation values, not cut-offs for this device."))
     if flags:
         pages[1].append(("heading", "Where data quality limits a number"))

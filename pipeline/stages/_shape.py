@@ -1,0 +1,184 @@
+"""One shape for a stage (issue #45): typed frozen parameters, a context that hands the stage the inputs it
+declares and takes the outputs it declares, the reference scoring as a separate step.
+
+A stage in this shape is one small module::
+
+    @dataclass(frozen=True)
+    class MyParams:                       # units in the field names or the docstring
+        min_bout_s: float = 10.0
+
+    def compute(ctx: StageContext, p: MyParams) -> None:      # calls estimators, shapes table rows
+        for rec, imu in ctx.imus():
+            ...
+            ctx.emit("my_table", rows)
+
+    def score(ctx: StageContext, p: MyParams) -> None:        # optional: against the session's references,
+        ...                                                   # with the one scorer of the quantity
+
+    STAGE = shaped_stage("my_stage", "1", MyParams, compute, score=score, placements=("lower_back",),
+                         tables=("my_table", "accuracy_metrics"), session_kinds=("lab",))
+
+:func:`shaped_stage` adapts it onto the runner's :class:`pipeline.stages.Stage` (``compute(SessionInput, dict)
+-> StageOutput``; parameters as a JSON dict so the stamp and the ledger are unchanged): the dict is turned into
+the frozen parameter class (nested dataclasses included), a session without the declared placements is
+``skipped`` with a note naming what it has, and a row for a table the stage did not declare is refused.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import typing
+from dataclasses import dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+
+from pipeline.stages import SessionInput, Stage, StageOutput
+
+__all__ = ["ImuInput", "StageContext", "params_from_dict", "params_to_dict", "shaped_stage"]
+
+
+def params_to_dict(p) -> dict:
+    """Frozen parameter dataclass → JSON-able dict (tuples become lists; the runner hashes it)."""
+    return json.loads(json.dumps(dataclasses.asdict(p), default=list))
+
+
+def params_from_dict(cls, d: dict | None):
+    """dict (as stored in the ledger / the study manifest) → ``cls``; nested dataclass fields rebuilt, lists to
+    tuples, unknown keys refused with the field names the class has."""
+    d = dict(d or {})
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(d) - names)
+    if unknown:
+        raise ValueError(f"{cls.__name__}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+    out = {}
+    for k, v in d.items():
+        t = hints.get(k)
+        if dataclasses.is_dataclass(t) and isinstance(v, dict):
+            v = params_from_dict(t, v)
+        elif isinstance(v, list):
+            v = tuple(v)
+        out[k] = v
+    return cls(**out)
+
+
+@dataclass(frozen=True)
+class ImuInput:
+    """One IMU of one recording as the context hands it out: ``t_ns`` (N,) int64, ``acc`` (N, 3) m/s², ``gyr``
+    (N, 3) rad/s or None, ``fs_hz``; ``placement``; ``recording`` the runner's recording dict (content_hash, trial,
+    start_ns, end_ns, metadata)."""
+    placement: str
+    recording: dict
+    t_ns: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray | None
+    fs_hz: float
+
+
+@dataclass
+class StageContext:
+    """What one run of a shaped stage on one session sees and produces.
+
+    Inputs: ``session`` (the catalog row), ``recordings`` (the runner's dicts), :meth:`imus` (the declared
+    placements' samples), :meth:`events` (reference annotations with their payload fields), ``upstream`` (rows of the
+    stages it needs). Outputs: :meth:`emit` (rows of a declared table), :meth:`note`, :attr:`outputs`."""
+    inp: SessionInput
+    tables: tuple[str, ...]
+    placements: tuple[str, ...]
+    rows: dict[str, list[dict]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    #: what ``compute`` found, handed to the ``score`` step (estimator results, never table rows)
+    found: list = field(default_factory=list)
+
+    @property
+    def session(self) -> dict:
+        return self.inp.session
+
+    @property
+    def session_id(self) -> str:
+        return self.inp.session["session_id"]
+
+    @property
+    def recordings(self) -> list[dict]:
+        return self.inp.recordings
+
+    @property
+    def upstream(self) -> dict[str, list[dict]]:
+        return self.inp.upstream
+
+    def has_input(self) -> bool:
+        return any(pl in r["sensors"] and "imu" in r["sensors"][pl] for r in self.recordings for pl in self.placements)
+
+    def imus(self, read: bool = True) -> Iterator[ImuInput]:
+        """Per recording the first declared placement it carries (in declaration order), samples read whole."""
+        from warehouse.read import read_imu_files
+        for rec in self.recordings:
+            for pl in self.placements:
+                imu = rec["sensors"].get(pl, {}).get("imu")
+                if imu is None:
+                    continue
+                fs = float(imu["sampling_rate_hz"])
+                if not read:
+                    yield ImuInput(pl, rec, np.zeros(0, np.int64), np.zeros((0, 3)), None, fs)
+                    break
+                s = read_imu_files(self.inp.root, imu["series_path"], None, fs)
+                gyr = s.gyr if s.gyr is not None and np.isfinite(s.gyr).any() else None
+                yield ImuInput(pl, rec, s.t_ns, s.acc, gyr, fs)
+                break
+
+    def events(self, type: str | None = None, label: str | None = None, rec: dict | None = None) -> list[dict]:
+        """Reference annotations (payload fields merged in), filtered by type, label (e.g. the reference system)
+        and the recording's time span."""
+        out = []
+        for e in self.inp.events:
+            if type is not None and e.get("type") != type:
+                continue
+            if label is not None and e.get("label") != label:
+                continue
+            if rec is not None and not (rec["start_ns"] <= e["t_ns"] <= rec["end_ns"]):
+                continue
+            full = dict(e)
+            if e.get("payload"):
+                try:
+                    full = {**json.loads(e["payload"]), **{k: v for k, v in e.items() if v is not None}}
+                except ValueError:
+                    pass
+            full.pop("payload", None)
+            out.append(full)
+        return out
+
+    def emit(self, table: str, rows: list[dict]) -> None:
+        if table not in self.tables:
+            raise RuntimeError(f"stage wrote table '{table}' it does not declare (declared: {', '.join(self.tables)})")
+        self.rows.setdefault(table, []).extend(rows)
+
+    def note(self, text: str) -> None:
+        if text and text not in self.notes:
+            self.notes.append(text)
+
+    def output(self) -> StageOutput:
+        return StageOutput(rows={t: self.rows.get(t, []) for t in self.tables}, note="; ".join(self.notes)[:500])
+
+
+def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageContext, object], None], *,
+                 placements: tuple[str, ...], tables: tuple[str, ...], session_kinds: tuple[str, ...],
+                 score: Callable[[StageContext, object], None] | None = None, needs: tuple[str, ...] = (),
+                 opt_in_kinds: tuple[str, ...] = ()) -> Stage:
+    """The runner's :class:`Stage` for a stage written in this shape (see the module docstring)."""
+
+    def run(inp: SessionInput, params: dict) -> StageOutput:
+        p = params_from_dict(params_cls, params)
+        ctx = StageContext(inp, tuple(tables), tuple(placements))
+        if not ctx.has_input():
+            have = sorted({pl for r in inp.recordings for pl in r["sensors"]})
+            return StageOutput.skipped(f"{name} skipped: no {'/'.join(placements)} IMU (session has "
+                                       f"{', '.join(have) or 'no IMU'})")
+        compute(ctx, p)
+        if score is not None:
+            score(ctx, p)
+        return ctx.output()
+
+    return Stage(name=name, version=version, needs=tuple(needs), tables=tuple(tables),
+                 session_kinds=tuple(session_kinds), compute=run,
+                 default_params=lambda: params_to_dict(params_cls()), opt_in_kinds=tuple(opt_in_kinds))
