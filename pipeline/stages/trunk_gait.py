@@ -4,10 +4,10 @@ estimators.trunk_gait -> warehouse, the first stage in the shape of :mod:`pipeli
 ``compute``: per recording the first trunk placement it carries (lower_back before chest) is read, cut into local
 calendar days when longer than ``day_pieces_above_s``, and handed to
 :func:`estimators.trunk_gait.analyse_trunk_gait` with the session's ``height_m`` / ``leg_length_m`` (documented
-defaults when unknown: the bouts say so in ``height_source`` and the ``default_height`` flag). A sensor frame the
-estimators find doubtful (:func:`estimators.trunk_gait.detect_trunk_frame` confidence below
-``min_frame_confidence``, or its warnings: upside down, not a trunk signal) flags every bout ``wrong_placement``
-and puts the warning in the run's note. On free-living sessions the bouts of each local day give one
+defaults when unknown: the bouts say so in ``height_source`` and the ``default_height`` flag). The warnings of the
+sensor frame the estimators detect from the data (:func:`estimators.trunk_gait.detect_trunk_frame`) become flags on
+every bout of that piece (:data:`FRAME_FLAGS`: ``wrong_placement`` when no stable vertical axis is found,
+``upside_down`` (corrected), ``anterior_uncertain``) and go into the run's note. On free-living sessions the bouts of each local day give one
 ``daily_gait_outcomes`` row (:func:`estimators.trunk_gait.daily_outcomes`).
 
 ``score`` (separate step): where the session holds reference walking bouts and initial contacts (Mobilise-D INDIP
@@ -27,6 +27,9 @@ from pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("walking_bouts", "daily_gait_outcomes", "accuracy_metrics", "accuracy_pairs")
 ESTIMATOR = "trunk_gait"
+#: detected-frame warning (its opening words) -> bout quality flag
+FRAME_FLAGS = {"vertical axis not found": "wrong_placement", "sensor looks upside down": "upside_down",
+               "anterior axis uncertain": "anterior_uncertain"}
 
 
 @dataclass(frozen=True)
@@ -34,14 +37,12 @@ class TrunkGaitStageParams:
     """placements: trunk placements read, in order of preference (first one a recording carries).
     day_pieces_above_s: recordings longer than this (s) are analysed one local calendar day at a time (a bout
       crossing midnight is then cut in two).
-    min_frame_confidence: below this detected-frame confidence (0..1) every bout is flagged ``wrong_placement``.
     reference_system: the reference the score step reads (annotation label, e.g. INDIP).
     ic_tolerance_s: initial contacts further apart than this (s) do not match (the scorer's default).
     bout_min_iou: walking bouts match when their intersection over union reaches this.
     estimator: the trunk-gait estimator parameters (shipped defaults)."""
     placements: tuple[str, ...] = TRUNK_PLACEMENTS
     day_pieces_above_s: float = 26 * 3600.0
-    min_frame_confidence: float = 0.5
     reference_system: str = "INDIP"
     ic_tolerance_s: float = 0.25
     bout_min_iou: float = 0.5
@@ -85,16 +86,13 @@ def compute(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                                      height_m=_body(rec, "height_m"), leg_length_m=_body(rec, "leg_length_m"),
                                      params=p.estimator)
             ctx.found.append((rec, imu.placement, t, res))     # for the score step
-            wrong = res.frame.confidence < p.min_frame_confidence or bool(res.frame.warnings)
-            for w in res.warnings:
-                ctx.note(f"{rec.get('trial')}: {w}")
-            if wrong:
-                ctx.note(f"{rec.get('trial')}: {imu.placement} sensor frame doubtful (confidence "
-                         f"{res.frame.confidence:.2f}): check the placement and mounting")
+            frame_flags = sorted({f for w in res.frame.warnings for k, f in FRAME_FLAGS.items() if w.startswith(k)})
+            for w in dict.fromkeys(res.warnings + res.frame.warnings):
+                ctx.note(f"{rec.get('trial')}: {imu.placement}: {w}")
             t0 = int(t[0])
             rows = []
             for bt in res.bouts.records():
-                flags = list(bt["flags"]) + (["wrong_placement"] if wrong else [])
+                flags = list(bt["flags"]) + frame_flags
                 rows.append({"session_id": ctx.session_id, "content_hash": rec["content_hash"],
                              "placement": imu.placement, "start_ns": t0 + int(round(bt["start_s"] * 1e9)),
                              "end_ns": t0 + int(round(bt["end_s"] * 1e9)), "duration_s": bt["duration_s"],
