@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import typing
 from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
@@ -44,19 +43,21 @@ def params_to_dict(p) -> dict:
 
 
 def params_from_dict(cls, d: dict | None):
-    """dict (as stored in the ledger / the study manifest) → ``cls``; nested dataclass fields rebuilt, lists to
-    tuples, unknown keys refused with the field names the class has."""
+    """dict (as stored in the ledger / the study manifest) → ``cls``; nested dataclass fields rebuilt (their class
+    is the class of the field's default, so a stage module need not import an estimator package to declare its
+    parameters), lists to tuples, unknown keys refused with the field names the class has."""
     d = dict(d or {})
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(d) - names)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(d) - set(fields))
     if unknown:
-        raise ValueError(f"{cls.__name__}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+        raise ValueError(f"{cls.__name__}: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(fields))}")
     out = {}
     for k, v in d.items():
-        t = hints.get(k)
-        if dataclasses.is_dataclass(t) and isinstance(v, dict):
-            v = params_from_dict(t, v)
+        f = fields[k]
+        proto = f.default if f.default is not dataclasses.MISSING else (
+            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        if dataclasses.is_dataclass(proto) and isinstance(v, dict):
+            v = params_from_dict(type(proto), v)
         elif isinstance(v, list):
             v = tuple(v)
         out[k] = v

@@ -18,12 +18,22 @@ speed are scored by the one scorer :mod:`estimators.trunk_gait.evaluation` into 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from estimators.recording import TRUNK_PLACEMENTS
-from estimators.trunk_gait import TrunkGaitParams
 from pipeline.stages._shape import StageContext, shaped_stage
+
+if TYPE_CHECKING:
+    from estimators.trunk_gait import TrunkGaitParams
+
+
+def _estimator_defaults() -> "TrunkGaitParams":
+    # imported when the parameters are made, not with the registry: estimators.trunk_gait brings SciPy's signal
+    # package, which the coordinator and every worker would otherwise import for every stage
+    from estimators.trunk_gait import TrunkGaitParams
+    return TrunkGaitParams()
 
 TABLES = ("walking_bouts", "daily_gait_outcomes", "accuracy_metrics", "accuracy_pairs")
 ESTIMATOR = "trunk_gait"
@@ -46,7 +56,7 @@ class TrunkGaitStageParams:
     reference_system: str = "INDIP"
     ic_tolerance_s: float = 0.25
     bout_min_iou: float = 0.5
-    estimator: TrunkGaitParams = field(default_factory=TrunkGaitParams)
+    estimator: "TrunkGaitParams" = field(default_factory=_estimator_defaults)
 
 
 def _num(x) -> float | None:
