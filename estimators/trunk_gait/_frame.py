@@ -14,8 +14,9 @@ lab trials (McRoberts: anterior = sensor +z).
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import sosfiltfilt
 
+from estimators.trunk_gait._filters import butter_sos
 from estimators.trunk_gait._types import TrunkFrame
 
 G = 9.80665
@@ -43,7 +44,7 @@ def check_units(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float) -> None:
 
 def _bandpass(x: np.ndarray, fs_hz: float) -> np.ndarray:
     hi = min(_BAND_HZ[1], 0.45 * fs_hz)
-    sos = butter(2, [_BAND_HZ[0], hi], "bandpass", fs=fs_hz, output="sos")
+    sos = butter_sos(2, (_BAND_HZ[0], hi), "bandpass", fs_hz)
     return sosfiltfilt(sos, x, axis=0)
 
 

@@ -33,9 +33,17 @@ def detect_gait_sequences(acc: np.ndarray, fs_hz: float, *, window_s: float, hop
     hop = max(1, int(round(hop_s * fs_d)))
     if len(x) < w or w < 8:
         return np.empty((0, 2), np.int64)
-    win = sliding_window_view(x, w)[::hop]
+    # window standard deviation from running sums (O(N)); the autocorrelation only where it can be walking
+    starts_all = np.arange(0, len(x) - w + 1, hop)
+    c1 = np.r_[0.0, np.cumsum(x - x.mean())]
+    c2 = np.r_[0.0, np.cumsum((x - x.mean()) ** 2)]
+    m1 = (c1[starts_all + w] - c1[starts_all]) / w
+    sd = np.sqrt(np.maximum((c2[starts_all + w] - c2[starts_all]) / w - m1 * m1, 0.0))
+    cand = np.flatnonzero(sd >= min_std_m_s2)
+    if len(cand) == 0:
+        return np.empty((0, 2), np.int64)
+    win = sliding_window_view(x, w)[starts_all[cand]]
     win = win - win.mean(axis=1, keepdims=True)
-    sd = win.std(axis=1)
     nfft = 1 << int(np.ceil(np.log2(2 * w)))
     spec = np.fft.rfft(win, n=nfft, axis=1)
     ac = np.fft.irfft(spec * np.conj(spec), n=nfft, axis=1)[:, :w]
@@ -43,10 +51,10 @@ def detect_gait_sequences(acc: np.ndarray, fs_hz: float, *, window_s: float, hop
     lag_hi = min(w - 2, int(round(STEP_LAG_S[1] * fs_d)))
     unbiased = ac[:, lag_lo:lag_hi + 1] / (w - np.arange(lag_lo, lag_hi + 1))       # Moe-Nilssen 2004 Eq. 1
     r = unbiased.max(axis=1) / np.maximum(ac[:, 0] / w, 1e-12)
-    walking = (sd >= min_std_m_s2) & (r >= min_autocorr)
+    walking = r >= min_autocorr
     if not walking.any():
         return np.empty((0, 2), np.int64)
-    starts = np.flatnonzero(walking) * hop
+    starts = starts_all[cand[walking]]
     # union of [start, start + w) intervals, merging gaps shorter than merge_gap_s
     gap = int(round(merge_gap_s * fs_d))
     ends = starts + w

@@ -88,11 +88,11 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         gb = gyr[s:e] @ R.T
         v = ab[:, 1] - ab[:, 1].mean()
         peaks = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
-                                        prominence=p.ic_prominence)
+                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s)
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
-        left = assign_sides(gb[:, 0], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
+        left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
         ic_all.append(t)
@@ -125,7 +125,15 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         ic_bout[(ic >= b_start[b] - 1e-9) & (ic <= b_end[b] + 1e-9)] = b
     n_ic = np.bincount(ic_bout[ic_bout >= 0], minlength=n_b)
     n_steps = np.maximum(n_ic - 1, 0)
-    cadence = np.where(b_end > b_start, 60.0 * n_steps / np.maximum(b_end - b_start, 1e-9), np.nan)
+    # cadence from the median step time of the bout's consecutive contacts (robust to a missed or extra contact
+    # at the edges and to pauses inside the bout, which a count over the duration is not)
+    cadence = np.full(n_b, np.nan)
+    for b in range(n_b):
+        tb = ic[ic_bout == b]
+        st_b = np.diff(tb)
+        st_b = st_b[st_b <= p.stride_max_s / 2.0]
+        if len(st_b):
+            cadence[b] = 60.0 / float(np.median(st_b))
     n_str = np.bincount(strides.bout, minlength=n_b)
     sl_b = np.bincount(strides.bout, weights=strides.length_m, minlength=n_b) / np.maximum(n_str, 1)
     sp_b = np.bincount(strides.bout, weights=strides.speed_m_s, minlength=n_b) / np.maximum(n_str, 1)

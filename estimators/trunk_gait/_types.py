@@ -37,15 +37,16 @@ class TrunkGaitParams:
       ic_min_step_s: minimum time between two initial contacts, s.
       ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
         the gait sequence.
+      ic_local_window_s: window of that standard deviation, s (0 = the whole sequence).
       ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
-    Side (McCamley et al. 2012, roll-rate variant, see docs):
-      side_lag_s: the roll rate is read this long after each initial contact, s.
-      side_lowpass_hz: low-pass cut-off of the roll rate, Hz.
+    Side (McCamley et al. 2012: sign of the yaw rate):
+      side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
+      side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
     Stride length (Zijlstra & Hof 2003 inverted pendulum):
       sl_correction: multiplicative correction factor K of the pendulum step length.
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
     Walking-bout assembly (Kluge et al. 2021 consensus):
-      wb_min_strides: minimum number of strides of a walking bout.
+      wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
       stride_min_s, stride_max_s: plausible stride duration, s.
       stride_min_length_m: strides shorter than this are not counted as walking, m.
@@ -61,15 +62,16 @@ class TrunkGaitParams:
     gsd_min_std_m_s2: float = 0.25
     gsd_min_autocorr: float = 0.3
     gsd_merge_gap_s: float = 1.0
-    ic_smooth_s: float = 0.08
+    ic_smooth_s: float = 0.11
     ic_min_step_s: float = 0.25
-    ic_prominence: float = 0.3
+    ic_prominence: float = 0.7
+    ic_local_window_s: float = 0.0
     ic_offset_s: float = -0.06
-    side_lag_s: float = 0.1
+    side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.25
+    sl_correction: float = 1.19
     sl_highpass_hz: float = 0.1
-    wb_min_strides: int = 2
+    wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
     stride_max_s: float = 3.0
@@ -110,7 +112,8 @@ class Bouts:
 
     start_s, end_s: first and last initial contact of the bout, s from the first sample.
     n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
-    cadence_spm: steps per minute; stride_length_m: mean stride length, m; walking_speed_m_s: mean speed, m/s.
+    cadence_spm: steps per minute (60 / median step time); stride_length_m: mean stride length, m;
+    walking_speed_m_s: mean stride speed, m/s.
     n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
     flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
     """

@@ -82,12 +82,14 @@ def test_no_walking_gives_an_empty_typed_result():
 
 def test_side_assignment_corrects_isolated_wrong_votes():
     ic = np.arange(10) * 50 + 20                                   # samples
-    roll = np.zeros(600)
+    yaw = np.zeros(600)
     truth_left = np.arange(10) % 2 == 1                            # starts with right
-    for k, i in enumerate(ic):
-        roll[i:i + 30] = 0.5 if truth_left[k] else -0.5
-    roll[ic[4]:ic[4] + 30] *= -1                                   # one wrong vote
-    left = assign_sides(roll, FS, ic, np.zeros(10, np.int64), lag_s=0.1, lowpass_hz=20.0)
+    for k, i in enumerate(ic):                                     # yaw before contact: > 0 right, < 0 left
+        yaw[i - 20:i] = -0.5 if truth_left[k] else 0.5
+    left = assign_sides(yaw, FS, ic, np.zeros(10, np.int64), lag_s=-0.1, lowpass_hz=20.0)
+    np.testing.assert_array_equal(left, truth_left)
+    yaw[ic[4] - 20:ic[4]] *= -1                                    # one wrong vote
+    left = assign_sides(yaw, FS, ic, np.zeros(10, np.int64), lag_s=-0.1, lowpass_hz=20.0)
     np.testing.assert_array_equal(left, truth_left)
     # two runs (a pause) are labelled independently
     runs = regular_runs(np.r_[np.arange(5) * 0.5, 10 + np.arange(5) * 0.5], max_step_s=1.5)
@@ -175,3 +177,33 @@ def test_params_documented_and_json_round_trip():
     assert all(f.name in doc for f in dataclasses.fields(p))
     assert TrunkGaitParams(**json.loads(json.dumps(dataclasses.asdict(p)))) == p
     assert hash(p) == hash(TrunkGaitParams())
+
+
+def test_turns_found_with_angle_and_direction():
+    from estimators.trunk_gait._turns import detect_turns
+    t = np.arange(int(20 * FS)) / FS
+    yaw = np.zeros_like(t)
+    m1 = (t >= 5) & (t < 7)                                        # 90 deg to the left in 2 s (half-sine rate)
+    yaw[m1] = np.deg2rad(90.0) * np.pi / 4 * np.sin(np.pi * (t[m1] - 5) / 2)
+    m2 = (t >= 12) & (t < 13)                                      # 180 deg to the right in 1 s
+    yaw[m2] = -np.deg2rad(180.0) * np.pi / 2 * np.sin(np.pi * (t[m2] - 12) / 1)
+    m3 = (t >= 16) & (t < 16.5)                                    # 20 deg: too small to be a turn
+    yaw[m3] = np.deg2rad(20.0) * np.pi / 1 * np.sin(np.pi * (t[m3] - 16) / 0.5)
+    p = TrunkGaitParams()
+    tr = detect_turns(yaw, FS, t0_s=100.0, lowpass_hz=p.turn_lowpass_hz, min_peak_deg_s=p.turn_min_peak_deg_s,
+                      edge_deg_s=p.turn_edge_deg_s, min_angle_deg=p.turn_min_angle_deg, min_s=p.turn_min_s,
+                      max_s=p.turn_max_s)
+    assert len(tr) == 2
+    np.testing.assert_allclose(tr.angle_deg, [90.0, -180.0], rtol=0.1)
+    assert 104.5 < tr.start_s[0] < 105.5 and 106.5 < tr.end_s[0] < 107.5
+
+
+def test_chest_placement_and_given_height_are_reported():
+    acc_b, gyr_b, _, _ = walking_body(30.0, rest_s=3.0)
+    res = analyse_trunk_gait(acc_b, gyr_b, FS, placement="chest", height_m=1.60, leg_length_m=0.80)
+    assert res.placement == "chest" and res.height_source == "given" and res.leg_length_source == "given"
+    assert len(res.bouts) == 1
+    assert "chest_stride_length_model" in res.bouts.flags[0] and "default_height" not in res.bouts.flags[0]
+    # stride length scales with the pendulum length (Zijlstra & Hof Eq. 1): a longer leg, longer strides
+    res2 = analyse_trunk_gait(acc_b, gyr_b, FS, placement="chest", height_m=1.60, leg_length_m=1.0)
+    assert res2.bouts.stride_length_m[0] > res.bouts.stride_length_m[0]
