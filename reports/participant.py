@@ -275,7 +275,8 @@ def _home_blocks(d: dict) -> list[tuple]:
     if days.empty and bouts.empty:
         return [("note", "No session of this participant has a lower_back or chest IMU with walking.")]
     out = []
-    if cap is not None and len(cap):
+    has_cap = cap is not None and len(cap) and (cap["lab_speed_m_s"].notna().any() or len(days))
+    if has_cap:
         out.append(("figure", FIG_CAPTIONS["home"], fig_home(cap, days)))
         out.append(("table", "Capacity (lab visit) beside performance (home days from that visit to the next)",
                     cap.drop(columns=["lab_session"]).rename(columns={
@@ -283,6 +284,15 @@ def _home_blocks(d: dict) -> list[tuple]:
                         "home_days": "Home days", "home_speed_median_m_s": "Home median speed m/s",
                         "home_speed_p95_m_s": "Home p95 speed m/s", "walking_min_per_day": "Walking min/day",
                         "days_with_long_bouts": "Days with bouts > 10 s"}).round(2)))
+    lab = bouts[bouts["kind"] == "lab"] if len(bouts) else bouts
+    if len(lab):
+        g = lab.groupby("session_id").agg(bouts=("duration_s", "size"), walking_s=("duration_s", "sum"),
+                                          speed=("walking_speed_m_s", "median"), cadence=("cadence_spm", "median"),
+                                          stride=("stride_length_m", "median")).reset_index()
+        out.append(("table", "Walking bouts in the lab sessions (trunk sensor; medians over the bouts)",
+                    g.rename(columns={"session_id": "Session", "bouts": "Bouts", "walking_s": "Walking s",
+                                      "speed": "Speed m/s", "cadence": "Cadence /min",
+                                      "stride": "Stride length m"}).round(2)))
     if len(days):
         out.append(("table", "Per home day: walking, bouts by duration class, median / 95th centile over bouts "
                              "> 10 s", home_days_table(days)))
