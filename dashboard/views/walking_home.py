@@ -97,7 +97,7 @@ if snap is not None and not empty_warehouse_note(snap):
         st.dataframe(bouts[["kind", "start_local", "placement", "duration_s", "n_steps", "cadence_spm",
                             "stride_length_m", "walking_speed_m_s", "n_turns", "flags", "height_source"]],
                      hide_index=True)
-        st.caption("Bouts by the trunk-gait estimators (Mobilise-D consensus rules: at least 2 strides, breaks "
-                   "< 3 s). Flags: default_height = no body height known (1.70 m used); wrong_placement / "
+        st.caption("Bouts by the trunk-gait estimators (Mobilise-D consensus rules: a minimum number of strides "
+                   "and a longest break per bout, docs/trunk_gait.md). Flags: default_height = no body height known (1.70 m used); wrong_placement / "
                    "upside_down = the sensor frame detected from the data (docs/walking_at_home.md).")
 footer(snap)
