@@ -75,6 +75,8 @@ class ImuInput:
     acc: np.ndarray
     gyr: np.ndarray | None
     fs_hz: float
+    series_path: str = ""
+    n_samples: int = 0
 
 
 @dataclass
@@ -112,21 +114,36 @@ class StageContext:
         return any(pl in r["sensors"] and "imu" in r["sensors"][pl] for r in self.recordings for pl in self.placements)
 
     def imus(self, read: bool = True) -> Iterator[ImuInput]:
-        """Per recording the first declared placement it carries (in declaration order), samples read whole."""
-        from warehouse.read import read_imu_files
+        """Per recording the first declared placement it carries (in declaration order), samples read whole, or
+        (``read=False``) only its description: read rows with :meth:`read_imu` (a week need not be held at once)."""
+        from warehouse.read import series_rows
         for rec in self.recordings:
             for pl in self.placements:
                 imu = rec["sensors"].get(pl, {}).get("imu")
                 if imu is None:
                     continue
-                fs = float(imu["sampling_rate_hz"])
-                if not read:
-                    yield ImuInput(pl, rec, np.zeros(0, np.int64), np.zeros((0, 3)), None, fs)
-                    break
-                s = read_imu_files(self.inp.root, imu["series_path"], None, fs)
-                gyr = s.gyr if s.gyr is not None and np.isfinite(s.gyr).any() else None
-                yield ImuInput(pl, rec, s.t_ns, s.acc, gyr, fs)
+                fs, path = float(imu["sampling_rate_hz"]), imu["series_path"]
+                n = int(imu.get("n_samples") or series_rows(self.inp.root, path))
+                empty = ImuInput(pl, rec, np.zeros(0, np.int64), np.zeros((0, 3)), None, fs, path, n)
+                yield self.read_imu(empty) if read else empty
                 break
+
+    def read_imu(self, imu: ImuInput, start: int = 0, stop: int | None = None) -> ImuInput:
+        """Rows [start, stop) of ``imu`` (t_ns, acc, gyr; gyr None for an accelerometer-only sensor)."""
+        from warehouse.read import read_column_range
+        root, path = self.inp.root, imu.series_path
+        t = read_column_range(root, path, ("t_ns",), start, stop, dtype=np.int64)
+        acc = read_column_range(root, path, ("acc_x", "acc_y", "acc_z"), start, stop)
+        try:
+            gyr = read_column_range(root, path, ("gyr_x", "gyr_y", "gyr_z"), start, stop)
+        except (KeyError, ValueError):                # no gyroscope columns in the series
+            gyr = None
+        gyr = gyr if gyr is not None and len(gyr) and np.isfinite(gyr).any() else None
+        return dataclasses.replace(imu, t_ns=t, acc=acc, gyr=gyr, n_samples=len(t))
+
+    def read_times(self, imu: ImuInput) -> np.ndarray:
+        from warehouse.read import read_column_range
+        return read_column_range(self.inp.root, imu.series_path, ("t_ns",), dtype=np.int64)
 
     def events(self, type: str | None = None, label: str | None = None, rec: dict | None = None) -> list[dict]:
         """Reference annotations (payload fields merged in), filtered by type, label (e.g. the reference system)

@@ -71,9 +71,8 @@ def _body(rec: dict, key: str) -> float | None:
         return None
 
 
-def _pieces(t_ns: np.ndarray, fs: float, tz: str, above_s: float) -> list[tuple[int, int]]:
-    if len(t_ns) / fs <= above_s:
-        return [(0, len(t_ns))]
+def _pieces(t_ns: np.ndarray, tz: str) -> list[tuple[int, int]]:
+    """[start, stop) rows of each local calendar day touched by the stamps ``t_ns``."""
     from estimators.activity._daily import local_midnights_ns
     cuts = [int(np.searchsorted(t_ns, b)) for _, _, b in local_midnights_ns(int(t_ns[0]), int(t_ns[-1]), tz)[:-1]]
     edges = [0] + [c for c in cuts if 0 < c < len(t_ns)] + [len(t_ns)]
@@ -84,27 +83,30 @@ def compute(ctx: StageContext, p: TrunkGaitStageParams) -> None:
     from estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
     tz = ctx.session.get("timezone") or "UTC"
     free_living = ctx.session.get("kind") == "free_living"
-    for imu in ctx.imus():
-        rec = imu.recording
-        if imu.gyr is None:
-            ctx.note(f"{rec.get('trial')}: {imu.placement} has no gyroscope (trunk gait needs one)")
-            continue
+    for desc in ctx.imus(read=False):
+        rec = desc.recording
+        long = desc.n_samples / desc.fs_hz > p.day_pieces_above_s
         day_bouts: dict[str, list] = {}
-        for a, b in _pieces(imu.t_ns, imu.fs_hz, tz, p.day_pieces_above_s):
-            t = imu.t_ns[a:b]
-            res = analyse_trunk_gait(imu.acc[a:b], imu.gyr[a:b], imu.fs_hz, placement=imu.placement,
+        for a, b in (_pieces(ctx.read_times(desc), tz) if long else [(0, desc.n_samples)]):
+            imu = ctx.read_imu(desc, a, b)                       # one local day at a time when long
+            if imu.gyr is None:
+                ctx.note(f"{rec.get('trial')}: {imu.placement} has no gyroscope (trunk gait needs one)")
+                break
+            t = imu.t_ns
+            res = analyse_trunk_gait(imu.acc, imu.gyr, imu.fs_hz, placement=imu.placement,
                                      height_m=_body(rec, "height_m"), leg_length_m=_body(rec, "leg_length_m"),
                                      params=p.estimator)
-            ctx.found.append((rec, imu.placement, t, res))     # for the score step
+            del imu
+            ctx.found.append((rec, desc.placement, t, res))    # for the score step
             frame_flags = sorted({f for w in res.frame.warnings for k, f in FRAME_FLAGS.items() if w.startswith(k)})
             for w in dict.fromkeys(res.warnings + res.frame.warnings):
-                ctx.note(f"{rec.get('trial')}: {imu.placement}: {w}")
+                ctx.note(f"{rec.get('trial')}: {desc.placement}: {w}")
             t0 = int(t[0])
             rows = []
             for bt in res.bouts.records():
                 flags = list(bt["flags"]) + frame_flags
                 rows.append({"session_id": ctx.session_id, "content_hash": rec["content_hash"],
-                             "placement": imu.placement, "start_ns": t0 + int(round(bt["start_s"] * 1e9)),
+                             "placement": desc.placement, "start_ns": t0 + int(round(bt["start_s"] * 1e9)),
                              "end_ns": t0 + int(round(bt["end_s"] * 1e9)), "duration_s": bt["duration_s"],
                              "n_steps": bt["n_steps"], "n_strides": bt["n_strides"],
                              "cadence_spm": _num(bt["cadence_spm"]), "stride_length_m": _num(bt["stride_length_m"]),
@@ -113,9 +115,9 @@ def compute(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                              "height_source": res.height_source})
             ctx.emit("walking_bouts", rows)
             if free_living:
-                _days(day_bouts, res, t, imu.fs_hz, tz)
+                _days(day_bouts, res, t, desc.fs_hz, tz)
         for date, parts in sorted(day_bouts.items()):
-            ctx.emit("daily_gait_outcomes", [_day_row(ctx, date, imu.placement, parts, daily_outcomes)])
+            ctx.emit("daily_gait_outcomes", [_day_row(ctx, date, desc.placement, parts, daily_outcomes)])
 
 
 def _days(day_bouts: dict, res, t: np.ndarray, fs: float, tz: str) -> None:

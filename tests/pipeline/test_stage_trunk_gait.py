@@ -166,3 +166,18 @@ def test_shaped_stage_skips_without_declared_input_and_refuses_undeclared_tables
     ev = ctx.events("IC", "INDIP")
     assert ev[0]["extra"] == 1.5 and ev[0]["side"] == "left" and "payload" not in ev[0]
     assert ctx.events("IC", "Stereophoto") == []
+
+
+def test_day_by_day_reading_gives_the_same_rows(warehouse):
+    """Recordings longer than ``day_pieces_above_s`` are read one local day at a time (a week is never held at
+    once); on an hour inside one day that path gives the rows of the whole-recording path."""
+    from pipeline.runner import _session_inputs
+    from warehouse.catalog import Warehouse
+    root, _ = warehouse
+    sid = _df(root, "SELECT session_id FROM sessions WHERE participant_id = 'P001' AND kind = 'free_living'")
+    with Warehouse.open(root) as wh:
+        inp = _session_inputs(wh, sid["session_id"][0], tg.STAGE)
+    whole = tg.STAGE.compute(inp, tg.STAGE.default_params())
+    pieces = tg.STAGE.compute(inp, dict(tg.STAGE.default_params(), day_pieces_above_s=60.0))
+    assert whole.rows["walking_bouts"] and whole.rows["walking_bouts"] == pieces.rows["walking_bouts"]
+    assert whole.rows["daily_gait_outcomes"] == pieces.rows["daily_gait_outcomes"]
