@@ -333,7 +333,9 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
                                       "participant (the only stride-length reference)",
-                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held},
+                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held,
+                            **({"note": "only one group: nothing could be held out, this block is in-sample"}
+                               if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi, "ic_offset_s": oi,
