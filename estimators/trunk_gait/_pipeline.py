@@ -12,7 +12,7 @@ import numpy as np
 from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from estimators.trunk_gait._gsd import detect_gait_sequences
 from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
-from estimators.trunk_gait._spatial import step_lengths, vertical_position
+from estimators.trunk_gait._spatial import hampel, step_lengths, vertical_position
 from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
@@ -95,6 +95,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
+        if p.sl_hampel_half_width > 0 and len(sl):
+            # a step is only compared with steps of the same run (its step i -> i+1 belongs to the run of IC i+1)
+            sl = hampel(sl, p.sl_hampel_half_width, 3.0, runs[1:])
         ic_all.append(t)
         left_all.append(left)
         run_all.append(runs)
@@ -140,8 +143,14 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     med = np.array([np.median(dur[in_b][strides.bout == b]) for b in range(n_b)])
     reg = (dur[in_b] <= 1.5 * med[strides.bout]) if n_b else np.zeros(0, bool)
     n_reg = np.bincount(strides.bout[reg], minlength=n_b)
-    sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
-    sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
+    if p.bout_average == "median":
+        sl_b = np.array([np.median(strides.length_m[reg & (strides.bout == b)]) for b in range(n_b)])
+        sp_b = np.array([np.median(strides.speed_m_s[reg & (strides.bout == b)]) for b in range(n_b)])
+    elif p.bout_average == "mean":
+        sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
+        sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
+    else:
+        raise ValueError(f"bout_average must be 'mean' or 'median', got {p.bout_average!r}")
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []

@@ -15,9 +15,10 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
-one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); the
-stride-length factor ``sl_correction`` only has a reference in the Mobilise-D data: leave-one-trial-out over the
-trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
+one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); stride
+length only has a reference in the Mobilise-D data: its factor ``sl_correction``, jointly with the step-length
+Hampel filter ``sl_hampel_half_width`` and the bout average ``bout_average`` (mean/median), by leave-one-trial-out
+over the trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
 (marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
 the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
 input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
@@ -62,6 +63,7 @@ GRID_PROMINENCE = (0.3, 0.5, 0.7)
 GRID_LOCAL_S = (0.0, 3.0)
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.14, 0.061, 0.01), 3))
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
+SL_VARIANTS = tuple((h, a) for h in (0, 1, 2) for a in ("mean", "median"))   # (sl_hampel_half_width, bout_average)
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
 
 
@@ -292,54 +294,73 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         return cache[key]
 
     logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
-    # sl_correction: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out
+    # stride length: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out over the
+    # aggregation variant (Hampel half width x bout mean/median, SL_VARIANTS) and the factor sl_correction (GRID_SL)
     mob = [i for i, r in enumerate(recs) if r.dataset == "mobilised"]
     ship_dets = [run_ours(r, shipped) for r in recs]
-    sl_held: dict[str, float] = {}
+    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1]))
+                    for i in mob} for v in SL_VARIANTS}
+    sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
+    sl_held: dict[str, tuple] = {}
     sl_ins = None
     if mob:
-        def sl_loss(trials, k):
+        def sl_loss(trials, c):
+            v, k = sl_cands[c]
             e = []
             for i in mob:
                 if recs[i].trial_group in trials:
-                    be = _bout_errs(recs[i], ship_dets[i], GRID_SL[k] / shipped.sl_correction)
+                    be = _bout_errs(recs[i], var_dets[v][i], k / shipped.sl_correction)
                     e.extend(be.get("stride_length_m", {}).get("abs_error", []))
             e = np.asarray(e, float)
             e = e[np.isfinite(e)]
             return float(np.mean(e)) if len(e) else float("inf")
-        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(GRID_SL))
-        sl_held = {t: GRID_SL[k] for t, k in sl["held_out_choice"].items()}
-        sl_ins = GRID_SL[sl["in_sample_choice"]]
+        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(sl_cands))
+        sl_held = {t: sl_cands[c] for t, c in sl["held_out_choice"].items()}
+        sl_ins = sl_cands[sl["in_sample_choice"]]
+    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average)
+
+    def with_sl(r: Rec, ic: tuple, v: tuple) -> Det:
+        s_, p_, w_, _o = ic
+        return run_ours(r, dataclasses.replace(shipped, ic_smooth_s=s_, ic_prominence=p_, ic_local_window_s=w_,
+                                               ic_offset_s=0.0, sl_hampel_half_width=v[0], bout_average=v[1]))
     # cross-validated: per recording, the detections of its held-out choice
     cv_dets, cv_off, cv_scale = [], [], []
-    for r in recs:
+    for i, r in enumerate(recs):
         s, p, w, o = full[logo["held_out_choice"][r.group]]
-        cv_dets.append(dets[(s, p, w)][recs.index(r)])
+        v, k = sl_held.get(r.trial_group, (ship_v, shipped.sl_correction))
+        cv_dets.append(dets[(s, p, w)][i] if r.dataset != "mobilised" else with_sl(r, (s, p, w, o), v))
         cv_off.append(o)
-        cv_scale.append(sl_held.get(r.trial_group, shipped.sl_correction) / shipped.sl_correction)
+        cv_scale.append(k / shipped.sl_correction)
     si, pi, wi, oi = full[logo["in_sample_choice"]]
-    ins_dets = dets[(si, pi, wi)]
-    ins_scale = [(sl_ins or shipped.sl_correction) / shipped.sl_correction] * len(recs)
+    vi, ki = sl_ins or (ship_v, shipped.sl_correction)
+    ins_dets = [dets[(si, pi, wi)][i] if r.dataset != "mobilised" else with_sl(r, (si, pi, wi, oi), vi)
+                for i, r in enumerate(recs)]
+    ins_scale = [ki / shipped.sl_correction] * len(recs)
     by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_offset_s"), full[c]))
                 for g, c in logo["held_out_choice"].items()}
     return {
         "shipped_defaults": {**blocks(recs, ship_dets),
                              "params": {k: getattr(shipped, k) for k in ("ic_smooth_s", "ic_prominence",
                                                                           "ic_local_window_s", "ic_offset_s",
-                                                                          "sl_correction")}},
+                                                                          "sl_correction",
+                                                                          "sl_hampel_half_width",
+                                                                          "bout_average")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
                             "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_offset_s): "
                                       "leave-one-group-out "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
-                                      "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
+                                      "sl_hampel_half_width, bout_average, sl_correction: leave-one-trial-out over the "
+                                      "trials of the single Mobilise-D "
                                       "participant (the only stride-length reference)",
-                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held,
+                            "held_out_choice_by_group": by_group, "sl_held_out_by_trial": {
+                                t: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_correction": k}
+                                for t, (v, k) in sl_held.items()},
                             **({"note": "only one group: nothing could be held out, this block is in-sample"}
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi, "ic_offset_s": oi,
-                                 "sl_correction": sl_ins}},
+                                 "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1]}},
         "_ship_dets": ship_dets,
     }
 
@@ -569,7 +590,7 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
     res["constants"] = [
         {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
-        {"name": "TrunkGaitParams.sl_correction",
+        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average",
          "chosen_on": "Mobilise-D HA-001 INDIP stride length (leave-one-trial-out; single participant)"}]
     res["failed_files"] = failed
     res["recordings"] = {"voisard": sum(r.dataset == "voisard" for r in recs),

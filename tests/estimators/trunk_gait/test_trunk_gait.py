@@ -218,3 +218,27 @@ def test_slow_small_steps_are_still_walking():
     assert met["sensitivity"] > 0.9 and met["precision"] > 0.95, met
     assert len(res.bouts) == 1 and res.bouts.cadence_spm[0] == pytest.approx(60 / 1.1, rel=0.02)
     assert (res.ic_side[m.det_idx] == np.where(left[m.ref_idx], "left", "right")).mean() == 1.0
+
+
+def test_hampel_replaces_an_isolated_step_but_keeps_a_change_of_pace_and_runs_apart():
+    from estimators.trunk_gait._spatial import hampel
+    x = np.array([0.60, 0.62, 0.61, 1.30, 0.60, 0.62, 0.61])   # one step measured twice as long
+    y = hampel(x, 1, 3.0)
+    assert y[3] == pytest.approx(0.61) and np.array_equal(np.delete(y, 3), np.delete(x, 3))
+    # a lasting change of pace (slow -> fast) is not an outlier
+    pace = np.r_[np.full(5, 0.5), np.full(5, 0.7)]
+    assert np.array_equal(hampel(pace, 2, 3.0), pace)
+    # windows do not cross runs: the first step of a new run is judged only among its own run
+    runs = np.r_[np.zeros(4, int), np.ones(4, int)]
+    z = np.r_[np.full(4, 0.5), 0.9, 0.9, 0.9, 0.9]
+    assert np.array_equal(hampel(z, 1, 3.0, runs), z)
+    # NaN stays NaN and does not spread
+    w = np.array([0.6, np.nan, 0.6, 0.61, 0.6])
+    out = hampel(w, 1, 3.0)
+    assert np.isnan(out[1]) and np.allclose(out[[0, 2, 3, 4]], w[[0, 2, 3, 4]])
+
+
+def test_bout_average_must_be_mean_or_median():
+    acc, gyr = walking_body(20.0)[:2]
+    with pytest.raises(ValueError, match="bout_average"):
+        analyse_trunk_gait(acc, gyr, 100.0, params=dataclasses.replace(TrunkGaitParams(), bout_average="mode"))
