@@ -88,7 +88,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         gb = gyr[s:e] @ R.T
         v = ab[:, 1] - ab[:, 1].mean()
         peaks = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
-                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s)
+                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
+                                        fill_prominence=p.ic_fill_prominence,
+                                        fill_edge_steps=p.ic_fill_edge_steps, max_step_s=p.stride_max_s / 2.0)
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset

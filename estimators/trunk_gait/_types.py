@@ -38,6 +38,9 @@ class TrunkGaitParams:
       ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
         the gait sequence.
       ic_local_window_s: window of that standard deviation, s (0 = the whole sequence).
+      ic_fill_prominence: weaker peaks (prominence ≥ this fraction of the sequence's SD) are added where the step
+        rhythm of the kept contacts expects a missed one (0 = off; ``_icd.fill_missed_steps``).
+      ic_fill_edge_steps: how many such steps may be added before the first and after the last kept contact.
       ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
     Side (McCamley et al. 2012: sign of the yaw rate):
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
@@ -69,6 +72,8 @@ class TrunkGaitParams:
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
+    ic_fill_prominence: float = 0.0
+    ic_fill_edge_steps: int = 0
     ic_offset_s: float = -0.06
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0

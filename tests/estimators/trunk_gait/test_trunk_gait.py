@@ -242,3 +242,33 @@ def test_bout_average_must_be_mean_or_median():
     acc, gyr = walking_body(20.0)[:2]
     with pytest.raises(ValueError, match="bout_average"):
         analyse_trunk_gait(acc, gyr, 100.0, params=dataclasses.replace(TrunkGaitParams(), bout_average="mode"))
+
+
+def test_fill_missed_steps_adds_the_rhythm_s_missing_contact_and_edge_steps_only_when_asked():
+    from estimators.trunk_gait._icd import fill_missed_steps
+    kept = np.array([100, 150, 200, 300, 350, 400])          # T = 50 samples; the contact near 250 was missed
+    cand = np.array([120, 248, 262, 58, 445, 520])            # 248 (prominent) and 262 in the gap; 58 / 445 at edges
+    prom = np.array([0.9, 0.5, 0.3, 0.4, 0.4, 0.9])
+    out = fill_missed_steps(kept, cand, prom, max_step=150)
+    assert out.tolist() == [100, 150, 200, 248, 300, 350, 400]   # 120 is inside a regular step: not added
+    out1 = fill_missed_steps(kept, cand, prom, max_step=150, edge_steps=1)
+    assert out1.tolist() == [58, 100, 150, 200, 248, 300, 350, 400, 445]   # 520 is 1.5 T beyond 445: not with 1 step
+    # a pause (gap > 2.5 T) is not filled
+    assert fill_missed_steps(np.array([0, 50, 100, 300, 350]), np.array([200]), np.array([1.0]),
+                             max_step=150).tolist() == [0, 50, 100, 300, 350]
+
+
+def test_fill_finds_a_weak_step_inside_a_synthetic_walk():
+    from estimators.trunk_gait._icd import detect_initial_contacts
+    fs = 100.0
+    t = np.arange(0, 12, 1 / fs)
+    ic = np.arange(0.5, 11.6, 0.55)
+    amp = np.ones(len(ic))
+    amp[10] = 0.15                                           # one weak step (a turn) among strong ones
+    v = sum(a * np.exp(-0.5 * ((t - c) / 0.05) ** 2) for a, c in zip(amp, ic))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.03, min_step_s=0.25, prominence=0.7)
+    plain = detect_initial_contacts(v, fs, **kw) / fs
+    filled = detect_initial_contacts(v, fs, **kw, fill_prominence=0.1) / fs
+    assert not np.any(np.abs(plain - ic[10]) < 0.05)
+    assert np.any(np.abs(filled - ic[10]) < 0.05) and len(filled) == len(plain) + 1
