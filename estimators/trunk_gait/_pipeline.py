@@ -98,8 +98,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
         if p.sl_hampel_half_width > 0 and len(sl):
-            # a step is only compared with steps of the same run (its step i -> i+1 belongs to the run of IC i+1)
-            sl = hampel(sl, p.sl_hampel_half_width, 3.0, runs[1:])
+            # a step is only compared with steps of the same run; a step across a pause (two runs) stands alone
+            same = runs[1:] == runs[:-1]
+            sl = hampel(sl, p.sl_hampel_half_width, 3.0, np.where(same, runs[1:], -1 - np.arange(len(sl))))
         ic_all.append(t)
         left_all.append(left)
         run_all.append(runs)
