@@ -24,7 +24,7 @@ import math
 import re
 from pathlib import Path
 
-from estimators.recording import PLACEMENTS
+from estimators.recording import PLACEMENTS, SESSION_BODY_FIELDS, SESSION_DESIGN_FIELDS
 from pipeline.config import study_manifest
 from studies.privacy import (PrivacyPolicy, code_problem, identifier_problem, key_problem, privacy_policy,
                              value_problem)
@@ -36,7 +36,8 @@ ENUMS = {"paretic_side": ("left", "right", "none"), "pseudonymised": ("hmac-sha2
 CONDITIONS = ("healthy", "hemiparetic", "stroke", "parkinson", "multiple_sclerosis", "osteoarthritis",
               "amputee", "cerebral_palsy", "elderly", "unknown")
 #: numbers the stages read (plausible ranges checked by pipeline.ingest); ``*_length_m`` too
-NUMERIC_FIELDS = ("height_m", "mass_kg", "sampling_rate_hz", "thigh_length_m", "shank_length_m", "foot_length_m")
+NUMERIC_FIELDS = tuple(dict.fromkeys(("height_m", "mass_kg", "sampling_rate_hz", "thigh_length_m", "shank_length_m",
+                                     "foot_length_m", *SESSION_BODY_FIELDS, *SESSION_DESIGN_FIELDS)))   # body measures, repeat_baseline (#42; ranges: ingest)
 #: the session schema of the recording format: field -> type
 SCHEMA = {"study": "identifier", "participant": "identifier", "session": "identifier", "trial": "identifier",
           "kind": "closed", "timezone": "closed", "reference_frame": "closed", "accelerometer_only": "closed",
