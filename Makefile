@@ -4,7 +4,9 @@
 #               process while it simulates the demo study, then runs the pipeline
 #   make install  the same installation, kernels compiled (`stridelab warm-kernels`) and the packages' bytecode
 #               compiled once before it returns (benches and nightly runs start many processes)
-#   make test   install if missing, compile the packages' bytecode once, run the test suite
+#   make test   install if missing (with the docs tools and the BIDS validator), compile the packages' bytecode
+#               once, run the test suite (docs build and examples included)
+#   make docs   build the documentation site into site/ (mkdocs build --strict)
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'",
 #   INSTALLER=pip (skip uv).
 # Packages are installed by uv (UV_VERSION, from the package index through pip): 6 s instead of pip's 90 s for
@@ -21,7 +23,7 @@ INSTALLER ?= uv
 ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: demo test install browser clean
+.PHONY: demo test install browser clean docs docs-tools bids-validator
 
 $(DEPS): pyproject.toml requirements.lock
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null || \
@@ -64,8 +66,32 @@ install: $(STAMP) $(BYTECODE)
 demo: $(DEPS)
 	$(VENV)/bin/stridelab demo $(ARGS)
 
-test: $(STAMP) $(BYTECODE) browser
+test: $(STAMP) $(BYTECODE) browser docs-tools bids-validator
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
+
+# The documentation tools (MkDocs, Material, mkdocstrings, mkdocs-click), pinned in requirements-docs.lock; the
+# docs test (tests/test_docs.py) builds the site with --strict.
+DOCS_STAMP := $(VENV)/.docs-stamp
+$(DOCS_STAMP): $(DEPS) requirements-docs.lock
+	@{ [ "$(INSTALLER)" = uv ] && [ -x $(VENV)/bin/uv ] && \
+	  $(VENV)/bin/uv pip install --quiet --python $(VENV)/bin/python -r requirements-docs.lock; } || \
+	  $(VENV)/bin/python -m pip install --quiet -r requirements-docs.lock
+	@touch $@
+docs-tools: $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(VENV)/bin/mkdocs build --strict
+
+# The official BIDS validator (npm bids-validator, pinned by tools/bids-validator/package-lock.json) for the
+# Motion-BIDS export test; skipped with a note where Node.js/npm are missing (the test then skips too).
+BIDS_VALIDATOR := tools/bids-validator/node_modules/.bin/bids-validator
+$(BIDS_VALIDATOR): tools/bids-validator/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then \
+	  echo "installing the BIDS validator (npm ci in tools/bids-validator) …" >&2; \
+	  (cd tools/bids-validator && npm ci --no-audit --no-fund --loglevel=error >/dev/null) && touch $@ || \
+	    echo "note: could not install the BIDS validator; the BIDS export test will skip" >&2; \
+	else echo "note: npm not found (sudo apt-get install nodejs npm); the BIDS export test will skip" >&2; fi
+bids-validator: $(BIDS_VALIDATOR)
 
 # Debian's Chromium for the dashboard's real-browser test; skipped (with a message) where apt is unavailable.
 browser:
@@ -79,4 +105,4 @@ browser:
 	  fi; }
 
 clean:
-	rm -rf $(VENV) stridelab-home .pytest_cache
+	rm -rf $(VENV) stridelab-home .pytest_cache site tools/bids-validator/node_modules
