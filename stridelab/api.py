@@ -13,7 +13,7 @@ rec.imu["foot_left"].gyr                          # (N, 3) rad/s
 
 Everything here reads the warehouse's newest published snapshot (the file the dashboard reads), never the
 live catalog, so it never waits for, nor blocks, a nightly run, and it cannot change anything. A
-:class:`Warehouse` keeps the snapshot it opened: reopen it (``stridelab.open`` again) to see a newer night.
+`Warehouse` keeps the snapshot it opened: reopen it (``stridelab.open`` again) to see a newer night.
 Importing this module has no side effects (no environment variables, no warning filters, no heavy imports:
 DuckDB and pandas are imported on first use).
 """
@@ -63,7 +63,7 @@ def open(home_or_warehouse: str | Path) -> Warehouse:  # noqa: A001 - the public
             ``make demo``) or the warehouse directory inside it.
 
     Returns:
-        A :class:`Warehouse`; use it as a context manager, or call :meth:`Warehouse.close`.
+        A `Warehouse`; use it as a context manager, or call `Warehouse.close`.
 
     Raises:
         FileNotFoundError: the folder is not a warehouse, or nothing was published yet.
@@ -72,9 +72,9 @@ def open(home_or_warehouse: str | Path) -> Warehouse:  # noqa: A001 - the public
 
 
 class Warehouse:
-    """Read-only view of one snapshot of a StrideLab warehouse (see :func:`open`).
+    """Read-only view of one snapshot of a StrideLab warehouse (see `open`).
 
-    Tables come back as :class:`pandas.DataFrame` with the warehouse's column names: times are int64
+    Tables come back as `pandas.DataFrame` with the warehouse's column names: times are int64
     nanoseconds since the Unix epoch, UTC (``*_ns``), other quantities carry their unit in the column name
     (``stride_length_m``, ``speed_m_s``, ``stance_pct``). Filters are passed to SQL as parameters, never as text.
     """
@@ -127,12 +127,12 @@ class Warehouse:
         return self.con.execute(query, params or []).df()
 
     def table(self, name: str) -> pd.DataFrame:
-        """A whole table as a DataFrame (any table of :meth:`tables`)."""
+        """A whole table as a DataFrame (any table of `tables`)."""
         self._need(name)
         return self.sql(f'SELECT * FROM "{name}"')
 
     def arrow(self, name: str):
-        """A whole table as a :class:`pyarrow.Table`."""
+        """A whole table as a `pyarrow.Table`."""
         self._need(name)
         return self.con.execute(f'SELECT * FROM "{name}"').to_arrow_table()
 
@@ -240,7 +240,7 @@ class Warehouse:
 
     # ---- series ------------------------------------------------------------------------------
     def imu(self, session: str, placement: str, trial: str | None = None):
-        """Stored samples of one IMU (:class:`warehouse.read.ImuSeries`: t_ns, acc m/s², gyr rad/s, mag µT or
+        """Stored samples of one IMU (`warehouse.read.ImuSeries`: t_ns, acc m/s², gyr rad/s, mag µT or
         None, sampling_rate_hz) of a session's recording (its ``trial``, or the first one)."""
         from warehouse.read import read_imu
         rows = self.con.execute("""
@@ -269,7 +269,7 @@ def read_recording(path: str | Path) -> Recording:
     (every CRC checked; a corrupt file raises ``ValueError`` with a one-line reason).
 
     Returns:
-        :class:`estimators.recording.Recording`: ``metadata`` (the ``session`` record), ``imu[placement]``
+        `estimators.recording.Recording`: ``metadata`` (the ``session`` record), ``imu[placement]``
         (``t_ns`` int64 ns, ``acc`` (N, 3) m/s², ``gyr`` (N, 3) rad/s, ``mag`` (N, 3) µT or None),
         ``reference_poses[placement]`` (``pos`` m, ``quat`` [w, x, y, z] segment → ENU), ``ranges`` (m) and
         ``events`` (dicts with ``t_ns``, ``type``, ``side``/``label``...). ``mag`` is on the IMU's stamps
