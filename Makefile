@@ -80,12 +80,15 @@ $(DOCS_STAMP): $(DEPS) requirements-docs.lock
 docs-tools: $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)
-	$(VENV)/bin/mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 
 # The official BIDS validator (npm bids-validator, pinned by tools/bids-validator/package-lock.json) for the
 # Motion-BIDS export test; skipped with a note where Node.js/npm are missing (the test then skips too).
 BIDS_VALIDATOR := tools/bids-validator/node_modules/.bin/bids-validator
 $(BIDS_VALIDATOR): tools/bids-validator/package-lock.json
+	@command -v npm >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && \
+	  echo "installing Debian's nodejs and npm for the BIDS validator" >&2 && \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nodejs npm >/dev/null) || true; }
 	@if command -v npm >/dev/null 2>&1; then \
 	  echo "installing the BIDS validator (npm ci in tools/bids-validator) …" >&2; \
 	  (cd tools/bids-validator && npm ci --no-audit --no-fund --loglevel=error >/dev/null) && touch $@ || \

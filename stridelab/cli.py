@@ -607,20 +607,25 @@ def export_table_cmd(name, out, warehouse_dir, as_json) -> None:
 @click.option("--subject-map", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the sub-XX -> warehouse pseudonym mapping to this file (keep it out of the export).")
 @click.option("--overwrite", is_flag=True, help="Replace OUT if it holds an earlier export.")
+@click.option("--author", "authors", multiple=True, help="Dataset author for dataset_description.json (repeatable).")
+@click.option("--name", default="StrideLab export", show_default=True, help="Dataset name.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def export_bids_cmd(warehouse, out, study, participants, kinds, keep_ids, subject_map, overwrite, as_json) -> None:
+def export_bids_cmd(warehouse, out, study, participants, kinds, keep_ids, subject_map, overwrite, authors, name,
+                    as_json) -> None:
     """Write the recordings of WAREHOUSE with their events to OUT as Motion-BIDS (BIDS 1.9), pseudonymised.
 
     \b
     Examples:
       stridelab export bids stridelab-home/warehouse bids/
-      stridelab export bids stridelab-home/warehouse bids-lab/ --kind lab --subject-map key.tsv
+      stridelab export bids stridelab-home/warehouse bids-lab/ --kind lab --subject-map key.tsv \
+          --author "A. Researcher" --author "B. Clinician" --name "Gait study 2026"
     """
     from pipeline.console import UserError, emit_json, err_console
     from pipeline.export.bids import export_bids
     try:
         s = export_bids(warehouse, out, study=study, participants=tuple(participants), kinds=tuple(kinds),
-                        keep_ids=keep_ids, subject_map=subject_map, overwrite=overwrite)
+                        keep_ids=keep_ids, subject_map=subject_map, overwrite=overwrite, authors=tuple(authors),
+                        name=name)
     except ValueError as e:
         raise UserError(str(e).splitlines()[0]) from None
     if as_json:

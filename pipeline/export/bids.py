@@ -59,11 +59,12 @@ class ExportSummary:
 
 def export_bids(warehouse: str | Path, out: str | Path, *, study: str | None = None,
                 participants: tuple[str, ...] = (), kinds: tuple[str, ...] = (), keep_ids: bool = False,
-                subject_map: str | Path | None = None, overwrite: bool = False,
-                on_progress=None) -> ExportSummary:
+                subject_map: str | Path | None = None, overwrite: bool = False, authors: tuple[str, ...] = (),
+                name: str = "StrideLab export", on_progress=None) -> ExportSummary:
     """Write the recordings of ``warehouse`` (newest snapshot) with their events to ``out`` as Motion-BIDS.
 
-    ``study``/``participants``/``kinds`` narrow what is exported; ``keep_ids`` keeps the warehouse's
+    ``study``/``participants``/``kinds`` narrow what is exported; ``authors`` and ``name`` go into
+    ``dataset_description.json``; ``keep_ids`` keeps the warehouse's
     pseudonyms as subject labels (letters and digits only) instead of renumbering. Raises ValueError (one line)
     on bad arguments, a non-empty ``out`` without ``overwrite``, or a warehouse with nothing to export."""
     from warehouse.read import connect_snapshot
@@ -82,12 +83,14 @@ def export_bids(warehouse: str | Path, out: str | Path, *, study: str | None = N
         raise ValueError(f"{warehouse}: no published snapshot (not a warehouse, or nothing ran yet); "
                          f"run `stridelab run` first")
     try:
-        return _export(con, Path(warehouse), out, study, participants, kinds, keep_ids, subject_map, on_progress)
+        return _export(con, Path(warehouse), out, study, participants, kinds, keep_ids, subject_map, on_progress,
+                       {"Name": name, "Authors": list(authors)})
     finally:
         con.close()
 
 
-def _export(con, root, out, study, participants, kinds, keep_ids, subject_map, on_progress) -> ExportSummary:
+def _export(con, root, out, study, participants, kinds, keep_ids, subject_map, on_progress,
+            description: dict) -> ExportSummary:
     from warehouse.read import read_imu
     recs = con.execute("""
         SELECT s.study, s.participant_id, s.session_id, s.kind, s.start_ns, r.content_hash, r.trial, r.start_ns,
@@ -159,7 +162,7 @@ def _export(con, root, out, study, participants, kinds, keep_ids, subject_map, o
         if on_progress:
             on_progress(f"{stem}_{run}: {len(series)} IMUs")
 
-    _write_top(tmp, participant_rows, tasks)
+    _write_top(tmp, participant_rows, tasks, description)
     summary.subjects, summary.sessions = len(subjects), len(sessions)
     if subject_map:
         m = Path(subject_map)
@@ -265,12 +268,14 @@ def _version() -> str:
         return "unknown"
 
 
-def _write_top(d: Path, participant_rows: dict[str, dict], tasks: set[str]) -> None:
-    desc = {"Name": "StrideLab export", "BIDSVersion": BIDS_VERSION, "DatasetType": "raw",
+def _write_top(d: Path, participant_rows: dict[str, dict], tasks: set[str], description: dict) -> None:
+    desc = {"Name": description.get("Name") or "StrideLab export", "BIDSVersion": BIDS_VERSION, "DatasetType": "raw",
             "License": "n/a",
             "GeneratedBy": [{"Name": "StrideLab", "Version": _version(),
                              "Description": "stridelab export bids: wearable IMU recordings and their events"}],
             "HowToAcknowledge": "Cite the study that collected the data and StrideLab (README, 'How to cite')."}
+    if description.get("Authors"):
+        desc["Authors"] = description["Authors"]
     (d / "dataset_description.json").write_text(json.dumps(desc, indent=2) + "\n")
     fields = [f for f in PARTICIPANT_FIELDS if any(f in r for r in participant_rows.values())]
     with open(d / "participants.tsv", "w", newline="\n") as f:
