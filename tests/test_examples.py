@@ -38,3 +38,15 @@ def test_example_runs_and_saves_its_figure(script, small_home, tmp_path):
     for f in figures:
         assert Path(f).parent == tmp_path and Path(f).stat().st_size > 2000, f
     assert "Warning" not in r.stderr, r.stderr[-2000:]
+
+
+def test_the_readme_python_example_runs(small_home, tmp_path):
+    """The README's 10-line example, on the small home (its one participant instead of the demo's P003)."""
+    import re
+    code = re.search(r"## From Python\n\n```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S).group(1)
+    assert len([line for line in code.splitlines() if line.strip()]) <= 10
+    code = code.replace('"stridelab-home', f'"{small_home}').replace("P003", "P001")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=600,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "stride_length_m" in r.stdout and "strides, first IC at sample" in r.stdout
