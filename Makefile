@@ -23,7 +23,7 @@ INSTALLER ?= uv
 ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: demo test install browser clean docs docs-tools bids-validator
+.PHONY: demo test install browser clean docs docs-tools bids-validator anchors-mobgap
 
 $(DEPS): pyproject.toml requirements.lock
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null || \
@@ -107,5 +107,16 @@ browser:
 	    echo "note: chromium/pdftoppm not found (sudo apt-get install chromium poppler-utils); those tests will be skipped" >&2; \
 	  fi; }
 
+# mobgap (the Mobilise-D reference pipeline), the anchor of `stridelab bench trunk-gait`, in an ISOLATED venv: its
+# pins (pandas 3, numpy 2.4, scikit-learn 1.6.1 for its pickled models) are not StrideLab's; the bench runs it in a
+# subprocess (validation/anchors/mobgap_runner.py) and prints `anchor: null` with the reason when it is absent.
+MOBGAP_VENV := .venv-mobgap
+$(MOBGAP_VENV)/.installed-stamp: validation/anchors/mobgap-requirements.txt
+	@$(PY) -m venv $(MOBGAP_VENV)
+	$(MOBGAP_VENV)/bin/python -m pip install --quiet -r validation/anchors/mobgap-requirements.txt
+	@touch $@
+
+anchors-mobgap .venv-mobgap: $(MOBGAP_VENV)/.installed-stamp
+
 clean:
-	rm -rf $(VENV) stridelab-home .pytest_cache site tools/bids-validator/node_modules
+	rm -rf $(VENV) $(MOBGAP_VENV) stridelab-home .pytest_cache site tools/bids-validator/node_modules

@@ -12,12 +12,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 PLACEMENTS = ("pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right",
-              "foot_left", "foot_right", "chest")
+              "foot_left", "foot_right", "chest", "lower_back")
+#: single-sensor trunk placements the trunk-gait stage reads (docs/walking_at_home.md: body frames)
+TRUNK_PLACEMENTS = ("lower_back", "chest")
 
 #: keys of the MCAP ``session`` metadata record (DESIGN.md "Recording format")
 SESSION_KEYS_REQUIRED = ("study", "participant", "session", "kind")
 SESSION_KEYS_OPTIONAL = ("protocol", "trial", "timezone")
 SESSION_KINDS = ("lab", "free_living", "calibration")
+#: optional numeric body measures of the participant (decimal strings, SI units; ingest checks the range, the
+#: trunk-gait stage reads them): height, leg length (greater trochanter to floor), height of a lower-back sensor
+#: above the floor, walking aid (0/1)
+SESSION_BODY_FIELDS = ("height_m", "leg_length_m", "sensor_height_m", "walking_aid")
+SESSION_BODY_RANGES = {"height_m": (0.5, 2.5), "leg_length_m": (0.3, 1.5), "sensor_height_m": (0.3, 1.6),
+                       "walking_aid": (0, 1)}
 
 
 @dataclass

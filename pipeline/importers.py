@@ -224,7 +224,7 @@ def _xsens_times(x) -> np.ndarray:
     return np.rint(k * (1e9 / x.sampling_rate_hz)).astype(np.int64)
 
 
-_XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "pelvis"}
+_XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "lower_back"}
 
 
 def _xsens(path: Path, placement: str | None) -> list[Converted]:
@@ -250,7 +250,7 @@ def _voisard(path: Path, placement: str | None) -> list[Converted]:
     tr = load_voisard_trial(d, name, packet_grid=False)      # the rows as recorded (no interpolated packets)
     a = tr.annotation
     imu = {}
-    for pl, x in (("foot_left", tr.left), ("foot_right", tr.right), ("pelvis", tr.lower_back)):
+    for pl, x in (("foot_left", tr.left), ("foot_right", tr.right), ("lower_back", tr.lower_back)):
         if x is not None:
             imu[pl] = ImuData(_xsens_times(x), x.acc, x.gyr, None)
     events = []
@@ -271,6 +271,51 @@ def _voisard(path: Path, placement: str | None) -> list[Converted]:
                             "magnetometer": "not imported (normalised units)"}, f"voisard-{_slug(tr.name)}")]
 
 
+def _mobilised(path: Path, placement: str | None) -> list[Converted]:
+    """Every trial of every ``data.mat`` under ``path`` -> one recording (``pipeline.formats.mobilised``): the SU
+    lower-back IMU as ``lower_back``; per reference system (label = INDIP / Stereophoto) the MicroWB walking bouts
+    (``walking_bout``: start/end, cadence, stride length, walking speed, strides), initial contacts with side and
+    turns on ``/reference/events``; infoForAlgo height, leg length, sensor height, walking aid into the session."""
+    from estimators.recording import SESSION_BODY_FIELDS
+    from pipeline.formats.mobilised import find_mobilised_files, read_mobilised
+    out = []
+    for f in find_mobilised_files(path):
+        for tr in read_mobilised(f):
+            t = _rel_ns(len(tr.acc), tr.fs_hz)
+            at = lambda s: int(round(float(s) * 1e9))                   # noqa: E731 - s from trial start -> ns
+            num = lambda v: None if v is None or not np.isfinite(v) else float(v)   # noqa: E731
+            events = []
+            for r in tr.references:
+                if r.kind != "MicroWB":
+                    continue
+                src = f"Mobilise-D {r.system} {r.kind} (data.mat Standards)"
+                for i in range(r.start_s.size):
+                    events.append({"t_ns": at(r.start_s[i]), "end_ns": at(r.end_s[i]), "type": "walking_bout",
+                                   "label": r.system, "placement": "lower_back", "source": src,
+                                   "n_strides": int(r.n_strides[i]), "cadence_spm": num(r.cadence_spm[i]),
+                                   "stride_length_m": num(r.stride_length_m[i]),
+                                   "walking_speed_m_s": num(r.walking_speed_m_s[i])})
+                for ic, side in zip(r.ic_s, r.ic_side):
+                    events.append({"t_ns": at(ic), "type": "IC", "side": side or None, "label": r.system,
+                                   "placement": "lower_back", "source": src})
+                for a, b, ang in zip(r.turn_start_s, r.turn_end_s, r.turn_angle_deg):
+                    events.append({"t_ns": at(a), "end_ns": at(b), "type": "turn", "label": r.system,
+                                   "placement": "lower_back", "angle_deg": num(ang), "source": src})
+            rec = Recording(metadata={}, imu={placement or "lower_back": ImuData(t, tr.acc, tr.gyr, tr.mag)},
+                            events=events, name=tr.name)
+            trial = _slug(f"{tr.test}-{tr.trial}").lower()
+            d = {"participant": tr.participant_id,
+                 "trial": trial, "kind": "lab", "timezone": tr.timezone,
+                 "protocol": f"Mobilise-D {tr.test} ({'straight walks' if tr.test == 'Test5' else 'lab course'})",
+                 "reference": "Mobilise-D INDIP (inertial + pressure insoles + distance sensors), Stereophoto"}
+            for k in SESSION_BODY_FIELDS:
+                v = getattr(tr.info, k, None)
+                if v is not None:
+                    d[k] = f"{float(v):g}"
+            out.append(Converted(rec, d, f"mobilised-{_slug(tr.name)}", t0_ns=tr.start_utc_ns))
+    return out
+
+
 FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("xio", "x-io / NGIMU CSV (Time (s), Gyroscope X (deg/s) ..., Accelerometer X (g) ...)", _xio, (".csv",)),
     Format("gaitmap", "gaitmap / NilsPod example folder (imu_sample.csv + mocap_sample.csv + stride events)",
@@ -283,6 +328,8 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("xsens", "Xsens MT Manager text export (rate line, PacketCounter Acc_X ... Mag_Z)", _xsens, (".txt",)),
     Format("voisard", "Voisard et al. gait trial: N-M.json events + N-M_{lf,rf,lb}.txt Xsens exports", _voisard,
            (".json",)),
+    Format("mobilised", "Mobilise-D standardized data.mat (+ infoForAlgo.mat): a file or a folder searched for "
+           "data.mat", _mobilised, ("",)),
 )}
 
 #: sub-folders of a public-data folder (../shared/data) and how ``stridelab demo --public`` imports them

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import xxhash
 
-from estimators.recording import PLACEMENTS, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from estimators.recording import PLACEMENTS, SESSION_BODY_RANGES, SESSION_KEYS_REQUIRED, SESSION_KINDS
 from pipeline import supersede
 from pipeline.privacy import screen_session, study_policy
 from studies.privacy import value_problem
@@ -112,6 +112,15 @@ def _check_stage_fields(s: dict) -> None:
     rf = s.get("reference_frame")
     if rf is not None and rf not in REFERENCE_FRAMES:
         raise IngestRejected(f"'session' reference_frame{_shown(rf)} is not one of {', '.join(REFERENCE_FRAMES)}")
+    for k, (lo, hi) in SESSION_BODY_RANGES.items():          # numeric body measures (trunk gait, issue #42)
+        if s.get(k) is not None:
+            try:
+                ok = lo <= float(s[k]) <= hi
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise IngestRejected(f"'session' {k} must be a number from {lo} to {hi} (SI units; e.g. "
+                                     f"height_m=1.72)")
     ao = s.get("accelerometer_only")
     if ao is not None:
         bad = [p for p in str(ao).split(",") if not re.fullmatch(r"[a-z][a-z0-9_]{0,40}", p.strip())]

@@ -238,7 +238,8 @@ def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInpu
             q = con.execute(f'SELECT * FROM "{t}" WHERE session_id = ?', [session_id])
             names = [d[0] for d in q.description]
             upstream[t] = [dict(zip(names, r)) for r in q.fetchall()]
-    q = con.execute("SELECT t_ns, end_ns, type, side, placement, label FROM reference_events WHERE session_id = ? "
+    q = con.execute("SELECT t_ns, end_ns, type, side, placement, label, payload FROM reference_events "
+                    "WHERE session_id = ? "
                     "ORDER BY t_ns", [session_id])
     names = [d[0] for d in q.description]
     events = [dict(zip(names, r)) for r in q.fetchall()]

@@ -1,0 +1,164 @@
+"""``analyse_trunk_gait`` and ``detect_trunk_frame``: the trunk-gait pipeline on arrays.
+
+Order (Micó-Amigo et al. 2023, "Assessing real-world gait with digital technology? Validation, insights and
+recommendations from the Mobilise-D consortium", J NeuroEng Rehabil 20:78, doi:10.1186/s12984-023-01198-5, Fig. 7):
+gait sequences -> body frame -> per sequence initial contacts, side, step lengths, turns -> strides -> walking
+bouts (Kluge et al. 2021) -> per-bout cadence, stride length, walking speed.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
+from estimators.trunk_gait._gsd import detect_gait_sequences
+from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
+from estimators.trunk_gait._spatial import step_lengths, vertical_position
+from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
+from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
+                                          TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
+from estimators.trunk_gait._wba import assemble_bouts, strides_from_contacts
+
+LOW_FRAME_CONFIDENCE = 0.2
+
+
+def _sequences(acc: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
+    return detect_gait_sequences(acc, fs_hz, window_s=p.gsd_window_s, hop_s=p.gsd_hop_s,
+                                 min_std_m_s2=p.gsd_min_std_m_s2, min_autocorr=p.gsd_min_autocorr,
+                                 merge_gap_s=p.gsd_merge_gap_s)
+
+
+def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
+                       params: TrunkGaitParams = TrunkGaitParams()) -> TrunkFrame:
+    """Sensor-to-body frame of a trunk sensor from its data (see ``estimators.trunk_gait._frame``).
+
+    acc (N, 3) m/s², gyr (N, 3) rad/s or None (not needed for the frame), fs_hz > 0. The body frame is ISB:
+    x anterior, y up, z right; ``frame.R @ v_sensor`` gives body coordinates. Walking is found first (gait-sequence
+    detection) and only walking samples are used; without walking the vertical comes from all samples and the
+    anterior axis is undetermined (a warning says so).
+    """
+    acc = np.ascontiguousarray(acc, dtype=np.float64)
+    check_units(acc, None if gyr is None else np.asarray(gyr, float), fs_hz)
+    return frame_from_sequences(acc, fs_hz, _sequences(acc, fs_hz, params))
+
+
+def _body_height(height_m, leg_length_m) -> tuple[float, float, str, str]:
+    if height_m is None or not np.isfinite(height_m):
+        h, hsrc = DEFAULT_HEIGHT_M, f"default ({DEFAULT_HEIGHT_M:.2f} m, documented)"
+    else:
+        if not 0.5 < float(height_m) < 2.6:
+            raise ValueError(f"height_m is {height_m}: expected the body height in metres (0.5-2.6)")
+        h, hsrc = float(height_m), "given"
+    if leg_length_m is None or not np.isfinite(leg_length_m):
+        return h, LEG_LENGTH_PER_HEIGHT * h, hsrc, f"from height ({LEG_LENGTH_PER_HEIGHT} H)"
+    if not 0.3 < float(leg_length_m) < 1.5:
+        raise ValueError(f"leg_length_m is {leg_length_m}: expected the leg length in metres (0.3-1.5)")
+    return h, float(leg_length_m), hsrc, "given"
+
+
+def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float, *, placement: str = "lower_back",
+                       height_m: float | None = None, leg_length_m: float | None = None,
+                       params: TrunkGaitParams = TrunkGaitParams()) -> TrunkGaitResult:
+    """Walking bouts, initial contacts with side, cadence, stride length, walking speed and turns from one trunk
+    sensor (lower back at L4/L5 or chest).
+
+    acc_m_s2, gyr_rad_s: (N, 3) in any sensor orientation (the frame is detected, ``detect_trunk_frame``);
+    fs_hz: sampling rate. height_m / leg_length_m: body height and leg length (pendulum length of the stride-length
+    model); when unknown the documented defaults are used and every bout is flagged ``default_height``.
+    Times in the result are seconds from the first sample. No walking -> empty, typed result and a warning.
+    """
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
+    acc = np.ascontiguousarray(acc_m_s2, dtype=np.float64)
+    gyr = np.ascontiguousarray(gyr_rad_s, dtype=np.float64)
+    check_units(acc, gyr, fs_hz)
+    p = params
+    height, leg, hsrc, lsrc = _body_height(height_m, leg_length_m)
+    seqs = _sequences(acc, fs_hz, p)
+    frame = frame_from_sequences(acc, fs_hz, seqs) if len(acc) else None
+    warnings = list(frame.warnings) if frame is not None else ["no samples"]
+    ic_all, left_all, run_all, step_all = [], [], [], []
+    turns: list[Turns] = []
+    run_offset = 0
+    offset_n = p.ic_offset_s
+    for s, e in seqs:
+        a = acc[s:e]
+        up = a.mean(axis=0)
+        R = frame_from_axes(up, frame.R[0])          # local vertical, global heading of the anterior axis
+        ab = a @ R.T
+        gb = gyr[s:e] @ R.T
+        v = ab[:, 1] - ab[:, 1].mean()
+        peaks = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
+                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s)
+        t = (s + peaks) / fs_hz + offset_n
+        runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
+        run_offset = int(runs.max()) + 1 if len(runs) else run_offset
+        left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
+        pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
+        sl = step_lengths(pos, peaks, leg, p.sl_correction)
+        ic_all.append(t)
+        left_all.append(left)
+        run_all.append(runs)
+        step_all.append(np.r_[sl, np.nan] if len(peaks) else np.empty(0))   # step i -> i+1; last has none
+        turns.append(detect_turns(gb[:, 1], fs_hz, t0_s=s / fs_hz, lowpass_hz=p.turn_lowpass_hz,
+                                  min_peak_deg_s=p.turn_min_peak_deg_s, edge_deg_s=p.turn_edge_deg_s,
+                                  min_angle_deg=p.turn_min_angle_deg, min_s=p.turn_min_s, max_s=p.turn_max_s))
+    cat = lambda xs, dt: np.concatenate(xs) if xs else np.empty(0, dt)  # noqa: E731
+    ic = cat(ic_all, float)
+    left = cat(left_all, bool)
+    runs = cat(run_all, np.int64)
+    step_len = cat(step_all, float)
+    turn = Turns(*(cat([getattr(tt, f) for tt in turns], float)
+                   for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
+
+    first, st, en, length = strides_from_contacts(ic, runs, step_len)
+    dur = en - st
+    valid = (dur >= p.stride_min_s) & (dur <= p.stride_max_s) & (np.nan_to_num(length) >= p.stride_min_length_m)
+    bout_of = assemble_bouts(st, en, valid, max_break_s=p.wb_max_break_s, min_strides=p.wb_min_strides)
+    in_b = bout_of >= 0
+    n_b = int(bout_of.max()) + 1 if in_b.any() else 0
+    strides = Strides(start_s=st[in_b], end_s=en[in_b], side=np.where(left[first[in_b]], "left", "right"),
+                      length_m=length[in_b], speed_m_s=length[in_b] / dur[in_b], bout=bout_of[in_b])
+    b_start = np.array([strides.start_s[strides.bout == b].min() for b in range(n_b)])
+    b_end = np.array([strides.end_s[strides.bout == b].max() for b in range(n_b)])
+    ic_bout = np.full(len(ic), -1, np.int64)
+    for b in range(n_b):
+        ic_bout[(ic >= b_start[b] - 1e-9) & (ic <= b_end[b] + 1e-9)] = b
+    n_ic = np.bincount(ic_bout[ic_bout >= 0], minlength=n_b)
+    n_steps = np.maximum(n_ic - 1, 0)
+    # cadence from the median step time of the bout's consecutive contacts (robust to a missed or extra contact
+    # at the edges and to pauses inside the bout, which a count over the duration is not)
+    cadence = np.full(n_b, np.nan)
+    for b in range(n_b):
+        tb = ic[ic_bout == b]
+        st_b = np.diff(tb)
+        st_b = st_b[st_b <= p.stride_max_s / 2.0]
+        if len(st_b):
+            cadence[b] = 60.0 / float(np.median(st_b))
+    n_str = np.bincount(strides.bout, minlength=n_b)
+    sl_b = np.bincount(strides.bout, weights=strides.length_m, minlength=n_b) / np.maximum(n_str, 1)
+    sp_b = np.bincount(strides.bout, weights=strides.speed_m_s, minlength=n_b) / np.maximum(n_str, 1)
+    n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
+                       np.int64)
+    flags = []
+    common = []
+    if hsrc != "given" and lsrc != "given":
+        common.append("default_height")
+    if frame is not None and frame.confidence < LOW_FRAME_CONFIDENCE:
+        common.append("low_frame_confidence")
+    if placement == "chest":
+        common.append("chest_stride_length_model")
+    for _ in range(n_b):
+        flags.append(tuple(common))
+    if n_b == 0:
+        warnings.append("no walking bout found")
+    bouts = Bouts(start_s=b_start, end_s=b_end, n_steps=n_steps.astype(np.int64), n_strides=n_str.astype(np.int64),
+                  cadence_spm=cadence, stride_length_m=sl_b, walking_speed_m_s=sp_b, n_turns=n_turns,
+                  flags=tuple(flags))
+    keep_ic = ic_bout >= 0
+    empty_frame = TrunkFrame(R=np.eye(3), confidence=0.0, vertical_axis=1, vertical_sign=1, anterior_axis=0,
+                             anterior_sign=1, walking_found=False, warnings=("no samples",))
+    return TrunkGaitResult(bouts=bouts, strides=strides, turns=turn, initial_contacts_s=ic[keep_ic],
+                           ic_side=np.where(left[keep_ic], "left", "right"),
+                           gait_sequences_s=seqs.astype(float) / fs_hz, frame=frame or empty_frame,
+                           height_m=height, leg_length_m=leg, height_source=hsrc, leg_length_source=lsrc,
+                           placement=placement, params=p, warnings=tuple(warnings))

@@ -1,0 +1,228 @@
+"""Parameters and result types of the trunk-gait family (see docs/trunk_gait.md).
+
+Body frame of this family (ISB, as DESIGN.md): x anterior, y superior (up, along gravity reversed), z right.
+``TrunkFrame.R`` maps sensor-frame vectors into it: ``v_body = R @ v_sensor`` (rows = body axes in sensor
+coordinates). The frame is gravity-aligned (tilt-corrected, Moe-Nilssen 1998) and heading-free: y is the mean
+specific-force direction while walking, x its horizontal direction of forward acceleration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+DEFAULT_HEIGHT_M = 1.70
+"""Body height used when none is given (flagged ``default_height``): the mean of adult European men and women
+(about 1.78 / 1.65 m, NCD-RisC 2016, doi:10.7554/eLife.13410), rounded."""
+
+LEG_LENGTH_PER_HEIGHT = 0.53
+"""Leg length (greater trochanter to floor) per body height, Winter 2009 (Biomechanics and Motor Control of Human
+Movement, 4th ed., Fig. 4.1: 0.530 H); used when only the height is known."""
+
+PLACEMENTS = ("lower_back", "chest")
+
+
+@dataclass(frozen=True)
+class TrunkGaitParams:
+    """Parameters of ``analyse_trunk_gait`` (units in the names; rate-independent).
+
+    Gait-sequence detection (windowed step periodicity, after Iluz et al. 2014 / Moe-Nilssen & Helbostad 2004):
+      gsd_window_s: window length, s (3 s as Iluz 2014).
+      gsd_hop_s: hop between windows, s.
+      gsd_min_std_m_s2: minimum standard deviation of the acceleration norm in a walking window, m/s².
+      gsd_min_autocorr: minimum normalised autocorrelation at the step lag (0.25-1.6 s) in a walking window.
+      gsd_merge_gap_s: walking windows closer than this are merged into one gait sequence, s.
+    Initial contacts (peak of the smoothed upward acceleration, McCamley et al. 2012 / Zijlstra & Hof 2003):
+      ic_smooth_s: standard deviation of the Gaussian smoothing of the vertical acceleration, s.
+      ic_min_step_s: minimum time between two initial contacts, s.
+      ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
+        the gait sequence.
+      ic_local_window_s: window of that standard deviation, s (0 = the whole sequence).
+      ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
+    Side (McCamley et al. 2012: sign of the yaw rate):
+      side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
+      side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
+    Stride length (Zijlstra & Hof 2003 inverted pendulum):
+      sl_correction: multiplicative correction factor K of the pendulum step length.
+      sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
+    Walking-bout assembly (Kluge et al. 2021 consensus):
+      wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
+      wb_max_break_s: longest break between strides inside one walking bout, s.
+      stride_min_s, stride_max_s: plausible stride duration, s.
+      stride_min_length_m: strides shorter than this are not counted as walking, m.
+    Turns (El-Gohary et al. 2014):
+      turn_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
+      turn_min_peak_deg_s: minimum peak yaw rate of a turn, deg/s.
+      turn_edge_deg_s: the turn starts and ends where the yaw rate falls below this, deg/s.
+      turn_min_angle_deg: minimum turn angle, deg.
+      turn_min_s, turn_max_s: plausible turn duration, s.
+    """
+    gsd_window_s: float = 3.0
+    gsd_hop_s: float = 0.5
+    gsd_min_std_m_s2: float = 0.25
+    gsd_min_autocorr: float = 0.3
+    gsd_merge_gap_s: float = 1.0
+    ic_smooth_s: float = 0.11
+    ic_min_step_s: float = 0.25
+    ic_prominence: float = 0.7
+    ic_local_window_s: float = 0.0
+    ic_offset_s: float = -0.06
+    side_lag_s: float = -0.1
+    side_lowpass_hz: float = 2.0
+    sl_correction: float = 1.19
+    sl_highpass_hz: float = 0.1
+    wb_min_strides: int = 4
+    wb_max_break_s: float = 3.0
+    stride_min_s: float = 0.2
+    stride_max_s: float = 3.0
+    stride_min_length_m: float = 0.15
+    turn_lowpass_hz: float = 1.5
+    turn_min_peak_deg_s: float = 15.0
+    turn_edge_deg_s: float = 5.0
+    turn_min_angle_deg: float = 45.0
+    turn_min_s: float = 0.5
+    turn_max_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class TrunkFrame:
+    """Sensor-to-body rotation found from the data.
+
+    R: (3, 3) rows = body x (anterior), y (up), z (right) in sensor coordinates; ``v_body = R @ v_sensor``.
+    confidence: 0..1, the smaller of the vertical confidence (mean resultant length of the acceleration direction)
+      and the anterior confidence (|correlation| of the forward axis with the vertical jerk while walking).
+    vertical_axis / vertical_sign: the sensor axis closest to up and whether it points up (+1) or down (-1).
+    anterior_axis / anterior_sign: the same for anterior.
+    walking_found: whether walking was found to fix the anterior axis (else x is an arbitrary horizontal axis).
+    warnings: tuple of human-readable warnings (e.g. "sensor looks upside down").
+    """
+    R: np.ndarray
+    confidence: float
+    vertical_axis: int
+    vertical_sign: int
+    anterior_axis: int
+    anterior_sign: int
+    walking_found: bool
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Bouts:
+    """Walking bouts, one entry per bout (arrays of equal length B).
+
+    start_s, end_s: first and last initial contact of the bout, s from the first sample.
+    n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
+    cadence_spm: steps per minute (60 / median step time); stride_length_m: mean stride length, m;
+    walking_speed_m_s: mean stride speed, m/s.
+    n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
+    flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
+    """
+    start_s: np.ndarray
+    end_s: np.ndarray
+    n_steps: np.ndarray
+    n_strides: np.ndarray
+    cadence_spm: np.ndarray
+    stride_length_m: np.ndarray
+    walking_speed_m_s: np.ndarray
+    n_turns: np.ndarray
+    flags: tuple[tuple[str, ...], ...] = ()
+
+    def __len__(self) -> int:
+        return int(len(self.start_s))
+
+    @property
+    def duration_s(self) -> np.ndarray:
+        return self.end_s - self.start_s
+
+    def records(self) -> list[dict]:
+        """One dict per bout (plain Python types), for tables."""
+        return [{"start_s": float(self.start_s[i]), "end_s": float(self.end_s[i]),
+                 "duration_s": float(self.end_s[i] - self.start_s[i]), "n_steps": int(self.n_steps[i]),
+                 "n_strides": int(self.n_strides[i]), "cadence_spm": float(self.cadence_spm[i]),
+                 "stride_length_m": float(self.stride_length_m[i]),
+                 "walking_speed_m_s": float(self.walking_speed_m_s[i]), "n_turns": int(self.n_turns[i]),
+                 "flags": tuple(self.flags[i]) if self.flags else ()} for i in range(len(self))]
+
+
+@dataclass(frozen=True)
+class Strides:
+    """Strides kept in walking bouts (arrays of length S): start_s, end_s (same-side initial contacts), side
+    ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``)."""
+    start_s: np.ndarray
+    end_s: np.ndarray
+    side: np.ndarray
+    length_m: np.ndarray
+    speed_m_s: np.ndarray
+    bout: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.start_s))
+
+
+@dataclass(frozen=True)
+class Turns:
+    """Turns (arrays of length T): start_s, end_s, angle_deg (signed, + = to the left, counter-clockwise seen from
+    above), peak_rate_deg_s."""
+    start_s: np.ndarray
+    end_s: np.ndarray
+    angle_deg: np.ndarray
+    peak_rate_deg_s: np.ndarray
+
+    def __len__(self) -> int:
+        return int(len(self.start_s))
+
+
+@dataclass(frozen=True)
+class TrunkGaitResult:
+    """Everything ``analyse_trunk_gait`` found.
+
+    bouts: ``Bouts``; strides: ``Strides``; turns: ``Turns``.
+    initial_contacts_s: (K,) every initial contact inside a walking bout, s from the first sample, sorted.
+    ic_side: (K,) "left" / "right".
+    gait_sequences_s: (G, 2) [start, end) of the detected gait sequences, s.
+    frame: the ``TrunkFrame`` used. height_m, leg_length_m: what the spatial model used.
+    height_source: "given" | "default (1.70 m, documented)"; leg_length_source likewise ("given" |
+    "from height (0.53 H)").
+    placement, params, warnings (tuple of str).
+    """
+    bouts: Bouts
+    strides: Strides
+    turns: Turns
+    initial_contacts_s: np.ndarray
+    ic_side: np.ndarray
+    gait_sequences_s: np.ndarray
+    frame: TrunkFrame
+    height_m: float
+    leg_length_m: float
+    height_source: str
+    leg_length_source: str
+    placement: str
+    params: TrunkGaitParams = field(default_factory=TrunkGaitParams)
+    warnings: tuple[str, ...] = ()
+
+
+DURATION_CLASSES_S = ((10.0, 30.0), (30.0, 60.0), (60.0, 120.0), (120.0, float("inf")))
+
+
+@dataclass(frozen=True)
+class DailyOutcomes:
+    """Mobilise-D-style digital mobility outcomes of one day (Polhemus et al. 2021; Kirk et al. 2024).
+
+    walking_time_s: total duration of all walking bouts. n_bouts: all bouts. n_bouts_by_class: counts for
+    10-30 s, 30-60 s, 60-120 s, > 120 s (``DURATION_CLASSES_S``, [lo, hi)). n_bouts_over_10s.
+    speed_median_m_s, speed_p95_m_s, stride_length_median_m, stride_length_p95_m, cadence_median_spm,
+    cadence_p95_spm: median and 95th centile over bouts longer than 10 s (NaN when there is none).
+    stride_velocity_p95_m_s: 95th centile of stride speeds (of strides in bouts > 10 s when the bout of each stride
+    is given), NaN when none.
+    """
+    walking_time_s: float
+    n_bouts: int
+    n_bouts_by_class: tuple[int, int, int, int]
+    n_bouts_over_10s: int
+    speed_median_m_s: float
+    speed_p95_m_s: float
+    stride_length_median_m: float
+    stride_length_p95_m: float
+    cadence_median_spm: float
+    cadence_p95_spm: float
+    stride_velocity_p95_m_s: float

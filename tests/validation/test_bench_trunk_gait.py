@@ -1,0 +1,33 @@
+"""``stridelab bench trunk-gait`` on a few real Voisard trials plus one broken copy: the broken file is listed with
+its reason and the bench goes on; the blocks carry the six keys; mobgap absent -> anchor null with a reason."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import shared_data
+
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
+
+
+def test_bench_skips_a_broken_file_and_reports_every_block(tmp_path):
+    from validation.bench.trunk_gait import KEYS, run_benchmark
+    src = shared_data("voisard_gait")
+    for name in ("1-1", "2-1"):                       # a temporary copy (never into the repository: AGPL data)
+        for suffix in (".json", "_lf.txt", "_rf.txt", "_lb.txt"):
+            shutil.copy(src / f"{name}{suffix}", tmp_path / f"{name}{suffix}")
+    lines = (tmp_path / "2-1_lb.txt").read_text().splitlines()
+    lines[10] = lines[9]                               # a repeated packet counter
+    (tmp_path / "2-1_lb.txt").write_text("\n".join(lines) + "\n")
+    res = run_benchmark(tmp_path, None, mobgap_python=tmp_path / "no-such-python", anchor=True, day=False,
+                        show=False)
+    assert [Path(f["file"]).name for f in res["failed_files"]] == ["2-1_lb.txt"]
+    assert "packet counter" in res["failed_files"][0]["reason"]
+    assert res["anchor"] is None and "make .venv-mobgap" in res["anchor_reason"]
+    for blk in ("shipped_defaults", "cross_validated", "in_sample"):
+        assert set(KEYS) <= set(res[blk]["voisard"]) and set(KEYS) <= set(res[blk]["overall"])
+        assert res[blk]["voisard"]["stride_length_mae_m"] is None         # Voisard has no spatial reference
+    s = res["shipped_defaults"]["voisard"]
+    assert s["ic_sensitivity"] > 0.8 and s["ic_precision"] > 0.8 and s["ic_timing_mae_ms"] < 50

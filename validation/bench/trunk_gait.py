@@ -1,0 +1,613 @@
+"""``stridelab bench trunk-gait``: real-world gait from one trunk sensor against reference initial contacts, walking
+bouts, cadence, stride length and walking speed; mobgap (the Mobilise-D reference implementation) as the anchor.
+
+Data. Voisard et al. 2023 (``--voisard``): the L5 sensor of each trial; reference initial contacts = heel strikes of
+both feet (foot-IMU algorithms checked by hand) inside ``TrialBoundaries``; one reference walking bout per trial
+from its first to its last heel strike, with cadence = 60 (n - 1) / span; no spatial reference (stride length and
+speed null). Detections are scored inside the trial boundaries ± the matching tolerance (outside them the subject
+stands). Mobilise-D standardized data (``--mobilised``): the lower-back SU of every trial; reference = INDIP
+``MicroWB`` (initial contacts with side, per-bout cadence, stride length, walking speed), scored over the whole
+recording. Trunk initial contacts and foot heel strikes are different events: the constant ``ic_offset_s`` maps
+one to the other and is chosen by cross-validation (below), never on the recording it is scored on.
+
+One scorer: ``estimators.trunk_gait.evaluation`` (contacts one-to-one within 0.25 s; bouts one-to-one by IoU ≥ 0.5;
+per matched bout the cadence / stride length / speed errors), for StrideLab and mobgap alike.
+
+Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
+chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
+one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); the
+stride-length factor ``sl_correction`` only has a reference in the Mobilise-D data: leave-one-trial-out over the
+trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
+(marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
+the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
+input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
+offset chosen by the same leave-one-group-out. mobgap runs in its own interpreter (``make .venv-mobgap``); when it
+is absent the block is ``null`` with the reason.
+
+Loss for the IC constants (per group, pooled over its recordings): timing MAE in ms + 100 × ((1 - sensitivity) +
+(1 - precision)), i.e. one missed or extra contact in 100 costs as much as 1 ms of timing error.
+
+Speed (``--day``): ``analyse_trunk_gait`` + ``daily_outcomes`` on a 24 h lower-back day at 100 Hz (a Mobilise-D or
+Voisard recording inserted every 15 min into still periods with posture changes), CPU seconds of this process.
+Progress on stderr, JSON (``--json``) on stdout.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import click
+import numpy as np
+
+from estimators.trunk_gait._frame import check_units
+from pipeline.console import UserError, emit_json, err_console
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_VOISARD = PROJECT_ROOT.parent / "shared" / "data" / "voisard_gait"
+DEFAULT_MOBGAP_PY = PROJECT_ROOT / ".venv-mobgap" / "bin" / "python"
+MOBGAP_RUNNER = PROJECT_ROOT / "validation" / "anchors" / "mobgap_runner.py"
+KEYS = ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct", "stride_length_mae_m",
+        "walking_speed_mae_m_s")
+GRID_SMOOTH_S = (0.08, 0.11, 0.14)
+GRID_PROMINENCE = (0.3, 0.5, 0.7)
+GRID_LOCAL_S = (0.0, 3.0)
+GRID_OFFSET_S = tuple(np.round(np.arange(-0.14, 0.061, 0.01), 3))
+GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
+XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
+
+
+@dataclass
+class Rec:
+    """One recording with its reference (times in s from the first sample)."""
+    name: str
+    dataset: str            # "voisard" | "mobilised"
+    group: str              # CV group (subject / participant)
+    trial_group: str        # the trial (for the leave-one-trial-out of sl_correction)
+    acc: np.ndarray
+    gyr: np.ndarray
+    fs: float
+    height_m: float | None
+    leg_length_m: float | None
+    ref_ic_s: np.ndarray
+    ref_bouts: dict         # start_s, end_s, cadence_spm, stride_length_m, walking_speed_m_s arrays
+    window_s: tuple[float, float]
+    mobgap_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    sensor_height_m: float | None = None
+
+
+def _say(msg: str) -> None:
+    err_console.print(msg, highlight=False)
+
+
+def load_voisard(directory: Path, failed: list, limit: int | None) -> list[Rec]:
+    from pipeline.formats.xsens_mt import load_voisard_trial
+    names = sorted((p.stem for p in directory.glob("*-*.json") if p.stem.replace("-", "").isdigit()),
+                   key=lambda s: tuple(int(x) for x in s.split("-")))
+    if not names:
+        raise UserError(f"{directory}: no N-M.json files; expected the Voisard et al. gait data")
+    out = []
+    for n in names[:limit] if limit else names:
+        try:
+            t = load_voisard_trial(directory, n)
+            if t.lower_back is None:
+                raise ValueError(f"{directory / (n + '_lb.txt')}: missing (no lower-back sensor)")
+            check_units(t.lower_back.acc, t.lower_back.gyr, t.lower_back.sampling_rate_hz)
+        except (ValueError, OSError, KeyError, IndexError) as e:
+            failed.append({"file": str(directory / f"{n}_lb.txt"), "reason": str(e)})
+            _say(f"[yellow]skipped Voisard {n}: {e}[/]")
+            continue
+        a, lb = t.annotation, t.lower_back
+        fs = lb.sampling_rate_hz
+        s0, s1 = (int(x) for x in a.trial_boundaries)
+        hs = np.sort(np.r_[a.left_events[:, 1], a.right_events[:, 1]])
+        hs = hs[(hs >= s0) & (hs <= s1)] / fs
+        if len(hs) < 3:
+            failed.append({"file": str(directory / f"{n}.json"), "reason": "fewer than 3 heel strikes in the trial"})
+            continue
+        cad = 60.0 * (len(hs) - 1) / (hs[-1] - hs[0])
+        nan = np.array([np.nan])
+        out.append(Rec(name=f"voisard:{n}", dataset="voisard", group=f"voisard:S{a.subject}", trial_group=n,
+                       acc=lb.acc, gyr=lb.gyr, fs=fs,
+                       height_m=a.height_cm / 100.0 if np.isfinite(a.height_cm) else None, leg_length_m=None,
+                       ref_ic_s=hs, ref_bouts={"start_s": hs[:1], "end_s": hs[-1:], "cadence_spm": np.array([cad]),
+                                               "stride_length_m": nan, "walking_speed_m_s": nan},
+                       window_s=(s0 / fs, s1 / fs), mobgap_axes=XSENS_TO_MOBGAP))
+    return out
+
+
+def load_mobilised(root: Path, failed: list) -> list[Rec]:
+    from pipeline.formats.mobilised import find_mobilised_files, read_mobilised
+    try:
+        files = find_mobilised_files(root)
+    except ValueError as e:
+        raise UserError(str(e)) from e
+    out = []
+    for f in files:
+        try:
+            trials = read_mobilised(f)
+        except (ValueError, OSError, KeyError, IndexError) as e:
+            failed.append({"file": str(f), "reason": str(e)})
+            _say(f"[yellow]skipped {f}: {e}[/]")
+            continue
+        for t in trials:
+            try:
+                check_units(t.acc, t.gyr, t.fs_hz)
+            except ValueError as e:
+                failed.append({"file": f"{f}:{t.name}", "reason": str(e)})
+                continue
+            ref = t.reference("INDIP", "MicroWB")
+            if ref is None:
+                failed.append({"file": f"{f}:{t.name}", "reason": "no INDIP MicroWB reference"})
+                continue
+            out.append(Rec(name=f"mobilised:{t.name}", dataset="mobilised", group=f"mobilised:{t.participant_id}",
+                           trial_group=t.name, acc=t.acc, gyr=t.gyr, fs=t.fs_hz, height_m=t.info.height_m,
+                           leg_length_m=t.info.leg_length_m, ref_ic_s=np.sort(ref.ic_s),
+                           ref_bouts={"start_s": ref.start_s, "end_s": ref.end_s, "cadence_spm": ref.cadence_spm,
+                                      "stride_length_m": ref.stride_length_m,
+                                      "walking_speed_m_s": ref.walking_speed_m_s},
+                           window_s=(0.0, len(t.acc) / t.fs_hz), sensor_height_m=t.info.sensor_height_m))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------- scoring
+
+@dataclass
+class Det:
+    """What a method found on one recording (times in s)."""
+    ic_s: np.ndarray
+    bouts: dict             # start_s, end_s, cadence_spm, stride_length_m, walking_speed_m_s
+
+
+def _ic_counts(rec: Rec, ic_s: np.ndarray) -> tuple[int, int, int, np.ndarray]:
+    from estimators.trunk_gait.evaluation import IC_TOLERANCE_S, match_initial_contacts
+    lo, hi = rec.window_s
+    d = ic_s[(ic_s >= lo - IC_TOLERANCE_S) & (ic_s <= hi + IC_TOLERANCE_S)]
+    m = match_initial_contacts(d, rec.ref_ic_s)
+    return len(m.det_idx), len(m.fp_idx), len(m.fn_idx), m.error_s
+
+
+def _bout_errs(rec: Rec, det: Det, sl_scale: float = 1.0) -> dict:
+    from estimators.trunk_gait.evaluation import bout_errors, match_bouts
+    b = det.bouts
+    m = match_bouts(b["start_s"], b["end_s"], rec.ref_bouts["start_s"], rec.ref_bouts["end_s"])
+    d = {"cadence_spm": b["cadence_spm"], "stride_length_m": np.asarray(b["stride_length_m"]) * sl_scale,
+         "walking_speed_m_s": np.asarray(b["walking_speed_m_s"]) * sl_scale}
+    e = bout_errors(m, d, rec.ref_bouts)
+    e["_n_ref"] = len(rec.ref_bouts["start_s"])
+    e["_n_matched"] = len(m.det_idx)
+    return e
+
+
+def score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0, sl_scale: float = 1.0) -> dict:
+    """The six keys (None where no reference) pooled over ``recs``, plus counts."""
+    from estimators.trunk_gait.evaluation import summarise_bout_errors
+    tp = fp = fn = 0
+    errs, berrs = [], []
+    n_ref_b = n_match_b = 0
+    for r, d in zip(recs, dets):
+        a, b, c, e = _ic_counts(r, d.ic_s + offset_s)
+        tp, fp, fn = tp + a, fp + b, fn + c
+        errs.append(e)
+        be = _bout_errs(r, d, sl_scale)
+        n_ref_b += be.pop("_n_ref")
+        n_match_b += be.pop("_n_matched")
+        berrs.append(be)
+    e = np.concatenate(errs) if errs else np.empty(0)
+    s = summarise_bout_errors(berrs)
+    out = {"ic_sensitivity": tp / (tp + fn) if tp + fn else None, "ic_precision": tp / (tp + fp) if tp + fp else None,
+           "ic_timing_mae_ms": float(np.mean(np.abs(e)) * 1000) if len(e) else None,
+           "cadence_mape_pct": s["cadence_mape_pct"], "stride_length_mae_m": s["stride_length_mae_m"],
+           "walking_speed_mae_m_s": s["walking_speed_mae_m_s"],
+           "ic_timing_bias_ms": float(np.mean(e) * 1000) if len(e) else None,
+           "n_recordings": len(recs), "ic_tp": tp, "ic_fp": fp, "ic_fn": fn,
+           "bouts_reference": n_ref_b, "bouts_matched": n_match_b,
+           "bouts_with_stride_length_reference": s["n_bouts_stride_length"]}
+    return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}
+
+
+def blocks(recs: list[Rec], dets: list[Det], *, offsets=None, sl_scales=None) -> dict:
+    """Per data set and overall. ``offsets`` / ``sl_scales``: per-recording values (held-out choices) or None."""
+    offsets = offsets if offsets is not None else [0.0] * len(recs)
+    sl_scales = sl_scales if sl_scales is not None else [1.0] * len(recs)
+    out = {}
+    for ds in ("voisard", "mobilised"):
+        idx = [i for i, r in enumerate(recs) if r.dataset == ds]
+        if idx:
+            out[ds] = _score_idx(recs, dets, idx, offsets, sl_scales)
+    out["overall"] = _score_idx(recs, dets, list(range(len(recs))), offsets, sl_scales)
+    return out
+
+
+def _score_idx(recs, dets, idx, offsets, sl_scales) -> dict:
+    # recordings can carry different offsets/scales (held-out choices): shift the detections, then pool
+    shifted = [Det(ic_s=dets[i].ic_s + offsets[i],
+                   bouts={**dets[i].bouts,
+                          "stride_length_m": np.asarray(dets[i].bouts["stride_length_m"]) * sl_scales[i],
+                          "walking_speed_m_s": np.asarray(dets[i].bouts["walking_speed_m_s"]) * sl_scales[i]})
+               for i in idx]
+    return score([recs[i] for i in idx], shifted)
+
+
+def ic_loss(s: dict) -> float:
+    if s["ic_timing_mae_ms"] is None or s["ic_sensitivity"] is None or s["ic_precision"] is None:
+        return float("inf")
+    return s["ic_timing_mae_ms"] + 100.0 * ((1 - s["ic_sensitivity"]) + (1 - s["ic_precision"]))
+
+
+# ----------------------------------------------------------------------------------------------- our method
+
+def run_ours(rec: Rec, params) -> Det:
+    from estimators.trunk_gait import analyse_trunk_gait
+    res = analyse_trunk_gait(rec.acc, rec.gyr, rec.fs, placement="lower_back", height_m=rec.height_m,
+                             leg_length_m=rec.leg_length_m, params=params)
+    b = res.bouts
+    return Det(ic_s=res.initial_contacts_s, bouts={"start_s": b.start_s, "end_s": b.end_s,
+                                                   "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
+                                                   "walking_speed_m_s": b.walking_speed_m_s})
+
+
+def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
+    """Leave-one-group-out: ``loss_fn(group_list, c)`` pooled loss of candidate c on those groups."""
+    ug = sorted(set(groups))
+    held = {}
+    for g in ug:
+        train = [x for x in ug if x != g] or [g]      # a single group: nothing to hold out (in-sample)
+        losses = [loss_fn(train, c) for c in range(n_cand)]
+        held[g] = int(np.argmin(losses))
+    ins = int(np.argmin([loss_fn(ug, c) for c in range(n_cand)]))
+    return {"held_out_choice": held, "in_sample_choice": ins}
+
+
+def tune_and_score(recs: list[Rec], show: bool) -> dict:
+    """Run our estimator for the IC grid, choose constants by LOGO, score shipped / CV / in-sample."""
+    from estimators.trunk_gait import TrunkGaitParams
+    shipped = TrunkGaitParams()
+    # group-level means of the IC loss: each candidate = (smooth, prominence, offset)
+    cands = [(s, p, w) for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for w in GRID_LOCAL_S]
+    dets: dict[tuple, list[Det]] = {}
+    for ci, (s, p, w) in enumerate(cands):
+        params = dataclasses.replace(shipped, ic_smooth_s=s, ic_prominence=p, ic_local_window_s=w, ic_offset_s=0.0)
+        dets[(s, p, w)] = [run_ours(r, params) for r in recs]
+        if show:
+            _say(f"  grid {ci + 1}/{len(cands)}: ic_smooth_s={s} ic_prominence={p} ic_local_window_s={w}")
+    full = [(s, p, w, o) for (s, p, w) in cands for o in GRID_OFFSET_S]
+    groups = [r.group for r in recs]
+    cache: dict = {}
+
+    def group_loss(g: str, c: int) -> float:
+        key = (g, c)
+        if key not in cache:
+            s, p, w, o = full[c]
+            idx = [i for i, r in enumerate(recs) if r.group == g]
+            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[(s, p, w)][i] for i in idx], offset_s=o))
+        return cache[key]
+
+    logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
+    # sl_correction: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out
+    mob = [i for i, r in enumerate(recs) if r.dataset == "mobilised"]
+    ship_dets = [run_ours(r, shipped) for r in recs]
+    sl_held: dict[str, float] = {}
+    sl_ins = None
+    if mob:
+        def sl_loss(trials, k):
+            e = []
+            for i in mob:
+                if recs[i].trial_group in trials:
+                    be = _bout_errs(recs[i], ship_dets[i], GRID_SL[k] / shipped.sl_correction)
+                    e.extend(be.get("stride_length_m", {}).get("abs_error", []))
+            e = np.asarray(e, float)
+            e = e[np.isfinite(e)]
+            return float(np.mean(e)) if len(e) else float("inf")
+        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(GRID_SL))
+        sl_held = {t: GRID_SL[k] for t, k in sl["held_out_choice"].items()}
+        sl_ins = GRID_SL[sl["in_sample_choice"]]
+    # cross-validated: per recording, the detections of its held-out choice
+    cv_dets, cv_off, cv_scale = [], [], []
+    for r in recs:
+        s, p, w, o = full[logo["held_out_choice"][r.group]]
+        cv_dets.append(dets[(s, p, w)][recs.index(r)])
+        cv_off.append(o)
+        cv_scale.append(sl_held.get(r.trial_group, shipped.sl_correction) / shipped.sl_correction)
+    si, pi, wi, oi = full[logo["in_sample_choice"]]
+    ins_dets = dets[(si, pi, wi)]
+    ins_scale = [(sl_ins or shipped.sl_correction) / shipped.sl_correction] * len(recs)
+    by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_offset_s"), full[c]))
+                for g, c in logo["held_out_choice"].items()}
+    return {
+        "shipped_defaults": {**blocks(recs, ship_dets),
+                             "params": {k: getattr(shipped, k) for k in ("ic_smooth_s", "ic_prominence",
+                                                                          "ic_local_window_s", "ic_offset_s",
+                                                                          "sl_correction")}},
+        "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
+                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_offset_s): "
+                                      "leave-one-group-out "
+                                      "over the Voisard subjects + the Mobilise-D participant as one more group; "
+                                      "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
+                                      "participant (the only stride-length reference)",
+                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held},
+        "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
+                      "marked": "in-sample: constants chosen on all the recordings scored here",
+                      "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi, "ic_offset_s": oi,
+                                 "sl_correction": sl_ins}},
+        "_ship_dets": ship_dets,
+    }
+
+
+# ---------------------------------------------------------------------------------------------------- mobgap
+
+def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
+    """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
+    if not python.is_file():
+        return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
+                      "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
+    from estimators.trunk_gait import detect_trunk_frame
+    variants = {"as_worn": [], "aligned": []}
+    arrays = {}
+    names = []
+    for i, r in enumerate(recs):
+        key = f"r{i}"
+        names.append(key)
+        meta = np.array([r.fs, r.height_m or 1.70, r.sensor_height_m or 0.53 * (r.height_m or 1.70)])
+        # as worn: the device's fixed axis mapping to mobgap's x up / z forward
+        arrays[f"as_worn_{key}/acc"] = r.acc @ r.mobgap_axes.T
+        arrays[f"as_worn_{key}/gyr"] = np.rad2deg(r.gyr @ r.mobgap_axes.T)
+        arrays[f"as_worn_{key}/meta"] = meta
+        # aligned: our detected frame (x anterior, y up, z right) -> mobgap (x up, y right, z anterior)
+        R = detect_trunk_frame(r.acc, r.gyr, r.fs).R
+        M = np.array([R[1], R[2], R[0]])
+        arrays[f"aligned_{key}/acc"] = r.acc @ M.T
+        arrays[f"aligned_{key}/gyr"] = np.rad2deg(r.gyr @ M.T)
+        arrays[f"aligned_{key}/meta"] = meta
+    all_names = [f"{v}_{k}" for v in variants for k in names]
+    # mobgap's output depends only on its inputs and its environment: cached beside that environment, keyed by
+    # the hash of the inputs, the runner and the interpreter (a rerun of the bench then costs seconds, not minutes)
+    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + str(python.resolve()).encode())
+    for n in all_names:
+        for part in ("acc", "gyr", "meta"):
+            h.update(np.ascontiguousarray(arrays[f"{n}/{part}"]).tobytes())
+    cache = python.resolve().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+    if cache.is_file():
+        out = json.loads(cache.read_text())
+        if show:
+            _say(f"mobgap results from the cache {cache}")
+    else:
+        with tempfile.TemporaryDirectory(prefix="stridelab-mobgap-") as td:
+            src, dst = Path(td) / "in.npz", Path(td) / "out.json"
+            np.savez(src, names=np.array(all_names), **arrays)
+            if show:
+                _say(f"running mobgap on {len(all_names)} inputs x 2 pipelines in {python} …")
+            env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+            try:
+                proc = subprocess.run([str(python), str(MOBGAP_RUNNER), str(src), str(dst)], env=env,
+                                      stdout=subprocess.PIPE, stderr=None if show else subprocess.DEVNULL, text=True,
+                                      timeout=3600)
+            except (OSError, subprocess.TimeoutExpired) as e:
+                return None, f"mobgap runner failed to run: {e}"
+            if proc.returncode != 0 or not dst.is_file():
+                return None, f"mobgap runner exited with {proc.returncode}"
+            out = json.loads(dst.read_text())
+        try:
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            cache.write_text(json.dumps(out))
+        except OSError:
+            pass
+    res: dict = {"_version": out.get("_mobgap_version")}
+    for v in variants:
+        res[v] = {}
+        for pipe in ("healthy", "impaired"):
+            lst = []
+            for k in names:
+                o = out.get(f"{v}_{k}", {}).get(pipe, {"error": "missing"})
+                if "error" in o:
+                    lst.append(Det(ic_s=np.empty(0), bouts={k2: np.empty(0) for k2 in (
+                        "start_s", "end_s", "cadence_spm", "stride_length_m", "walking_speed_m_s")}))
+                    continue
+                f = lambda x: np.array([np.nan if y is None else y for y in x], float)  # noqa: E731
+                lst.append(Det(ic_s=np.asarray(o["ic_s"], float),
+                               bouts={"start_s": f(o["wb_start_s"]), "end_s": f(o["wb_end_s"]),
+                                      "cadence_spm": f(o["cadence_spm"]), "stride_length_m": f(o["stride_length_m"]),
+                                      "walking_speed_m_s": f(o["walking_speed_m_s"])}))
+            res[v][pipe] = lst
+        res.setdefault("_errors", []).extend(
+            f"{recs[int(k[1:])].name} {v} {p}: {out[f'{v}_{k}'][p]['error']}" for k in names
+            for p in ("healthy", "impaired") if "error" in out.get(f"{v}_{k}", {}).get(p, {}))
+    return res, None
+
+
+def anchor_block(recs: list[Rec], mg: dict) -> dict:
+    """mobgap as shipped (both pipelines, as worn) and tuned with the same LOGO (pipeline x frame x offset)."""
+    out = {"tool": f"mobgap {mg.get('_version')}", "errors": mg.get("_errors", [])}
+    for v in ("as_worn", "aligned"):
+        for p in ("healthy", "impaired"):
+            out[f"{p}_{v}"] = blocks(recs, mg[v][p])
+    cands = [(v, p, o) for v in ("as_worn", "aligned") for p in ("healthy", "impaired") for o in GRID_OFFSET_S]
+    cache: dict = {}
+
+    def group_loss(g, c):
+        if (g, c) not in cache:
+            v, p, o = cands[c]
+            idx = [i for i, r in enumerate(recs) if r.group == g]
+            cache[(g, c)] = ic_loss(score([recs[i] for i in idx], [mg[v][p][i] for i in idx], offset_s=o))
+        return cache[(g, c)]
+    logo = _logo([r.group for r in recs], lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(cands))
+    dets, offs = [], []
+    for i, r in enumerate(recs):
+        v, p, o = cands[logo["held_out_choice"][r.group]]
+        dets.append(mg[v][p][i])
+        offs.append(o)
+    out["cross_validated"] = {**blocks(recs, dets, offsets=offs),
+                              "scheme": "same leave-one-group-out and loss as StrideLab's IC constants over "
+                                        "pipeline (healthy/impaired) x input frame (as_worn/aligned) x IC offset",
+                              "held_out_choice_by_group": {g: dict(zip(("frame", "pipeline", "ic_offset_s"),
+                                                                        cands[c]))
+                                                           for g, c in logo["held_out_choice"].items()}}
+    v, p, o = cands[logo["in_sample_choice"]]
+    out["in_sample"] = {**blocks(recs, mg[v][p], offsets=[o] * len(recs)),
+                        "marked": "in-sample", "choice": {"frame": v, "pipeline": p, "ic_offset_s": o}}
+    out["shipped_defaults"] = {**out["healthy_as_worn"],
+                               "note": "MobilisedPipelineHealthy as shipped (the pipeline mobgap recommends for "
+                                       "healthy adults, as both data sets are), input as worn"}
+    return out
+
+
+def gaps(res: dict) -> dict:
+    """StrideLab minus mobgap per key, data set and block (shipped vs shipped, cross-validated vs cross-validated);
+    positive is better for StrideLab on sensitivity and precision, negative is better on the error keys."""
+    a = res.get("anchor")
+    if not a:
+        return {}
+    out = {}
+    for blk in ("shipped_defaults", "cross_validated"):
+        out[blk] = {}
+        for ds in ("voisard", "mobilised", "overall"):
+            if ds in res[blk] and ds in a[blk]:
+                out[blk][ds] = {k: (None if res[blk][ds][k] is None or a[blk][ds][k] is None
+                                    else round(res[blk][ds][k] - a[blk][ds][k], 4)) for k in KEYS}
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------- speed
+
+def day_speed(recs: list[Rec]) -> dict:
+    """CPU seconds of analyse_trunk_gait + daily_outcomes on a synthetic 24 h lower-back day at 100 Hz."""
+    from estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
+    fs = 100.0
+    src = [r for r in recs if r.dataset == "mobilised" and abs(r.fs - fs) < 1e-6] or \
+          [r for r in recs if abs(r.fs - fs) < 1e-6]
+    if not src:
+        return {"skipped": "no 100 Hz recording to build the day from"}
+    rng = np.random.default_rng(0)
+    n = int(24 * 3600 * fs)
+    acc = np.empty((n, 3))
+    gyr = np.empty((n, 3))
+    period = int(15 * 60 * fs)
+    inserted = 0
+    walking_src_s = 0.0
+    for k, s in enumerate(range(0, n, period)):
+        e = min(s + period, n)
+        # still: a posture (sensor tilt) per period, sensor noise
+        tilt = rng.uniform(-1.2, 1.2)
+        g = 9.81 * np.array([np.cos(tilt), 0.0, np.sin(tilt)])
+        acc[s:e] = g + rng.normal(0, 0.02, (e - s, 3))
+        gyr[s:e] = rng.normal(0, 0.003, (e - s, 3))
+        r = src[k % len(src)]
+        m = min(len(r.acc), e - s)
+        acc[s:s + m] = r.acc[:m] @ r.mobgap_axes.T if r.dataset == "voisard" else r.acc[:m]
+        gyr[s:s + m] = r.gyr[:m] @ r.mobgap_axes.T if r.dataset == "voisard" else r.gyr[:m]
+        inserted += 1
+        walking_src_s += m / fs
+    from estimators.trunk_gait import TrunkGaitParams
+    analyse_trunk_gait(acc[: int(600 * fs)], gyr[: int(600 * fs)], fs, params=TrunkGaitParams())   # warm-up
+    t0 = time.process_time()
+    w0 = time.perf_counter()
+    res = analyse_trunk_gait(acc, gyr, fs)
+    b = res.bouts
+    daily_outcomes(b.start_s, b.duration_s, b.cadence_spm, b.stride_length_m, b.walking_speed_m_s,
+                   res.strides.speed_m_s, stride_bout=res.strides.bout)
+    cpu = time.process_time() - t0
+    return {"cpu_s": round(cpu, 3), "wall_s": round(time.perf_counter() - w0, 3), "target_cpu_s": 2.0,
+            "samples": n, "fs_hz": fs, "recordings_inserted": inserted,
+            "recording_time_inserted_s": round(walking_src_s),
+            "bouts_found": len(b), "walking_time_s": round(float(b.duration_s.sum()), 1),
+            "composition": "24 h at 100 Hz: still periods (posture tilt, noise) with one real lower-back recording "
+                           f"({', '.join(sorted({r.name for r in src}))}) inserted every 15 min"}
+
+
+# ---------------------------------------------------------------------------------------------------- command
+
+def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python: Path, anchor: bool = True,
+                  day: bool = True, limit: int | None = None, show: bool = True) -> dict:
+    failed: list[dict] = []
+    recs: list[Rec] = []
+    if voisard is not None:
+        if not voisard.is_dir():
+            raise UserError(f"{voisard}: not a folder; expected the Voisard et al. gait data (N-M.json, N-M_lb.txt)")
+        recs += load_voisard(voisard, failed, limit)
+    if mobilised is not None:
+        recs += load_mobilised(mobilised, failed)
+    if not recs:
+        raise UserError("no recording could be read; see the skipped files above")
+    if show:
+        _say(f"{len(recs)} recordings ({len(failed)} skipped); running the IC grid …")
+    res = tune_and_score(recs, show)
+    res.pop("_ship_dets")
+    if anchor:
+        mg, reason = run_mobgap(recs, mobgap_python, show)
+        res["anchor"] = anchor_block(recs, mg) if mg is not None else None
+        if mg is None:
+            res["anchor_reason"] = reason
+        else:
+            res["gap_vs_anchor"] = gaps(res)
+    else:
+        res["anchor"] = None
+        res["anchor_reason"] = "--no-anchor given"
+    if day:
+        if show:
+            _say("measuring the 24 h day …")
+        res["speed_day"] = day_speed(recs)
+    res["constants"] = [
+        {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s",
+         "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
+        {"name": "TrunkGaitParams.sl_correction",
+         "chosen_on": "Mobilise-D HA-001 INDIP stride length (leave-one-trial-out; single participant)"}]
+    res["failed_files"] = failed
+    res["recordings"] = {"voisard": sum(r.dataset == "voisard" for r in recs),
+                         "mobilised": sum(r.dataset == "mobilised" for r in recs)}
+    res["keys"] = list(KEYS)
+    return res
+
+
+@click.command("trunk-gait")
+@click.option("--voisard", type=click.Path(path_type=Path), default=None,
+              help="Voisard et al. 2023 folder (N-M.json + N-M_lb.txt); default ../shared/data/voisard_gait if present")
+@click.option("--mobilised", type=click.Path(path_type=Path), default=None,
+              help="Mobilise-D standardized data folder (…/<cohort>/<id>/data.mat) or one data.mat")
+@click.option("--mobgap-python", type=click.Path(path_type=Path), default=DEFAULT_MOBGAP_PY, show_default=True,
+              help="interpreter of the isolated mobgap environment (make .venv-mobgap)")
+@click.option("--no-anchor", is_flag=True, help="skip mobgap")
+@click.option("--day/--no-day", default=True, show_default=True, help="measure the 24 h day's CPU seconds")
+@click.option("--limit", type=int, default=None, help="only the first N Voisard trials (development)")
+@click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
+def command(voisard: Path | None, mobilised: Path | None, mobgap_python: Path, no_anchor: bool, day: bool,
+            limit: int | None, as_json: bool) -> None:
+    """Trunk gait (initial contacts, bouts, cadence, stride length, speed) against Voisard and Mobilise-D references,
+    with mobgap as the anchor.
+
+    \b
+    Examples:
+      stridelab bench trunk-gait --voisard ../shared/data/voisard_gait --mobilised ../shared/data/mobilised_lab --json
+      stridelab bench trunk-gait --voisard ../shared/data/voisard_gait --no-anchor --no-day --limit 12
+    """
+    if voisard is None and mobilised is None:
+        if DEFAULT_VOISARD.is_dir():
+            voisard = DEFAULT_VOISARD
+        else:
+            raise UserError("give --voisard DIR and/or --mobilised DIR (public data, see DESIGN.md 'Real data')")
+    res = run_benchmark(voisard, mobilised, mobgap_python=mobgap_python, anchor=not no_anchor, day=day,
+                        limit=limit, show=True)
+    if as_json:
+        emit_json(res)
+    else:
+        for blk in ("shipped_defaults", "cross_validated", "in_sample"):
+            click.echo(f"{blk}: " + json.dumps({k: res[blk]["overall"].get(k) for k in KEYS}))
+        if res.get("anchor"):
+            click.echo("anchor (cross-validated): " + json.dumps({k: res["anchor"]["cross_validated"]["overall"]
+                                                                  .get(k) for k in KEYS}))
+        else:
+            click.echo(f"anchor: null ({res.get('anchor_reason')})")
+        if "speed_day" in res:
+            click.echo(f"speed_day: {res['speed_day']}")
+        for f in res["failed_files"]:
+            click.echo(f"failed: {f['file']}: {f['reason']}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    command(sys.argv[1:])
