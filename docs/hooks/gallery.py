@@ -45,3 +45,16 @@ def on_files(files, config):
     files.append(File.generated(config, "examples/index.md", content=index))
     return files
 
+
+
+def on_page_content(html, page, config, files):
+    """The CLI reference: click's ``\\b`` example blocks arrive as one paragraph ("Examples: stridelab … stridelab
+    …"); show them as the command lines they are."""
+    import re
+    if page.file.src_uri != "cli.md":
+        return html
+
+    def block(m):
+        cmds = [c.strip() for c in re.split(r"\s(?=stridelab\s|ros2\s)", m.group(1)) if c.strip()]
+        return "<p>Examples:</p>\n<pre><code>" + "\n".join(cmds) + "</code></pre>"
+    return re.sub(r"<p>Examples:\s*(.*?)</p>", block, html, flags=re.S)
