@@ -134,7 +134,7 @@ class Warehouse:
     def arrow(self, name: str):
         """A whole table as a `pyarrow.Table`."""
         self._need(name)
-        return self.con.execute(f'SELECT * FROM "{name}"').to_arrow_table()
+        return self.con.sql(f'SELECT * FROM "{name}"').to_arrow_table()
 
     def _need(self, name: str) -> None:
         if not _IDENT.match(name) or not self.has_table(name):

@@ -30,7 +30,8 @@ def test_export_table_to_csv_and_parquet_equals_the_snapshot(small_home, tmp_pat
     import stridelab
     wh = small_home / "warehouse"
     r = json.loads(_cli("export", "table", "strides", tmp_path / "s.parquet", "--warehouse", wh, "--json").stdout)
-    _cli("export", "table", "strides", tmp_path / "s.csv", "--warehouse", wh)
+    r_csv = _cli("export", "table", "strides", tmp_path / "s.csv", "--warehouse", wh)
+    assert "Warning" not in r_csv.stderr, r_csv.stderr
     with stridelab.open(wh) as w:
         ref = w.table("strides")
     pqt = pq.read_table(tmp_path / "s.parquet").to_pandas()

@@ -38,7 +38,7 @@ def export_table(warehouse: str | Path, name: str, out: str | Path) -> dict:
                                           [name]).fetchall()]
         keep = [c for c in cols if c not in PRIVATE_COLUMNS.get(name, ())]
         sel = ", ".join('"' + c.replace('"', '""') + '"' for c in keep)
-        table = con.execute(f'SELECT {sel} FROM "{name}"').to_arrow_table()
+        table = con.sql(f'SELECT {sel} FROM "{name}"').to_arrow_table()
     finally:
         con.close()
     out.parent.mkdir(parents=True, exist_ok=True)
