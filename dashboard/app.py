@@ -25,6 +25,7 @@ pages = [
     st.Page(_PAGES / "participant.py", title="Participant", icon=":material/person:", url_path="participant"),
     st.Page(_PAGES / "programme.py", title="Programme", icon=":material/trending_up:", url_path="programme"),
     st.Page(_PAGES / "activity.py", title="Activity", icon=":material/directions_run:", url_path="activity"),
+    st.Page(_PAGES / "walking_home.py", title="Walking at home", icon=":material/home:", url_path="walking-home"),
     st.Page(_PAGES / "runs.py", title="Runs", icon=":material/history:", url_path="runs"),
 ]
 nav = st.navigation(pages)

@@ -151,19 +151,20 @@ def run_durations(runs: pd.DataFrame) -> go.Figure:
 
 
 def programme_change(change: pd.DataFrame, name: str) -> go.Figure:
-    """Change from the first to the latest visit per participant, with ± its MDC95 (the measurement's own noise)."""
+    """Change from the first to the latest visit per participant, with ± its MDC95 (between-session error; no bar
+    where none is known)."""
     c = change.dropna(subset=["change"]).sort_values("participant_id")
     colors = np.where(c["beyond_mdc"], "#e45756", "#4c78a8")
     fig = go.Figure(go.Scatter(
         x=c["change"], y=c["participant_id"], mode="markers", marker=dict(size=11, color=colors),
-        error_x=dict(type="data", array=c["mdc95"], visible=True, color="#888"),
+        error_x=dict(type="data", array=c["mdc95"].fillna(0.0), visible=True, color="#888"),
         hovertext=[f"{p}: {a:.3g} → {b:.3g} (change {d:+.3g}, MDC95 {m:.3g})" for p, a, b, d, m in
                    zip(c["participant_id"], c["baseline"], c["latest"], c["change"], c["mdc95"])],
         hoverinfo="text", showlegend=False))
     fig.add_vline(x=0, line=dict(color="#333", width=1))
     fig.update_xaxes(title=f"change in {name} (latest − first visit)")
     return _layout(fig, max(220, 60 + 40 * len(c)),
-                   title=f"{name}: change between visits (red: beyond the MDC95 of the two sessions; bars: ± MDC95)")
+                   title=f"{name}: change between visits (red: beyond the between-session MDC95; bars: ± MDC95)")
 
 
 def clinical_trend(series: pd.DataFrame, name: str, band: tuple | None = None) -> go.Figure:

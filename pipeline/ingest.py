@@ -112,6 +112,8 @@ def _check_stage_fields(s: dict) -> None:
     rf = s.get("reference_frame")
     if rf is not None and rf not in REFERENCE_FRAMES:
         raise IngestRejected(f"'session' reference_frame{_shown(rf)} is not one of {', '.join(REFERENCE_FRAMES)}")
+    if s.get("repeat_baseline") not in (None, "0", "1"):
+        raise IngestRejected("'session' repeat_baseline must be 0 or 1 (1 = one of several baseline sessions)")
     for k, (lo, hi) in SESSION_BODY_RANGES.items():          # numeric body measures (trunk gait, issue #42)
         if s.get(k) is not None:
             try:

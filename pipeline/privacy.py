@@ -6,7 +6,7 @@ kind of problem, never the value (quarantine reasons end up in logs and in the c
 """
 from __future__ import annotations
 
-from estimators.recording import SESSION_BODY_FIELDS
+from estimators.recording import SESSION_BODY_FIELDS, SESSION_DESIGN_FIELDS
 from pipeline.config import study_manifest
 from studies.privacy import PrivacyPolicy, identifier_problem, is_number, key_problem, privacy_policy, value_problem
 
@@ -14,8 +14,8 @@ from studies.privacy import PrivacyPolicy, identifier_problem, is_number, key_pr
 #: own, stored; any other non-numeric field is free text
 FORMAT_FIELDS = {"study", "participant", "session", "kind", "protocol", "trial", "timezone", "condition",
                  "paretic_side", "pseudonymised", "reference_frame", "accelerometer_only"}
-# numeric body measures of the participant (trunk gait, issue #42): stored, range-checked by pipeline.ingest
-FORMAT_FIELDS |= set(SESSION_BODY_FIELDS)
+# numeric body measures and study-design marks (trunk gait and MDC, issue #42): stored, checked by pipeline.ingest
+FORMAT_FIELDS |= set(SESSION_BODY_FIELDS) | set(SESSION_DESIGN_FIELDS)
 ID_FIELDS = ("participant", "session", "trial")
 #: fields checked against a closed list elsewhere (kind, IANA zone): not screened as text ("America/New_York")
 #: (``reference_frame``, ``accelerometer_only``: closed values the stages read, checked by pipeline.ingest)

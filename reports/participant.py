@@ -34,14 +34,16 @@ from warehouse import queries as Q
 
 A4 = (8.27, 11.69)
 TITLES = {1: "Summary", 2: "Gait: speed, steps and asymmetry", 3: "Joint angles",
-          4: "Daily activity and free-living walking", 5: "Sessions, data quality and accuracy against reference"}
+          4: "Daily activity and free-living walking", 5: "Sessions, data quality and accuracy against reference",
+          6: "Walking at home (trunk sensor)"}
 #: figures, numbered in the order they appear in the report
 FIG_CAPTIONS = {"gait": "Figure 1: Gait parameters across sessions (the gait stage's summary per session)",
                 "clinical": "Figure 2: Clinical measures per lab visit (error bars: ± 1.96 SEM within the session)",
                 "joints": "Figure 3: Joint angles over the gait cycle, newest lab session, against a normative band",
                 "activity": "Figure 4: Time per activity class and day",
                 "walking": "Figure 5: Free-living walking bouts: duration and time of day",
-                "bland_altman": "Figure 6: Bland-Altman plot of stride length (IMU vs reference)"}
+                "bland_altman": "Figure 6: Bland-Altman plot of stride length (IMU vs reference)",
+                "home": "Figure 7: Lab capacity beside home performance, and walking speed per home day"}
 #: page-1 rows from the clinical measures: (measure, quantity, label, band key)
 SUMMARY_GAIT = [("gait_speed_m_s", "value", "Gait speed (m/s)", "gait_speed_m_s"),
                 ("cadence_steps_min", "value", "Cadence (steps/min)", None),
@@ -90,6 +92,9 @@ def collect(con, root: Path, participant_id: str, study: str | None) -> dict:
         "orientation": Q.orientation_coverage(con, participant_id, study),
         "clinical": Q.clinical_visits(con, study, participant_id),
         "walking": Q.walking_bouts(con, participant_id, study),
+        "home_days": Q.daily_gait_outcomes(con, participant_id, study),
+        "home_bouts": Q.trunk_walking_bouts(con, participant_id, study),
+        "capacity": Q.capacity_and_performance(con, participant_id, study),
     }
 
 
@@ -229,6 +234,80 @@ def fig_walking(bouts: pd.DataFrame):
     return fig
 
 
+def fig_home(cap: pd.DataFrame, days: pd.DataFrame):
+    """Left: per lab visit, lab gait speed beside the home days' median and 95th centile speed; right: daily
+    median and 95th centile walking speed (bouts > 10 s) per home day."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(7.4, 2.4))
+    x = np.arange(len(cap))
+    for k, (col, lab) in enumerate((("lab_speed_m_s", "lab gait speed"), ("home_speed_median_m_s", "home median"),
+                                    ("home_speed_p95_m_s", "home 95th centile"))):
+        a1.bar(x + (k - 1) * 0.27, cap[col].astype(float).fillna(0).to_numpy(), width=0.27, label=lab)
+    a1.set_xticks(x, [f"visit {v}" for v in cap["visit"]])
+    a1.set_ylabel("m/s")
+    a1.legend(fontsize=6, frameon=False)
+    if len(days):
+        a2.plot(days["date"], days["speed_median_m_s"], "o-", label="median")
+        a2.plot(days["date"], days["speed_p95_m_s"], "s--", label="95th centile")
+        a2.tick_params(axis="x", labelrotation=30, labelsize=6)
+        a2.legend(fontsize=6, frameon=False)
+    a2.set_ylabel("walking speed (m/s)")
+    fig.tight_layout()
+    return fig
+
+
+def home_days_table(days: pd.DataFrame) -> pd.DataFrame:
+    return pd.DataFrame({"Day": days["date"], "Walking min": (days["walking_time_s"] / 60).round(1),
+                         "Bouts": days["n_bouts"], **{f"{k}": days[v] for k, v in Q.BOUT_CLASSES.items()},
+                         "Speed median m/s": days["speed_median_m_s"].round(2),
+                         "Speed p95 m/s": days["speed_p95_m_s"].round(2),
+                         "Stride length median m": days["stride_length_median_m"].round(2),
+                         "Cadence median /min": days["cadence_median_spm"].round(0),
+                         "Stride velocity p95 m/s": days["stride_velocity_p95_m_s"].round(2)})
+
+
+def _home_blocks(d: dict) -> list[tuple]:
+    """Page "Walking at home": lab capacity beside home performance, per-day outcomes, bout-duration classes."""
+    days, bouts, cap = d.get("home_days"), d.get("home_bouts"), d.get("capacity")
+    if days is None or bouts is None:
+        return [("note", "No walking bouts from a trunk sensor yet: the trunk_gait stage computes them from a "
+                         "lower_back or chest IMU; " + Q.RUN_HINT + ".")]
+    if days.empty and bouts.empty:
+        return [("note", "No session of this participant has a lower_back or chest IMU with walking.")]
+    out = []
+    has_cap = cap is not None and len(cap) and (cap["lab_speed_m_s"].notna().any() or len(days))
+    if has_cap:
+        out.append(("figure", FIG_CAPTIONS["home"], fig_home(cap, days)))
+        out.append(("table", "Capacity (lab visit) beside performance (home days from that visit to the next)",
+                    cap.drop(columns=["lab_session"]).rename(columns={
+                        "visit": "Visit", "lab_date": "Lab date", "lab_speed_m_s": "Lab gait speed m/s",
+                        "home_days": "Home days", "home_speed_median_m_s": "Home median speed m/s",
+                        "home_speed_p95_m_s": "Home p95 speed m/s", "walking_min_per_day": "Walking min/day",
+                        "days_with_long_bouts": "Days with bouts > 10 s"}).round(2)))
+    lab = bouts[bouts["kind"] == "lab"] if len(bouts) else bouts
+    if len(lab):
+        g = lab.groupby("session_id").agg(bouts=("duration_s", "size"), walking_s=("duration_s", "sum"),
+                                          speed=("walking_speed_m_s", "median"), cadence=("cadence_spm", "median"),
+                                          stride=("stride_length_m", "median")).reset_index()
+        out.append(("table", "Walking bouts in the lab sessions (trunk sensor; medians over the bouts)",
+                    g.rename(columns={"session_id": "Session", "bouts": "Bouts", "walking_s": "Walking s",
+                                      "speed": "Speed m/s", "cadence": "Cadence /min",
+                                      "stride": "Stride length m"}).round(2)))
+    if len(days):
+        out.append(("table", "Per home day: walking, bouts by duration class, median / 95th centile over bouts "
+                             "> 10 s", home_days_table(days)))
+    else:
+        out.append(("note", "No free-living day with a trunk sensor for this participant."))
+    hs = sorted(set(bouts["height_source"].dropna())) if len(bouts) else []
+    fl = bouts["flags"].fillna("") if len(bouts) else pd.Series([], dtype=str)
+    out.append(("note", "Walking bouts by the trunk-gait estimators (lower back or chest; Mobilise-D consensus "
+                        "rules). Speed, stride length and cadence centiles over bouts longer than 10 s; stride "
+                        "velocity p95 = 95th centile of stride speeds (SV95C). Body height: " + (", ".join(hs) or "—")
+                        + f". Bouts with a placement warning: {int(fl.str.contains('wrong_placement|upside_down').sum())}"
+                        f" of {len(bouts)}. Definitions: docs/walking_at_home.md."))
+    return out
+
+
 def _svg(fig) -> str:
     buf = io.StringIO()
     fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
@@ -355,9 +434,9 @@ def summary_table(d) -> tuple[pd.DataFrame, list[str]]:
             has_prev = r["visits"] > 1
             rows.append([label, _num(r["latest"] if has_prev else r["baseline"]), _num(r["baseline"]) if has_prev
                          else "—", f"{r['change']:+.2f}" if has_prev and np.isfinite(r["change"]) else "—",
-                         _num(r["mdc95"]) if has_prev else "—",
+                         _num(r["mdc95"]) if has_prev and r["mdc_known"] else "—",
                          ("see *" if m == "step_length_m" else "yes" if r["beyond_mdc"] else "no")
-                         if has_prev and np.isfinite(r["change"]) else "—",
+                         if has_prev and np.isfinite(r["change"]) and r["mdc_known"] else "—",
                          _band_text(band, r["latest"] if has_prev else r["baseline"])])
         fl = sorted({f for f in latest["flag"].fillna("") if f})
         if "few_strides" in fl:
@@ -476,10 +555,11 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
                                  + Q.RUN_HINT + "."))
     else:
         pages[1].append(("table", "At the latest visit, and the change since the previous visit", summ))
-        pages[1].append(("note", "Change beyond noise = larger than the MDC95 of the change, 1.96·√(SEM₁² + SEM₂²) "
-                                 "from each session's stride-to-stride variation; day-to-day variation is not in it "
-                                 "(published test-retest MDC for gait speed after stroke: 0.18 m/s, Fulk & "
-                                 "Echternach 2008). Symmetry ratio = larger / smaller side (1 = symmetric, Patterson "
+        pages[1].append(("note", "Change beyond noise = larger than the MDC95 of the change from between-session "
+                                 "error: the study's repeated baseline sessions when it has them, else published "
+                                 "test-retest values (gait speed after stroke, chronic: 0.10 / 0.15 / 0.18 m/s for a "
+                                 "baseline < 0.4 / 0.4-0.8 / > 0.8 m/s, Lewek & Sykes 2019, J Neurol Phys Ther "
+                                 "43:122); '—' where no between-session error is known. Symmetry ratio = larger / smaller side (1 = symmetric, Patterson "
                                  "et al. 2010). Bands are orientation values, not cut-offs for this device."))
     if flags:
         pages[1].append(("heading", "Where data quality limits a number"))
@@ -546,6 +626,8 @@ def _blocks(d: dict) -> dict[int, list[tuple]]:
         pages[4].append(("figure", FIG_CAPTIONS["walking"], fig_walking(walk)))
         pages[4].append(("table", "Walking bouts per day (chest sensor; consecutive walking and stairs joined)",
                          walking_table(walk).head(14)))
+
+    pages[6] += _home_blocks(d)
 
     pages[5] += [("table", "Sessions", sessions_table(d).head(10)), ("table", "Data quality", quality_table(d))]
     if len(ses) > 10:
@@ -656,27 +738,70 @@ def _col_widths(df: pd.DataFrame) -> tuple[list[int], float]:
     return w, size
 
 
+#: top of a page's content (below the header and the page title) and the lowest line content may use
+_CONTENT_TOP, _CONTENT_BOTTOM = 0.872, 0.08
+_ROW_H = 0.016
+
+
+def _table_chunks(b: tuple) -> list[tuple]:
+    """A table block split into pieces that each fit on an empty page (continued pieces say so)."""
+    df = b[2]
+    per_page = max(1, int((_CONTENT_TOP - _CONTENT_BOTTOM - 0.05) / _ROW_H) - 3)
+    if len(df) <= per_page:
+        return [b]
+    return [("table", b[1] + ("" if i == 0 else " (continued)"), df.iloc[i:i + per_page])
+            for i in range(0, len(df), per_page)]
+
+
+def _height(b: tuple) -> float:
+    """Height a block needs on the page (figure units), as the drawing below spends it."""
+    if b[0] == "heading":
+        return 0.02
+    if b[0] in ("text", "note"):
+        return _ROW_H * len(_wrap(b[1])) + 0.006
+    if b[0] == "table":
+        widths, _ = _col_widths(b[2])
+        two = any("\n" in _header_lines(str(c), w - 1) for c, w in zip(b[2].columns, widths))
+        return 0.008 + _ROW_H * (max(len(b[2]), 1) + 1 + two) + 0.03
+    w_in, h_in = b[2].get_size_inches()
+    return h_in / A4[1] + 0.012 + 0.015 * len(_wrap(b[1], 120)) + 0.015
+
+
 def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
+    """One A4 page per report page; a page whose blocks do not fit continues on the next sheet ("continued"):
+    nothing is dropped (tables longer than a sheet are split by rows)."""
     plt = _plt()
     from matplotlib.backends.backend_pdf import PdfPages
+
+    def start(n: int, title: str, cont: bool):
+        page = plt.figure(figsize=A4)
+        y = 0.965
+        page.text(0.06, y, f"StrideLab participant report: {d['participant_id']}", fontsize=12, weight="bold")
+        page.text(0.94, y, f"page {n} / {len(TITLES)}" + (" (continued)" if cont else ""), fontsize=8, ha="right")
+        y -= 0.018
+        page.text(0.06, y, f"Study {d['study']} · generated {meta['generated']} · snapshot {meta['snapshot']}",
+                  fontsize=7, color="0.35")
+        page.add_artist(plt.Line2D([0.06, 0.94], [y - 0.008, y - 0.008], color="0.2", lw=0.8,
+                                   transform=page.transFigure))
+        y -= 0.045
+        page.text(0.06, y, f"{n}. {title}" + (" (continued)" if cont else ""), fontsize=11, weight="bold")
+        return page, y - 0.03
+
+    def finish(page, pdf):
+        page.text(0.5, 0.025, f"{d['participant_id']} · pseudonymised data · StrideLab {meta['version']}",
+                  fontsize=6.5, ha="center", color="0.4")
+        pdf.savefig(page)
+        plt.close(page)
+
     with PdfPages(path, metadata={"Title": f"StrideLab report {d['participant_id']}", "Author": "StrideLab",
                                   "Subject": f"study {d['study']}", "CreationDate": None}) as pdf:
         for n, title in TITLES.items():
-            page = plt.figure(figsize=A4)
-            y = 0.965
-            page.text(0.06, y, f"StrideLab participant report: {d['participant_id']}", fontsize=12, weight="bold")
-            page.text(0.94, y, f"page {n} / {len(TITLES)}", fontsize=8, ha="right")
-            y -= 0.018
-            page.text(0.06, y, f"Study {d['study']} · generated {meta['generated']} · snapshot {meta['snapshot']}",
-                      fontsize=7, color="0.35")
-            page.add_artist(plt.Line2D([0.06, 0.94], [y - 0.008, y - 0.008], color="0.2", lw=0.8,
-                                       transform=page.transFigure))
-            y -= 0.045
-            page.text(0.06, y, f"{n}. {title}", fontsize=11, weight="bold")
-            y -= 0.03
-            for b in pages[n]:
-                if y < 0.08:
-                    break
+            page, y = start(n, title, False)
+            blocks = [c for b in pages[n] for c in (_table_chunks(b) if b[0] == "table" else [b])]
+            for b in blocks:
+                if y - _height(b) < _CONTENT_BOTTOM and y < _CONTENT_TOP - 1e-9:
+                    finish(page, pdf)
+                    page, y = start(n, title, True)
                 if b[0] == "heading":
                     page.text(0.06, y, b[1], fontsize=9, weight="bold")
                     y -= 0.02
@@ -684,7 +809,7 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                     for line in _wrap(b[1]):
                         page.text(0.06, y, line, fontsize=8, style="italic" if b[0] == "note" else "normal",
                                   color="0.3" if b[0] == "note" else "0.0")
-                        y -= 0.016
+                        y -= _ROW_H
                     y -= 0.006
                 elif b[0] == "table":
                     df = b[2]
@@ -693,10 +818,8 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                     widths, size = _col_widths(df)
                     labels = [_header_lines(str(c), w - 1) for c, w in zip(df.columns, widths)]
                     two_line = any("\n" in x for x in labels)
-                    rows = len(df) + 1 + two_line
-                    h = min(0.016 * rows, y - 0.06)
-                    if h <= 0.02:
-                        continue
+                    rows = max(len(df), 1) + 1 + two_line
+                    h = _ROW_H * rows
                     ax = page.add_axes([0.06, y - h, 0.88, h])
                     ax.axis("off")
                     cells = [[_fmt(v)[:w] for v, w in zip(r, widths)] for r in df.itertuples(index=False)] or \
@@ -732,10 +855,7 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
                         page.text(0.06, y, line, fontsize=8, weight="bold")
                         y -= 0.015
                     y -= 0.015
-            page.text(0.5, 0.025, f"{d['participant_id']} · pseudonymised data · StrideLab {meta['version']}",
-                      fontsize=6.5, ha="center", color="0.4")
-            pdf.savefig(page)
-            plt.close(page)
+            finish(page, pdf)
 
 
 # ---- entry point ----------------------------------------------------------------------------------

@@ -79,6 +79,7 @@ class LabProtocol:
     walking_trial_s: float = 30.0
     distance_sensors: bool = True
     optical_reference: bool = True
+    lower_back: bool = False          # a belt-worn lower-back IMU (L4/L5) beside the segment sensors
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,7 @@ class FreeLivingSpec:
     the lab session."""
     hours: float = 24.0
     start_local: str = "00:00"
+    lower_back: bool = False          # a belt-worn lower-back IMU beside the chest IMU, on the same trunk model
 
 
 @dataclass(frozen=True)

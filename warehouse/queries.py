@@ -669,8 +669,12 @@ def clinical_visits(con, study: str | None = None, participant_id: str | None = 
         SELECT v.study, v.participant_id, v.session_id, v.visit, make_timestamptz(v.start_ns // 1000) AS date,
                c.measure, c.unit, c.value, c.sem, c.mdc95, c.left_value, c.right_value, c.n_left, c.n_right,
                c.cv_left_pct, c.cv_right_pct, c.paretic_side, c.paretic_value, c.non_paretic_value, c.paretic_ratio,
-               c.symmetry_ratio, c.sem_symmetry_ratio, c.mdc95_symmetry_ratio, c.flag, c.note
+               c.symmetry_ratio, c.sem_symmetry_ratio, c.mdc95_symmetry_ratio, c.flag, c.note,
+               coalesce(rb.repeat_baseline, false) AS repeat_baseline
         FROM clinical_measures c JOIN v ON v.session_id = c.session_id
+        LEFT JOIN (SELECT session_id, bool_or(json_extract_string(metadata, '$.repeat_baseline') = '1')
+                          AS repeat_baseline
+                   FROM recordings WHERE status = 'ingested' GROUP BY session_id) rb ON rb.session_id = c.session_id
         WHERE (? IS NULL OR v.study = ?) AND (? IS NULL OR v.participant_id = ?)
         ORDER BY v.study, v.participant_id, v.visit, c.measure""", [study, study, participant_id, participant_id])
 
@@ -688,22 +692,31 @@ def clinical_series(visits: pd.DataFrame, measure: str, quantity: str = "value")
 def programme_change(visits: pd.DataFrame, measure: str, quantity: str = "value",
                      against: str = "first") -> pd.DataFrame:
     """Per participant: the latest visit against the first (``against="first"``) or the previous one
-    (``"previous"``), change, its MDC95 from both sessions' SEMs (:func:`estimators.gait.clinical.change_mdc95`),
-    and whether the change exceeds it."""
+    (``"previous"``), change, its MDC95 from between-session error (:func:`estimators.gait.clinical.change_mdc95`:
+    the study's repeated baseline sessions, session field ``repeat_baseline = 1``, when it has them; else the
+    published test-retest value at the baseline; else NaN, and "beyond noise" stays unknown), where that MDC comes
+    from (``mdc_source``), and whether the change exceeds it. Never the within-session SEM."""
     from estimators.gait.clinical import change_mdc95
     s = clinical_series(visits, measure, quantity)
+    rep = visits[visits["measure"] == measure] if "repeat_baseline" in visits else visits.iloc[:0]
+    rep = rep[rep["repeat_baseline"].fillna(False).astype(bool)] if len(rep) else rep
     rows = []
     for (study, pid), g in s.groupby(["study", "participant_id"], sort=True):
         g = g.sort_values("visit")
         a, b = g.iloc[0 if against == "first" or len(g) < 2 else -2], g.iloc[-1]
         ch = float(b["value"] - a["value"]) if len(g) > 1 else np.nan
-        mdc = change_mdc95(float(a["sem"]), float(b["sem"])) if len(g) > 1 else np.nan
+        r = rep[rep["study"] == study]
+        repeated = [x[quantity].astype(float).to_numpy() for _, x in r.groupby("participant_id")] if len(r) else None
+        m = change_mdc95(measure, quantity, baseline=float(a["value"]), repeated_baselines=repeated)
+        mdc = m.mdc95 if len(g) > 1 else np.nan
         rows.append({"study": study, "participant_id": pid, "visits": len(g), "baseline": a["value"],
                      "latest": b["value"] if len(g) > 1 else np.nan, "change": ch, "mdc95": mdc,
+                     "mdc_source": m.source if len(g) > 1 else "",
                      "beyond_mdc": bool(np.isfinite(ch) and np.isfinite(mdc) and abs(ch) > mdc),
+                     "mdc_known": bool(np.isfinite(mdc)),
                      "flag": ", ".join(sorted({f for f in g["flag"].fillna("") if f}))})
     return pd.DataFrame(rows, columns=["study", "participant_id", "visits", "baseline", "latest", "change", "mdc95",
-                                       "beyond_mdc", "flag"])
+                                       "mdc_source", "beyond_mdc", "mdc_known", "flag"])
 
 
 # ---- free-living walking bouts ---------------------------------------------------------------------
@@ -800,3 +813,88 @@ def _register() -> None:
 _register()
 
 QUERIES = _QUERIES
+
+
+# ---- walking at home: trunk-gait bouts and daily outcomes (migration 012) ---------------------------------------
+
+#: bout-duration classes of the daily outcomes, [lo, hi) s -> daily_gait_outcomes column
+BOUT_CLASSES = {"10-30 s": "n_bouts_10_30s", "30-60 s": "n_bouts_30_60s", "60-120 s": "n_bouts_60_120s",
+                "> 120 s": "n_bouts_over_120s"}
+
+
+def trunk_gait_participants(con, study: str | None = None) -> pd.DataFrame | None:
+    """Participants with trunk-gait walking bouts or daily outcomes: study, participant_id, home days, lab
+    sessions with bouts."""
+    if not (_has_table(con, "walking_bouts") and _has_table(con, "daily_gait_outcomes")):
+        return None
+    return _df(con, """
+        SELECT s.study, s.participant_id,
+               count(DISTINCT d.session_id || d.date) AS home_days,
+               count(DISTINCT CASE WHEN s.kind = 'lab' THEN b.session_id END) AS lab_sessions_with_bouts
+        FROM sessions s
+        LEFT JOIN daily_gait_outcomes d ON d.session_id = s.session_id
+        LEFT JOIN walking_bouts b ON b.session_id = s.session_id
+        WHERE (? IS NULL OR s.study = ?) AND (d.session_id IS NOT NULL OR b.session_id IS NOT NULL)
+        GROUP BY ALL ORDER BY 1, 2""", [study, study])
+
+
+def trunk_walking_bouts(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """The trunk-gait stage's walking bouts of a participant with the session kind and local start/day."""
+    if not _has_table(con, "walking_bouts"):
+        return None
+    return _df(con, """
+        SELECT b.*, s.kind, s.study, s.participant_id,
+               timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.start_ns // 1000)) AS start_local,
+               CAST(timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.start_ns // 1000)) AS DATE) AS day
+        FROM walking_bouts b JOIN sessions s ON s.session_id = b.session_id
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY b.start_ns""", [participant_id, study, study])
+
+
+def daily_gait_outcomes(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Per home day (free-living session × local date) the daily gait outcomes of a participant."""
+    if not _has_table(con, "daily_gait_outcomes"):
+        return None
+    return _df(con, """
+        SELECT d.*, s.study, s.participant_id, s.start_ns AS session_start_ns
+        FROM daily_gait_outcomes d JOIN sessions s ON s.session_id = d.session_id
+        WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY d.date, d.session_id""", [participant_id, study, study])
+
+
+def capacity_and_performance(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
+    """Lab capacity beside home performance per visit period of a participant: each lab visit (clinical gait
+    speed from the gait stage's strides, ``clinical_measures``) with the home days from that visit up to the next
+    one (daily median and 95th centile of walking speed over bouts > 10 s, walking time); columns visit, lab_date,
+    lab_speed_m_s, home_days, home_speed_median_m_s (median of the days' medians), home_speed_p95_m_s (median of
+    the days' p95), walking_min_per_day, days_with_long_bouts."""
+    if not _has_table(con, "daily_gait_outcomes"):
+        return None
+    lab = _df(con, """
+        SELECT s.session_id, s.start_ns,
+               row_number() OVER (ORDER BY s.start_ns, s.session_id) AS visit
+        FROM sessions s WHERE s.kind = 'lab' AND s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        ORDER BY s.start_ns""", [participant_id, study, study])
+    speed = {}
+    if _has_table(con, "clinical_measures") and len(lab):
+        speed = dict(con.execute("SELECT session_id, value FROM clinical_measures WHERE measure = 'gait_speed_m_s' "
+                                 "AND session_id IN (SELECT unnest(?))", [lab["session_id"].tolist()]).fetchall())
+    days = daily_gait_outcomes(con, participant_id, study)
+    rows = []
+    bounds = lab["start_ns"].tolist()
+    for i, r in lab.iterrows():
+        lo, hi = bounds[i], bounds[i + 1] if i + 1 < len(bounds) else None
+        d = days[(days["session_start_ns"] >= lo) & ((days["session_start_ns"] < hi) if hi is not None else True)]
+        rows.append({"visit": int(r["visit"]), "lab_session": r["session_id"],
+                     "lab_date": pd.Timestamp(int(r["start_ns"]), unit="ns", tz="UTC").date().isoformat(),
+                     "lab_speed_m_s": speed.get(r["session_id"], np.nan), "home_days": int(len(d)),
+                     "home_speed_median_m_s": float(d["speed_median_m_s"].median()) if len(d) else np.nan,
+                     "home_speed_p95_m_s": float(d["speed_p95_m_s"].median()) if len(d) else np.nan,
+                     "walking_min_per_day": float(d["walking_time_s"].mean() / 60.0) if len(d) else np.nan,
+                     "days_with_long_bouts": int((d["n_bouts_over_10s"] > 0).sum()) if len(d) else 0})
+    return pd.DataFrame(rows, columns=["visit", "lab_session", "lab_date", "lab_speed_m_s", "home_days",
+                                       "home_speed_median_m_s", "home_speed_p95_m_s", "walking_min_per_day",
+                                       "days_with_long_bouts"])
+
+
+_register()      # the walking-at-home queries above join the registry

@@ -32,15 +32,18 @@ if snap is not None and not empty_warehouse_note(snap):
         else:
             st.caption("No participant has a second lab visit yet.")
         st.dataframe(ch.rename(columns={"participant_id": "participant", "baseline": "first visit",
-                                        "latest": "latest visit", "mdc95": "MDC95", "beyond_mdc": "beyond MDC95",
-                                        "flag": "data-quality flags"}).drop(columns=["study"]),
+                                        "latest": "latest visit", "mdc95": "MDC95", "mdc_source": "MDC95 from",
+                                        "beyond_mdc": "beyond MDC95",
+                                        "flag": "data-quality flags"}).drop(columns=["study", "mdc_known"]),
                      hide_index=True,
                      column_config={c: st.column_config.NumberColumn(format="%.3f")
                                     for c in ("first visit", "latest visit", "change", "MDC95")})
-        st.caption("MDC95 of a change = 1.96·√(SEM₁² + SEM₂²), SEM of each session from its stride-to-stride "
-                   "variation (= 1.96·√2·SEM for equal SEMs). It holds only the within-session noise: day-to-day "
-                   "variation adds to it, so published test-retest MDCs are larger (gait speed after stroke: 0.18 m/s, "
-                   "Fulk & Echternach 2008). Flags: few_strides = fewer than 6 used strides on a side.")
+        st.caption("MDC95 of a change = between-session measurement error: from the study's repeated baseline "
+                   "sessions when it has them (session field repeat_baseline = 1), else the published test-retest "
+                   "value for the baseline (gait speed after stroke: 0.10 / 0.15 / 0.18 m/s for baseline < 0.4 / "
+                   "0.4-0.8 / > 0.8 m/s, Lewek & Sykes 2019); empty where neither exists (beyond MDC95 then stays "
+                   "unknown). Never the within-session stride-to-stride SEM (docs/clinical_measures.md). "
+                   "Flags: few_strides = fewer than 6 used strides on a side.")
 
         st.subheader("Participant trend")
         who = sorted(visits["participant_id"].unique())

@@ -35,7 +35,9 @@ Session:
         SEM of the pooled strides; of a ratio R = A/B by the delta method, SEM_R = R·√((SEM_A/A)² + (SEM_B/B)²);
         minimal detectable change MDC95 = 1.96·√2·SEM (Haley & Fragala-Pinkham 2006, Phys Ther 86:735-743; the
         √2 because a change is the difference of two sessions). Only the within-session variation: day-to-day
-        variation adds to it, so this MDC is a lower bound (docs/clinical_measures.md).
+        variation adds to it, so this is the precision of one session's value, not an MDC for a change between
+        visits. A change between visits is judged against :func:`change_mdc95` (between-session error: repeated
+        baseline sessions, else published test-retest values; docs/clinical_measures.md).
 """
 from __future__ import annotations
 
@@ -45,7 +47,8 @@ import numpy as np
 
 __all__ = ["ClinicalParams", "FootEvents", "FootStrides", "StepPhases", "Measure", "ClinicalSummary",
            "step_phases", "clinical_summary", "common_walking_frame", "walking_direction", "equal_stride_scale",
-           "mdc95", "change_mdc95", "SIDE_MEASURES", "SESSION_MEASURES"]
+           "mdc95", "change_mdc95", "ChangeMdc", "PublishedMdc", "PUBLISHED_MDC95", "repeated_baseline_sem",
+           "SIDE_MEASURES", "SESSION_MEASURES"]
 
 #: per-side measures: name -> unit
 SIDE_MEASURES = {"step_length_m": "m", "step_time_s": "s", "swing_time_s": "s", "stance_time_s": "s",
@@ -367,7 +370,77 @@ def equal_stride_scale(own_lengths_m: np.ndarray, other_lengths_m: np.ndarray) -
     return float(0.5 * (a.mean() + b.mean()) / a.mean())
 
 
-def change_mdc95(sem_a: float, sem_b: float) -> float:
-    """MDC95 of the change between two sessions with their own SEMs: 1.96·√(SEM_a² + SEM_b²) (C10; equals
-    1.96·√2·SEM when both SEMs are equal)."""
-    return float(1.96 * np.hypot(sem_a, sem_b))
+@dataclass(frozen=True)
+class PublishedMdc:
+    """A published between-session (test-retest) MDC95 of one measure, by baseline band.
+
+    bands: ((lower, upper, mdc95), ...) over the baseline value [lower, upper); population, source: what it was
+    measured on and where (docs/clinical_measures.md "Minimal detectable change")."""
+    measure: str
+    quantity: str
+    unit: str
+    bands: tuple
+    population: str
+    source: str
+
+    def at(self, baseline: float) -> float:
+        for lo, hi, v in self.bands:
+            if lo <= baseline < hi:
+                return float(v)
+        return float("nan")
+
+
+#: published test-retest MDC95 per (measure, quantity). Only values read from the source are listed; a measure
+#: without one has no MDC unless the study has repeated baseline sessions (never the within-session SEM).
+PUBLISHED_MDC95 = {
+    ("gait_speed_m_s", "value"): PublishedMdc(
+        "gait_speed_m_s", "value", "m/s", ((0.0, 0.4, 0.10), (0.4, 0.8, 0.15), (0.8, float("inf"), 0.18)),
+        "chronic stroke, comfortable gait speed, 2 visits (n = 76), by baseline speed < 0.4 / 0.4-0.8 / > 0.8 m/s",
+        "Lewek & Sykes 2019, J Neurol Phys Ther 43:122-127, doi:10.1097/NPT.0000000000000257"),
+}
+
+
+@dataclass(frozen=True)
+class ChangeMdc:
+    """MDC95 of a change between two sessions and where it comes from: ``source`` = "repeated baselines (n
+    participants, k sessions)", the published source, or "" with ``mdc95`` NaN when no between-session error is
+    known."""
+    mdc95: float
+    source: str
+
+
+def repeated_baseline_sem(values_per_participant) -> tuple[float, int, int]:
+    """Between-session SEM from repeated baseline sessions: the pooled within-participant SD,
+    √(Σ_i Σ_j (x_ij − x̄_i)² / Σ_i (n_i − 1)) over participants with ≥ 2 finite baseline values (the SEM of
+    test-retest reliability, de Vet et al. 2006, J Clin Epidemiol 59:1033-1039). Returns (SEM, participants,
+    sessions); SEM NaN with fewer than 2 sessions of one participant."""
+    ss, dof, n_p, n_s = 0.0, 0, 0, 0
+    for v in values_per_participant:
+        x = np.asarray(v, float)
+        x = x[np.isfinite(x)]
+        if len(x) < 2:
+            continue
+        ss += float(((x - x.mean()) ** 2).sum())
+        dof += len(x) - 1
+        n_p += 1
+        n_s += len(x)
+    return (float(np.sqrt(ss / dof)) if dof else float("nan")), n_p, n_s
+
+
+def change_mdc95(measure: str, quantity: str = "value", *, baseline: float = float("nan"),
+                 repeated_baselines=None) -> ChangeMdc:
+    """MDC95 of the change of a measure between two sessions from between-session error: from repeated baseline
+    sessions when given (``repeated_baselines``: one array of baseline-session values per participant;
+    MDC95 = 1.96·√2·SEM with SEM = :func:`repeated_baseline_sem`), else the published test-retest value for the
+    ``baseline`` value (:data:`PUBLISHED_MDC95`), else NaN. Never the within-session stride-to-stride SEM, which
+    says nothing about visit-to-visit error (C10 is a within-session precision only)."""
+    if repeated_baselines is not None:
+        sem, n_p, n_s = repeated_baseline_sem(repeated_baselines)
+        if np.isfinite(sem):
+            return ChangeMdc(mdc95(sem), f"repeated baselines ({n_p} participants, {n_s} sessions)")
+    pub = PUBLISHED_MDC95.get((measure, quantity))
+    if pub is not None and np.isfinite(baseline):
+        v = pub.at(float(baseline))
+        if np.isfinite(v):
+            return ChangeMdc(v, pub.source)
+    return ChangeMdc(float("nan"), "")

@@ -135,8 +135,13 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         if len(st_b):
             cadence[b] = 60.0 / float(np.median(st_b))
     n_str = np.bincount(strides.bout, minlength=n_b)
-    sl_b = np.bincount(strides.bout, weights=strides.length_m, minlength=n_b) / np.maximum(n_str, 1)
-    sp_b = np.bincount(strides.bout, weights=strides.speed_m_s, minlength=n_b) / np.maximum(n_str, 1)
+    # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
+    # (three steps measured as two) and would inflate length and speed
+    med = np.array([np.median(dur[in_b][strides.bout == b]) for b in range(n_b)])
+    reg = (dur[in_b] <= 1.5 * med[strides.bout]) if n_b else np.zeros(0, bool)
+    n_reg = np.bincount(strides.bout[reg], minlength=n_b)
+    sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
+    sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []

@@ -69,7 +69,7 @@ class TrunkGaitParams:
     ic_offset_s: float = -0.06
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.19
+    sl_correction: float = 1.2
     sl_highpass_hz: float = 0.1
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0

@@ -96,8 +96,9 @@ def scored_mask(events: list[dict], rec: dict, placement: str, t_ns: np.ndarray)
 
 def registry() -> list[Stage]:
     """All stages in topological order."""
-    from pipeline.stages import activity, calibration, clinical, gait, joint_angles, orientation
-    stages = [orientation.STAGE, gait.STAGE, clinical.STAGE, calibration.STAGE, joint_angles.STAGE, activity.STAGE]
+    from pipeline.stages import activity, calibration, clinical, gait, joint_angles, orientation, trunk_gait
+    stages = [orientation.STAGE, gait.STAGE, clinical.STAGE, calibration.STAGE, joint_angles.STAGE, activity.STAGE,
+              trunk_gait.STAGE]
     names = set()
     for s in stages:
         missing = [n for n in s.needs if n not in names]

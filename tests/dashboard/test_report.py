@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from reports.participant import build_report
+from reports.participant import TITLES, build_report
 
 pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report PDF (pip install pypdf)")
 
@@ -21,14 +21,16 @@ def report(full_wh, tmp_path_factory):
 def test_pdf_pages_pseudonym_and_known_figure(report):
     paths, _ = report
     reader = pypdf.PdfReader(paths["pdf"])
-    assert len(reader.pages) == 5                                # fixed layout: always five A4 pages
+    assert len(reader.pages) >= len(TITLES)                      # one A4 page per report page, + continuations
     w, h = (float(x) for x in reader.pages[0].mediabox.upper_right)
     assert abs(w - 595) < 2 and abs(h - 842) < 2
     texts = [p.extract_text() for p in reader.pages]
     assert all("P001" in t for t in texts)                       # the pseudonym on every page
-    assert "Figure 1: Gait parameters across sessions" in texts[1]
-    assert "Figure 4: Time per activity class and day" in texts[3]
-    assert "Bland-Altman" in texts[4]
+    page_of = {n: next(i for i, t in enumerate(texts) if f"{n}. {title}" in t) for n, title in TITLES.items()}
+    assert list(page_of.values()) == sorted(page_of.values())   # in order; a continued page follows its page
+    assert "Figure 1: Gait parameters across sessions" in texts[page_of[2]]
+    assert "Figure 4: Time per activity class and day" in texts[page_of[4]]
+    assert "Bland-Altman" in "".join(texts[page_of[5]:page_of[6]])
     assert not any(".mcap" in t for t in texts)                  # file names (possible site identifiers) never printed
     assert reader.metadata.title == "StrideLab report P001"
 
@@ -63,7 +65,7 @@ def test_html_is_self_contained(report):
 def test_report_without_stage_results_explains(ingested_wh, tmp_path):
     paths = build_report(ingested_wh, "P002", tmp_path)
     reader = pypdf.PdfReader(paths["pdf"])
-    assert len(reader.pages) == 5
+    assert len(reader.pages) == len(TITLES)
     text = "\n".join(p.extract_text() for p in reader.pages)
     assert ("stridelab run" in text or "No " in text) and "P002" in text   # missing results are explained
 
@@ -83,7 +85,7 @@ def test_summary_page_of_a_two_visit_participant(demo_wh, tmp_path):
     MDC95, bands with their source and the data-quality flags; page 2 holds the per-visit and per-side tables."""
     paths = build_report(demo_wh, "P001", tmp_path)
     reader = pypdf.PdfReader(paths["pdf"])
-    assert len(reader.pages) == 5
+    assert len(reader.pages) >= len(TITLES)
     p1, p2 = reader.pages[0].extract_text(), reader.pages[1].extract_text()
     for t in ("Summary", "Gait speed (m/s)", "Swing time symmetry ratio", "Stance time symmetry ratio",
               "Steps per day", "Upright time", "Previous visit", "MDC95", "Perry et al. 1995",
@@ -107,3 +109,20 @@ def test_table_headers_wrap_instead_of_being_cut():
     labels = [_header_lines(c, w - 1) for c, w in zip(cols, widths)]
     assert [" ".join(x.split("\n")) for x in labels] == cols
     assert labels[4].count("\n") == 1 and max(len(x) for x in labels[4].split("\n")) < len(cols[4])
+
+
+def test_long_table_continues_on_new_pages_and_keeps_every_row(tmp_path):
+    """A page whose content does not fit goes on over continuation sheets: every row of a 150-row table is in
+    the PDF (the renderer used to stop drawing a page at its bottom and drop the rest)."""
+    import pandas as pd
+    from reports.participant import render_pdf
+    rows = pd.DataFrame({"Stride": [f"S{i:03d}" for i in range(150)], "Length m": [1.0 + i / 1000 for i in range(150)]})
+    pages = {n: [] for n in TITLES}
+    pages[2] = [("text", "before the table"), ("table", "Every stride", rows), ("note", "after the table")]
+    d = {"participant_id": "P042", "study": "s"}
+    render_pdf(d, pages, {"generated": "now", "snapshot": "x", "version": "0"}, tmp_path / "r.pdf")
+    reader = pypdf.PdfReader(tmp_path / "r.pdf")
+    text = "\n".join(p.extract_text() for p in reader.pages)
+    assert all(f"S{i:03d}" in text for i in range(150))
+    assert "after the table" in text and "(continued)" in text
+    assert len(reader.pages) > len(TITLES)

@@ -43,15 +43,17 @@ def test_free_living_orientation_only_when_the_study_asks(tmp_path, free_living_
     s = runner.run(root, None, files=[free_living_file])
     assert not s.failed, s.failed
     assert first(connect_snapshot(root).execute("SELECT count(*) FROM orientation"))[0] == 0
-    assert _ledger(root) == {("activity", "output of free_living sessions; first run")}
+    assert _ledger(root) == {("activity", "output of free_living sessions; first run"),
+                             ("trunk_gait", "output of free_living sessions; first run")}
     assert len(df(root, "SELECT * FROM activity_bouts")) > 0
 
     (studies_dir / "optin" / "study.toml").write_text("[compute.orientation]\nfree_living = true\n")
     config.study_manifest.cache_clear()
     s = runner.run(root, None)
-    assert not s.failed and s.stage_runs == 1 and s.skipped_fresh == 1     # activity stays fresh
-    ori = df(root, "SELECT placement, n_samples FROM orientation")
-    assert list(ori.placement) == ["chest"] and ori.n_samples[0] == 0.05 * 3600 * 100
+    assert not s.failed and s.stage_runs == 1 and s.skipped_fresh == 2     # activity, trunk_gait stay fresh
+    ori = df(root, "SELECT placement, n_samples FROM orientation ORDER BY placement")
+    assert list(ori.placement) == ["chest", "lower_back"]          # the demo day carries both trunk sensors
+    assert (ori.n_samples == 0.05 * 3600 * 100).all()
     assert ("orientation", "requested by study optin ([compute.orientation] free_living = true); first run") \
         in _ledger(root)
 

@@ -404,7 +404,7 @@ def test_voisard_trial_feet_lower_back_and_events_on_the_packet_grid(tmp_path):
     res = import_paths("voisard", [d], tmp_path / "inbox", study="public")
     assert not res.errors, res.errors
     topics, events, sess = read_mcap(res.written[0])
-    assert sorted(k for k in topics if k.startswith("/imu/")) == ["/imu/foot_left", "/imu/foot_right", "/imu/pelvis"]
+    assert sorted(k for k in topics if k.startswith("/imu/")) == ["/imu/foot_left", "/imu/foot_right", "/imu/lower_back"]
     t, g, a = _imu(topics, "foot_left")
     np.testing.assert_allclose(a, v[:, :3], atol=1e-12)
     np.testing.assert_allclose(g, v[:, 3:6], atol=1e-12)

@@ -54,6 +54,7 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_VOISARD = PROJECT_ROOT.parent / "shared" / "data" / "voisard_gait"
 DEFAULT_MOBGAP_PY = PROJECT_ROOT / ".venv-mobgap" / "bin" / "python"
 MOBGAP_RUNNER = PROJECT_ROOT / "validation" / "anchors" / "mobgap_runner.py"
+MOBGAP_REQUIREMENTS = PROJECT_ROOT / "validation" / "anchors" / "mobgap-requirements.txt"
 KEYS = ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct", "stride_length_mae_m",
         "walking_speed_mae_m_s")
 GRID_SMOOTH_S = (0.08, 0.11, 0.14)
@@ -332,7 +333,9 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
                                       "participant (the only stride-length reference)",
-                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held},
+                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held,
+                            **({"note": "only one group: nothing could be held out, this block is in-sample"}
+                               if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi, "ic_offset_s": oi,
@@ -343,13 +346,9 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
 
 # ---------------------------------------------------------------------------------------------------- mobgap
 
-def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
-    """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
-    if not python.is_file():
-        return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
-                      "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
+def mobgap_inputs(recs: list[Rec]) -> tuple[list[str], dict]:
+    """(input names, arrays) for the mobgap runner: per recording an "as worn" and an "aligned" variant."""
     from estimators.trunk_gait import detect_trunk_frame
-    variants = {"as_worn": [], "aligned": []}
     arrays = {}
     names = []
     for i, r in enumerate(recs):
@@ -366,14 +365,28 @@ def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, 
         arrays[f"aligned_{key}/acc"] = r.acc @ M.T
         arrays[f"aligned_{key}/gyr"] = np.rad2deg(r.gyr @ M.T)
         arrays[f"aligned_{key}/meta"] = meta
-    all_names = [f"{v}_{k}" for v in variants for k in names]
-    # mobgap's output depends only on its inputs and its environment: cached beside that environment, keyed by
-    # the hash of the inputs, the runner and the interpreter (a rerun of the bench then costs seconds, not minutes)
-    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + str(python.resolve()).encode())
+    return names, arrays
+
+
+def mobgap_cache_path(python: Path, all_names: list[str], arrays: dict) -> Path:
+    """Cache file of mobgap's output beside its environment, keyed by the hash of the runner, the environment's
+    pinned requirements and the inputs (a rerun of the bench then costs seconds, not minutes)."""
+    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + MOBGAP_REQUIREMENTS.read_bytes())
     for n in all_names:
         for part in ("acc", "gyr", "meta"):
             h.update(np.ascontiguousarray(arrays[f"{n}/{part}"]).tobytes())
-    cache = python.resolve().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+    return python.absolute().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+
+
+def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
+    """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
+    if not python.is_file():
+        return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
+                      "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
+    variants = ("as_worn", "aligned")
+    names, arrays = mobgap_inputs(recs)
+    all_names = [f"{v}_{k}" for v in variants for k in names]
+    cache = mobgap_cache_path(python, all_names, arrays)
     if cache.is_file():
         out = json.loads(cache.read_text())
         if show:

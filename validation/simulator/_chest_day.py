@@ -25,7 +25,7 @@ from ._records import ImuData, Recording
 from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._kinematics import bump, heading_frame, rot_x, rot_y, rot_z, smoothstep
-from ._lab import local_to_utc_ns
+from ._lab import LOWER_BACK_MOUNT, local_to_utc_ns
 from ._sensor_model import FD_STEP_S, G, SensorErrors, TrueImu, apply_errors, random_rotation, vee_rate
 
 FREE_LIVING_PROTOCOL = "stridelab-free-living-chest-v1"
@@ -295,6 +295,12 @@ def _progress_acc(b: Bout, tau: np.ndarray, h: float) -> np.ndarray:
     return np.column_stack([vd * hx - v0 * pd * hy, vd * hy + v0 * pd * hx, np.zeros_like(tau)])
 
 
+#: lower-back sensor point (L4/L5, on the back) from the chest point, in the trunk frame (x anterior, y up, z right):
+#: the trunk treated as rigid from sternum to sacrum, 0.45 m below and 0.22 m behind the chest sensor (about the
+#: sternum-to-L5 distance and trunk depth of an adult; Winter 2009 segment proportions, rounded)
+LOWER_BACK_FROM_CHEST_M = np.array([-0.22, -0.45, 0.0])
+
+
 def _trunk_R(lean, bend, roll, psi):
     return heading_frame(psi) @ rot_z(-lean) @ rot_x(bend) @ rot_y(roll)
 
@@ -339,6 +345,13 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     day = manifest.first_lab_date + _dt.timedelta(days=index + 1 + later)
     t0_ns = local_to_utc_ns(day, "00:00", manifest.timezone, offset_s=start_s)
     mounts = [(t0_ns, mount)]
+    # a belt-worn lower-back sensor on the same rigid trunk (its own random streams: the chest's stay as they were)
+    lb_on = manifest.free_living.lower_back
+    if lb_on:
+        s_lb_mount, s_lb_breath, s_lb_dev, s_lb_noise = np.random.SeedSequence([seed, index, 4, session]).spawn(4)
+        mount_lb = LOWER_BACK_MOUNT @ random_rotation(np.random.default_rng(s_lb_mount), lo, hi)
+        rng_lb_breath = np.random.default_rng(s_lb_breath)
+        acc_lb, gyr_lb = np.empty((n, 3)), np.empty((n, 3))
     h = FD_STEP_S
     gz = np.array([0.0, 0.0, G])
     labels = []
@@ -358,6 +371,8 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
         if b.kind == "static":
             R_t = _trunk_R(*(np.array([x]) for x in (b.start.lean, b.start.bend, b.start.roll, b.start.psi)))[0]
             acc[i0:i1], gyr[i0:i1] = _breathing(R_t, mount, tau, rng_breath)
+            if lb_on:
+                acc_lb[i0:i1], gyr_lb[i0:i1] = _breathing(R_t, mount_lb, tau, rng_lb_breath)
             continue
         if b.kind == "nonwear":
             new_mount = random_rotation(rng_mount, 0.3 * lo, 0.5 * hi)
@@ -365,23 +380,31 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
             R_on0, R_on1 = R_a @ mount, R_a @ new_mount
             table = heading_frame(np.array([b.start.psi + 1.0]))[0] @ rot_x(np.array([D(90.0)]))[0]
             _fill_nonwear(acc, gyr, i0, i1, tau, b.t1 - b.t0, R_on0, table, R_on1, h)
+            if lb_on:       # the belt comes off too and goes back on as it was
+                _fill_nonwear(acc_lb, gyr_lb, i0, i1, tau, b.t1 - b.t0, R_a @ mount_lb, table, R_a @ mount_lb, h)
             mount = new_mount
             mounts.append((t0_ns + int(round((b.t1 - start_s) * 1e9)), mount))
             continue
         for c0 in range(0, i1 - i0, 200_000):
             tt = tau[c0:c0 + 200_000]
-            Rs, ps = [], []
+            Rs, ps, Rl, pl = [], [], [], []
             for dt in (-h, 0.0, h):
                 lean, bend, roll, psi, pos = _angles_pos(b, tt + dt)
-                Rs.append(_trunk_R(lean, bend, roll, psi) @ mount)
+                Rt = _trunk_R(lean, bend, roll, psi)
+                Rs.append(Rt @ mount)
                 ps.append(pos)
-            a_w = (ps[2] - 2 * ps[1] + ps[0]) / h ** 2
-            if b.kind == "walk":
-                a_w += _progress_acc(b, tt, h)
-            a_w += gz
+                if lb_on:
+                    Rl.append(Rt @ mount_lb)
+                    pl.append(pos + Rt @ LOWER_BACK_FROM_CHEST_M)
+            prog = _progress_acc(b, tt, h) if b.kind == "walk" else 0.0
+            a_w = (ps[2] - 2 * ps[1] + ps[0]) / h ** 2 + prog + gz
             sl = slice(i0 + c0, i0 + c0 + tt.shape[0])
             acc[sl] = np.einsum("nki,nk->ni", Rs[1], a_w)
             gyr[sl] = vee_rate(Rs[0], Rs[1], Rs[2], h)
+            if lb_on:
+                a_l = (pl[2] - 2 * pl[1] + pl[0]) / h ** 2 + prog + gz
+                acc_lb[sl] = np.einsum("nki,nk->ni", Rl[1], a_l)
+                gyr_lb[sl] = vee_rate(Rl[0], Rl[1], Rl[2], h)
     truth = ChestDayTruth(bouts=[(l, t0_ns + int(round((a - start_s) * 1e9)), t0_ns + int(round((b_ - start_s) * 1e9)), st)
                                  for l, a, b_, st in labels], mounts=mounts)
     if keep_true:
@@ -406,6 +429,11 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
         md["paretic_side"] = str(participant.paretic_side)
     rec = Recording(metadata=md, imu={"chest": ImuData(t_ns=t_ns, acc=acc_m, gyr=gyr_m, mag=None)},
                     events=events, name=f"{pid}_free{session}_day-{session}")
+    if lb_on:
+        err_lb = SensorErrors.draw(np.random.default_rng(s_lb_dev), spec, "lower_back")
+        sig = TrueImu(acc=acc_lb, gyr=gyr_lb, mag=None, pos=np.empty((0, 3)), quat=np.empty((0, 4)))
+        a_m, g_m, _, _ = apply_errors(sig, err_lb, spec, np.random.default_rng(s_lb_noise), rate)
+        rec.imu["lower_back"] = ImuData(t_ns=t_ns, acc=a_m, gyr=g_m, mag=None)
     return rec, truth
 
 

@@ -21,6 +21,11 @@ from ._sensor_model import (FD_STEP_S, MagneticEnvironment, SensorErrors, TrueIm
 LAB_PROTOCOL = "stridelab-lab-gait-v1"
 RANGE_DIVIDER = 3            # distance sensors at 100/3 Hz
 RANGE_BEAM_FOOT = np.array([0.0, -1.0, 0.0])   # beam direction in the foot frame (down when flat)
+#: belt-worn lower-back sensor (L4/L5) on the pelvis segment: a little above and behind the pelvis sensor (m, pelvis
+#: frame x anterior, y up, z right); nominal mounting as the Mobilise-D McRoberts sensor: sensor x up, y left,
+#: z backward (columns = sensor axes in pelvis coordinates), then the session's misalignment
+LOWER_BACK_OFFSET_M = np.array([-0.11, 0.08, 0.0])
+LOWER_BACK_MOUNT = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 
 @dataclass
@@ -66,7 +71,8 @@ class LabTrialTruth:
 
 def sensor_offsets(geo: BodyGeometry) -> dict[str, np.ndarray]:
     """Sensor positions in the segment frames (m)."""
-    out = {"pelvis": np.array([-0.10, 0.04, 0.0]), "chest": np.array([geo.chest_depth_m, 0.0, 0.0])}
+    out = {"pelvis": np.array([-0.10, 0.04, 0.0]), "chest": np.array([geo.chest_depth_m, 0.0, 0.0]),
+           "lower_back": LOWER_BACK_OFFSET_M.copy()}
     for side, sign in (("right", 1.0), ("left", -1.0)):
         out[f"thigh_{side}"] = np.array([0.0, -0.5 * geo.thigh_m, sign * 0.075])
         out[f"shank_{side}"] = np.array([0.035, -0.35 * geo.shank_m, -sign * 0.015])
@@ -368,7 +374,10 @@ def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices
                           gyr_true={}, mag_true={}, joint_angles_deg={}, events={}, foot_points={},
                           windows=list(windows), geometry=geo, gait=model.gait)
     wobble_on = spec.wobble_deg_per_g > 0 or spec.wobble_mm_per_g > 0
-    for p in SEGMENTS:
+    extra = tuple(p for p in devices.mounts if p not in SEGMENTS)       # lower_back: on the pelvis segment
+    rng_extra = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0]) if extra else None
+    for p in SEGMENTS + extra:
+        seg = "pelvis" if p == "lower_back" else p
         mount = devices.mounts[p]
         if vio.sta_deg_per_knee_deg and p.startswith(("thigh_", "shank_")):
             # soft-tissue artefact: the sensor turns about the segment long axis with the knee flexion
@@ -377,9 +386,10 @@ def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices
             flex = np.stack([jcs_angles_deg(Rt[j], Rsh[j], joint="knee", side=side)[:, 0] for j in range(5)])
             ang = np.deg2rad(vio.sta_deg_per_knee_deg * flex)
             mount = rotmat_from_rotvec(ang[..., None] * np.array([0.0, 1.0, 0.0]))[1:4] @ mount
-        sig: TrueImu = true_imu(poses5[p], devices.offsets[p], mount,
+        sig: TrueImu = true_imu(poses5[seg], devices.offsets[p], mount,
                                 devices.errors[p] if wobble_on else None, mag_env)
-        acc, gyr, mag, end_bias = apply_errors(sig, devices.errors[p], spec, rng, rate_hz, devices.gyr_bias[p])
+        acc, gyr, mag, end_bias = apply_errors(sig, devices.errors[p], spec, rng if p in SEGMENTS else rng_extra,
+                                               rate_hz, devices.gyr_bias[p])
         devices.gyr_bias[p] = end_bias
         if vio.heel_strike_g and p.startswith(("foot_", "shank_")):
             side = p.split("_")[1]
@@ -461,6 +471,12 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
     root = np.random.SeedSequence([seed, index, 1, session])
     dev_ss, env_ss, *trial_ss = root.spawn(2 + 1 + manifest.lab.walking_trials)
     devices = draw_devices(np.random.default_rng(dev_ss), spec, geo, SEGMENTS)
+    if manifest.lab.lower_back:      # its own stream: the other sensors' draws stay as they were
+        lb = draw_devices(np.random.default_rng(np.random.SeedSequence([seed, index, 3, session])), spec, geo,
+                          ("lower_back",))
+        devices.mounts["lower_back"] = LOWER_BACK_MOUNT @ lb.mounts["lower_back"]
+        devices.errors["lower_back"] = lb.errors["lower_back"]
+        devices.gyr_bias["lower_back"] = lb.gyr_bias["lower_back"]
     mag_env = MagneticEnvironment(spec, np.random.default_rng(np.random.SeedSequence([seed, 99])))
     # a programme's visits are visit_interval_days apart; with one visit, ``session`` only reseeds (benches)
     later = (session - 1) * manifest.visit_interval_days if manifest.visits > 1 else 0

@@ -207,3 +207,14 @@ def test_chest_placement_and_given_height_are_reported():
     # stride length scales with the pendulum length (Zijlstra & Hof Eq. 1): a longer leg, longer strides
     res2 = analyse_trunk_gait(acc_b, gyr_b, FS, placement="chest", height_m=1.60, leg_length_m=1.0)
     assert res2.bouts.stride_length_m[0] > res.bouts.stride_length_m[0]
+
+
+def test_slow_small_steps_are_still_walking():
+    # about 0.3 m/s: 1.1 s per step (55 steps/min), upward acceleration only ±0.6 m/s²
+    acc_b, gyr_b, ic, left = walking_body(60.0, rest_s=5.0, step_s=1.1, amp=0.6, seed=3)
+    res = analyse_trunk_gait(acc_b, gyr_b, FS, height_m=1.65, params=TrunkGaitParams(ic_offset_s=0.0))
+    m = match_initial_contacts(res.initial_contacts_s, ic, tolerance_s=0.1)
+    met = ic_metrics(m)
+    assert met["sensitivity"] > 0.9 and met["precision"] > 0.95, met
+    assert len(res.bouts) == 1 and res.bouts.cadence_spm[0] == pytest.approx(60 / 1.1, rel=0.02)
+    assert (res.ic_side[m.det_idx] == np.where(left[m.ref_idx], "left", "right")).mean() == 1.0
