@@ -70,12 +70,16 @@ def test_tables_come_back_as_dataframes_filtered_by_participant_and_session(smal
 
 def test_a_table_the_warehouse_lacks_raises_a_clear_error(small_home):
     with stridelab.open(small_home) as wh:
-        if wh.has_table("walking_bouts"):
-            pytest.skip("this warehouse has the walking-at-home stage")
-        with pytest.raises(stridelab.TableMissing, match="walking_bouts.*walking-at-home stage"):
-            wh.walking_bouts()
         with pytest.raises(stridelab.TableMissing, match="no table 'x; DROP'"):
             wh.table("x; DROP")
+        with pytest.raises(stridelab.TableMissing, match="no table 'no_such_table'.*tables: .*strides"):
+            wh.table("no_such_table")
+        if wh.has_table("walking_bouts"):       # the walking-at-home stage ran: its bouts come back filtered
+            wb = wh.walking_bouts(participant="P001")
+            assert set(wb["participant_id"]) <= {"P001"} and {"cadence_spm", "placement"} <= set(wb.columns)
+        else:
+            with pytest.raises(stridelab.TableMissing, match="walking_bouts.*walking-at-home stage"):
+                wh.walking_bouts()
 
 
 def test_open_refuses_what_is_not_a_warehouse(tmp_path):
