@@ -4,7 +4,9 @@
 #               process while it simulates the demo study, then runs the pipeline
 #   make install  the same installation, kernels compiled (`stridelab warm-kernels`) and the packages' bytecode
 #               compiled once before it returns (benches and nightly runs start many processes)
-#   make test   install if missing, compile the packages' bytecode once, run the test suite
+#   make test   install if missing (with the docs tools and the BIDS validator), compile the packages' bytecode
+#               once, run the test suite (docs build and examples included)
+#   make docs   build the documentation site into site/ (mkdocs build --strict)
 #   make test-fast  the same without the slow, real-data and browser tests (the edit loop)
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'",
 #   INSTALLER=pip (skip uv).
@@ -22,7 +24,7 @@ INSTALLER ?= uv
 ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: demo test test-fast install browser clean anchors-mobgap
+.PHONY: demo test test-fast install browser clean docs docs-tools bids-validator anchors-mobgap
 
 $(DEPS): pyproject.toml requirements.lock
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null || \
@@ -65,12 +67,39 @@ install: $(STAMP) $(BYTECODE)
 demo: $(DEPS)
 	$(VENV)/bin/stridelab demo $(ARGS)
 
-test: $(STAMP) $(BYTECODE) browser
+test: $(STAMP) $(BYTECODE) browser docs-tools bids-validator
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
 
 # The edit loop: everything that needs neither the public data, a browser nor more than a few seconds.
 test-fast: $(STAMP) $(BYTECODE)
 	$(VENV)/bin/python -m pytest -q -m "not slow and not realdata and not browser" $(PYTEST_ARGS)
+
+# The documentation tools (MkDocs, Material, mkdocstrings, mkdocs-click), pinned in requirements-docs.lock; the
+# docs test (tests/test_docs.py) builds the site with --strict.
+DOCS_STAMP := $(VENV)/.docs-stamp
+$(DOCS_STAMP): $(DEPS) requirements-docs.lock
+	@{ [ "$(INSTALLER)" = uv ] && [ -x $(VENV)/bin/uv ] && \
+	  $(VENV)/bin/uv pip install --quiet --python $(VENV)/bin/python -r requirements-docs.lock; } || \
+	  $(VENV)/bin/python -m pip install --quiet -r requirements-docs.lock
+	@touch $@
+docs-tools: $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
+# The official BIDS validator (npm bids-validator, pinned by tools/bids-validator/package-lock.json) for the
+# Motion-BIDS export test; skipped with a note where Node.js/npm are missing (the test then skips too).
+BIDS_VALIDATOR := tools/bids-validator/node_modules/.bin/bids-validator
+$(BIDS_VALIDATOR): tools/bids-validator/package-lock.json
+	@command -v npm >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && \
+	  echo "installing Debian's nodejs and npm for the BIDS validator" >&2 && \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nodejs npm >/dev/null) || true; }
+	@if command -v npm >/dev/null 2>&1; then \
+	  echo "installing the BIDS validator (npm ci in tools/bids-validator) …" >&2; \
+	  (cd tools/bids-validator && npm ci --no-audit --no-fund --loglevel=error >/dev/null) && touch $@ || \
+	    echo "note: could not install the BIDS validator; the BIDS export test will skip" >&2; \
+	else echo "note: npm not found (sudo apt-get install nodejs npm); the BIDS export test will skip" >&2; fi
+bids-validator: $(BIDS_VALIDATOR)
 
 # Debian's Chromium for the dashboard's real-browser test; skipped (with a message) where apt is unavailable.
 browser:
@@ -95,4 +124,4 @@ $(MOBGAP_VENV)/.installed-stamp: validation/anchors/mobgap-requirements.txt
 anchors-mobgap .venv-mobgap: $(MOBGAP_VENV)/.installed-stamp
 
 clean:
-	rm -rf $(VENV) $(MOBGAP_VENV) stridelab-home .pytest_cache
+	rm -rf $(VENV) $(MOBGAP_VENV) stridelab-home .pytest_cache site tools/bids-validator/node_modules

@@ -826,3 +826,83 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibrat
     except ValueError as e:
         raise UserError(str(e).splitlines()[0]) from None
     print_summary(summary, as_json)
+
+
+# ---- export (tables to CSV/Parquet, recordings to Motion-BIDS; pipeline/export) ---------------------------
+
+@main.group()
+def export() -> None:
+    """Take results out: a warehouse table to CSV or Parquet, recordings and events to Motion-BIDS.
+
+    \b
+    Examples:
+      stridelab export table strides strides.parquet
+      stridelab export bids stridelab-home/warehouse bids-out/
+    """
+
+
+@export.command("table")
+@click.argument("name")
+@click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
+@_warehouse_option
+@click.option("--json", "as_json", is_flag=True, help="Print what was written as JSON.")
+def export_table_cmd(name, out, warehouse_dir, as_json) -> None:
+    """Write warehouse table NAME (any table; an unknown name lists them) to OUT, a .csv
+    or .parquet file, from the newest snapshot.
+
+    \b
+    Examples:
+      stridelab export table strides strides.csv
+      stridelab export table activity_daily /tmp/daily.parquet --warehouse stridelab-home/warehouse
+    """
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.export.tables import export_table
+    try:
+        r = export_table(_wh(warehouse_dir), name, out)
+    except ValueError as e:
+        raise UserError(str(e).splitlines()[0]) from None
+    if as_json:
+        emit_json(r)
+    else:
+        err_console.print(f"{r['rows']} rows of {r['table']} -> {r['path']}", markup=False)
+
+
+@export.command("bids")
+@click.argument("warehouse", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--study", default=None, help="Only this study.")
+@click.option("--participant", "participants", multiple=True, help="Only this participant (repeatable).")
+@click.option("--kind", "kinds", multiple=True, type=click.Choice(["lab", "free_living", "calibration"]),
+              help="Only sessions of this kind (repeatable); free-living days are large.")
+@click.option("--keep-ids", is_flag=True, help="Keep the warehouse's pseudonyms as subject labels "
+                                               "[default: renumber sub-01, sub-02, ...].")
+@click.option("--subject-map", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the sub-XX -> warehouse pseudonym mapping to this file (keep it out of the export).")
+@click.option("--overwrite", is_flag=True, help="Replace OUT if it holds an earlier export.")
+@click.option("--author", "authors", multiple=True, help="Dataset author for dataset_description.json (repeatable).")
+@click.option("--name", default="StrideLab export", show_default=True, help="Dataset name.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def export_bids_cmd(warehouse, out, study, participants, kinds, keep_ids, subject_map, overwrite, authors, name,
+                    as_json) -> None:
+    """Write the recordings of WAREHOUSE with their events to OUT as Motion-BIDS (BIDS 1.9), pseudonymised.
+
+    \b
+    Examples:
+      stridelab export bids stridelab-home/warehouse bids/
+      stridelab export bids stridelab-home/warehouse bids-lab/ --kind lab --subject-map key.tsv \
+          --author "A. Researcher" --author "B. Clinician" --name "Gait study 2026"
+    """
+    from pipeline.console import UserError, emit_json, err_console
+    from pipeline.export.bids import export_bids
+    try:
+        s = export_bids(warehouse, out, study=study, participants=tuple(participants), kinds=tuple(kinds),
+                        keep_ids=keep_ids, subject_map=subject_map, overwrite=overwrite, authors=tuple(authors),
+                        name=name)
+    except ValueError as e:
+        raise UserError(str(e).splitlines()[0]) from None
+    if as_json:
+        emit_json(s.as_dict())
+    else:
+        err_console.print(f"{s.subjects} subjects, {s.sessions} sessions, {s.recordings} recordings "
+                          f"({s.motion_files} motion files, {s.samples} samples, {s.events} events) -> {s.out}",
+                          markup=False)

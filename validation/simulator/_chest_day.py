@@ -423,7 +423,6 @@ def simulate_chest_day(manifest: StudyManifest, participant: ParticipantSpec, in
     pid = participant.id
     md = {"study": manifest.name, "participant": pid, "session": f"{pid}-free-living-{session}",
           "kind": "free_living", "protocol": FREE_LIVING_PROTOCOL, "trial": f"day-{session}",
-          "reference": "simulated truth (validation/simulator: the scripted activities)",
           "timezone": manifest.timezone, "condition": participant.condition,
           "height_m": f"{participant.height_m:.3f}", "thigh_length_m": f"{participant.thigh_m:.3f}"}
     if participant.hemiparetic:

@@ -485,7 +485,6 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
     pid = participant.id
     sess = f"{pid}-lab-{session}"
     base = {"study": manifest.name, "participant": pid, "session": sess, "protocol": LAB_PROTOCOL,
-            "reference": "simulated truth (validation/simulator: segment poses and gait events of the model)",
             "timezone": manifest.timezone, "condition": participant.condition,
             "height_m": f"{participant.height_m:.3f}", "thigh_length_m": f"{participant.thigh_m:.3f}",
             "shank_length_m": f"{participant.shank_m:.3f}"}
