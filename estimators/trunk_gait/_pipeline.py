@@ -12,7 +12,7 @@ import numpy as np
 from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from estimators.trunk_gait._gsd import detect_gait_sequences
 from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
-from estimators.trunk_gait._spatial import step_lengths, vertical_position
+from estimators.trunk_gait._spatial import hampel, step_lengths, vertical_position
 from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
@@ -88,13 +88,19 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         gb = gyr[s:e] @ R.T
         v = ab[:, 1] - ab[:, 1].mean()
         peaks = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
-                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s)
+                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
+                                        fill_prominence=p.ic_fill_prominence,
+                                        fill_edge_steps=p.ic_fill_edge_steps, max_step_s=p.stride_max_s / 2.0)
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
         left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
+        if p.sl_hampel_half_width > 0 and len(sl):
+            # a step is only compared with steps of the same run; a step across a pause (two runs) stands alone
+            same = runs[1:] == runs[:-1]
+            sl = hampel(sl, p.sl_hampel_half_width, 3.0, np.where(same, runs[1:], -1 - np.arange(len(sl))))
         ic_all.append(t)
         left_all.append(left)
         run_all.append(runs)
@@ -135,8 +141,19 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         if len(st_b):
             cadence[b] = 60.0 / float(np.median(st_b))
     n_str = np.bincount(strides.bout, minlength=n_b)
-    sl_b = np.bincount(strides.bout, weights=strides.length_m, minlength=n_b) / np.maximum(n_str, 1)
-    sp_b = np.bincount(strides.bout, weights=strides.speed_m_s, minlength=n_b) / np.maximum(n_str, 1)
+    # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
+    # (three steps measured as two) and would inflate length and speed
+    med = np.array([np.median(dur[in_b][strides.bout == b]) for b in range(n_b)])
+    reg = (dur[in_b] <= 1.5 * med[strides.bout]) if n_b else np.zeros(0, bool)
+    n_reg = np.bincount(strides.bout[reg], minlength=n_b)
+    if p.bout_average == "median":
+        sl_b = np.array([np.median(strides.length_m[reg & (strides.bout == b)]) for b in range(n_b)])
+        sp_b = np.array([np.median(strides.speed_m_s[reg & (strides.bout == b)]) for b in range(n_b)])
+    elif p.bout_average == "mean":
+        sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
+        sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
+    else:
+        raise ValueError(f"bout_average must be 'mean' or 'median', got {p.bout_average!r}")
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []

@@ -30,6 +30,36 @@ def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.
     return sosfiltfilt(sos, cumulative_trapezoid(vel, dx=dt, initial=0.0), padlen=pad)
 
 
+def hampel(x: np.ndarray, half_width: int, n_sigma: float, groups: np.ndarray | None = None) -> np.ndarray:
+    """Hampel identifier (Pearson et al. 2016, "Generalized Hampel filters", EURASIP J Adv Signal Process 2016:87,
+    doi:10.1186/s13634-016-0383-6): a value further than ``n_sigma`` × 1.4826 × MAD from the median of the
+    ``2 half_width + 1`` values around it is replaced by that median. Windows are cut at the edges and do not
+    cross ``groups`` (runs of regular steps); NaNs are ignored. Soltani et al. 2021 (IEEE TNSRE 29:1955,
+    doi:10.1109/TNSRE.2021.3111681) smooth the pendulum step lengths this way (a missed contact, a turning or a
+    shuffling step gives one implausible step among regular ones). Deviation: the MAD is floored at 1 % of the
+    median."""
+    x = np.asarray(x, float)
+    n = len(x)
+    if half_width <= 0 or n < 3:
+        return x.copy()
+    g = np.zeros(n, np.int64) if groups is None else np.asarray(groups)
+    j = np.arange(n)[:, None] + np.arange(-half_width, half_width + 1)[None, :]
+    inside = (j >= 0) & (j < n)
+    jc = np.clip(j, 0, n - 1)
+    w = np.where(inside & (g[jc] == g[:, None]), x[jc], np.nan)
+    ok = np.isfinite(x) & (np.sum(np.isfinite(w), axis=1) >= 3)
+    out = x.copy()
+    if not ok.any():
+        return out
+    med = np.nanmedian(w[ok], axis=1)
+    # scale floor 1 % of the median (deviation): with equal neighbours the MAD is 0 and every other value would
+    # count as an outlier
+    mad = np.maximum(np.nanmedian(np.abs(w[ok] - med[:, None]), axis=1), 0.01 * np.abs(med))
+    bad = np.abs(x[ok] - med) > n_sigma * 1.4826 * mad
+    out[np.flatnonzero(ok)[bad]] = med[bad]
+    return out
+
+
 def step_lengths(pos: np.ndarray, ic_idx: np.ndarray, leg_length_m: float, correction: float) -> np.ndarray:
     """(K-1,) step length, m, between consecutive initial contacts (Zijlstra & Hof 2003 Eq. 1 × K)."""
     if len(ic_idx) < 2:

@@ -38,6 +38,9 @@ class TrunkGaitParams:
       ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
         the gait sequence.
       ic_local_window_s: window of that standard deviation, s (0 = the whole sequence).
+      ic_fill_prominence: weaker peaks (prominence ≥ this fraction of the sequence's SD) are added where the step
+        rhythm of the kept contacts expects a missed one (0 = off; ``_icd.fill_missed_steps``).
+      ic_fill_edge_steps: how many such steps may be added before the first and after the last kept contact.
       ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
     Side (McCamley et al. 2012: sign of the yaw rate):
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
@@ -45,6 +48,9 @@ class TrunkGaitParams:
     Stride length (Zijlstra & Hof 2003 inverted pendulum):
       sl_correction: multiplicative correction factor K of the pendulum step length.
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
+      sl_hampel_half_width: half width (steps) of the Hampel filter on the step lengths within a run of regular
+        steps (0 = off; Soltani et al. 2021 use 2 steps, 3 MAD).
+      bout_average: "mean" or "median" of the bout's regular strides for its stride length and walking speed.
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
@@ -66,11 +72,15 @@ class TrunkGaitParams:
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
+    ic_fill_prominence: float = 0.0
+    ic_fill_edge_steps: int = 0
     ic_offset_s: float = -0.06
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.19
+    sl_correction: float = 1.18
     sl_highpass_hz: float = 0.1
+    sl_hampel_half_width: int = 1
+    bout_average: str = "median"
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2

@@ -15,9 +15,11 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
-one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_offset_s``); the
-stride-length factor ``sl_correction`` only has a reference in the Mobilise-D data: leave-one-trial-out over the
-trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
+one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_fill_prominence``,
+``ic_fill_edge_steps``, ``ic_offset_s``); stride
+length only has a reference in the Mobilise-D data: its factor ``sl_correction``, jointly with the step-length
+Hampel filter ``sl_hampel_half_width`` and the bout average ``bout_average`` (mean/median), by leave-one-trial-out
+over the trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
 (marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
 the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
 input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
@@ -54,13 +56,16 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_VOISARD = PROJECT_ROOT.parent / "shared" / "data" / "voisard_gait"
 DEFAULT_MOBGAP_PY = PROJECT_ROOT / ".venv-mobgap" / "bin" / "python"
 MOBGAP_RUNNER = PROJECT_ROOT / "validation" / "anchors" / "mobgap_runner.py"
+MOBGAP_REQUIREMENTS = PROJECT_ROOT / "validation" / "anchors" / "mobgap-requirements.txt"
 KEYS = ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct", "stride_length_mae_m",
         "walking_speed_mae_m_s")
 GRID_SMOOTH_S = (0.08, 0.11, 0.14)
 GRID_PROMINENCE = (0.3, 0.5, 0.7)
-GRID_LOCAL_S = (0.0, 3.0)
+GRID_LOCAL_S = (0.0,)      # 3 s was never chosen (0 in 10/10 folds, 2026-12-07 run); dropped to make room for
+GRID_FILL = ((0.0, 0), (0.1, 0), (0.2, 0), (0.1, 1), (0.2, 1))   # (ic_fill_prominence, ic_fill_edge_steps)
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.14, 0.061, 0.01), 3))
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
+SL_VARIANTS = tuple((h, a) for h in (0, 1, 2) for a in ("mean", "median"))   # (sl_hampel_half_width, bout_average)
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
 
 
@@ -271,85 +276,110 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     from estimators.trunk_gait import TrunkGaitParams
     shipped = TrunkGaitParams()
     # group-level means of the IC loss: each candidate = (smooth, prominence, offset)
-    cands = [(s, p, w) for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for w in GRID_LOCAL_S]
+    cands = [(s, p, w, f) for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for w in GRID_LOCAL_S for f in GRID_FILL]
     dets: dict[tuple, list[Det]] = {}
-    for ci, (s, p, w) in enumerate(cands):
-        params = dataclasses.replace(shipped, ic_smooth_s=s, ic_prominence=p, ic_local_window_s=w, ic_offset_s=0.0)
-        dets[(s, p, w)] = [run_ours(r, params) for r in recs]
+    for ci, (s, p, w, f) in enumerate(cands):
+        params = dataclasses.replace(shipped, ic_smooth_s=s, ic_prominence=p, ic_local_window_s=w, ic_offset_s=0.0,
+                                     ic_fill_prominence=f[0], ic_fill_edge_steps=f[1])
+        dets[(s, p, w, f)] = [run_ours(r, params) for r in recs]
         if show:
-            _say(f"  grid {ci + 1}/{len(cands)}: ic_smooth_s={s} ic_prominence={p} ic_local_window_s={w}")
-    full = [(s, p, w, o) for (s, p, w) in cands for o in GRID_OFFSET_S]
+            _say(f"  grid {ci + 1}/{len(cands)}: ic_smooth_s={s} ic_prominence={p} ic_local_window_s={w} "
+                 f"ic_fill_prominence={f[0]} ic_fill_edge_steps={f[1]}")
+    full = [(s, p, w, f, o) for (s, p, w, f) in cands for o in GRID_OFFSET_S]
     groups = [r.group for r in recs]
     cache: dict = {}
 
     def group_loss(g: str, c: int) -> float:
         key = (g, c)
         if key not in cache:
-            s, p, w, o = full[c]
+            s, p, w, f, o = full[c]
             idx = [i for i, r in enumerate(recs) if r.group == g]
-            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[(s, p, w)][i] for i in idx], offset_s=o))
+            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[(s, p, w, f)][i] for i in idx], offset_s=o))
         return cache[key]
 
     logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
-    # sl_correction: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out
+    # stride length: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out over the
+    # aggregation variant (Hampel half width x bout mean/median, SL_VARIANTS) and the factor sl_correction (GRID_SL)
     mob = [i for i, r in enumerate(recs) if r.dataset == "mobilised"]
     ship_dets = [run_ours(r, shipped) for r in recs]
-    sl_held: dict[str, float] = {}
+    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1]))
+                    for i in mob} for v in SL_VARIANTS}
+    sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
+    sl_held: dict[str, tuple] = {}
     sl_ins = None
     if mob:
-        def sl_loss(trials, k):
+        def sl_loss(trials, c):
+            v, k = sl_cands[c]
             e = []
             for i in mob:
                 if recs[i].trial_group in trials:
-                    be = _bout_errs(recs[i], ship_dets[i], GRID_SL[k] / shipped.sl_correction)
+                    be = _bout_errs(recs[i], var_dets[v][i], k / shipped.sl_correction)
                     e.extend(be.get("stride_length_m", {}).get("abs_error", []))
             e = np.asarray(e, float)
             e = e[np.isfinite(e)]
             return float(np.mean(e)) if len(e) else float("inf")
-        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(GRID_SL))
-        sl_held = {t: GRID_SL[k] for t, k in sl["held_out_choice"].items()}
-        sl_ins = GRID_SL[sl["in_sample_choice"]]
+        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(sl_cands))
+        sl_held = {t: sl_cands[c] for t, c in sl["held_out_choice"].items()}
+        sl_ins = sl_cands[sl["in_sample_choice"]]
+    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average)
+
+    def with_sl(r: Rec, ic: tuple, v: tuple) -> Det:
+        s_, p_, w_, f_, _o = ic
+        return run_ours(r, dataclasses.replace(shipped, ic_smooth_s=s_, ic_prominence=p_, ic_local_window_s=w_,
+                                               ic_fill_prominence=f_[0], ic_fill_edge_steps=f_[1],
+                                               ic_offset_s=0.0, sl_hampel_half_width=v[0], bout_average=v[1]))
     # cross-validated: per recording, the detections of its held-out choice
     cv_dets, cv_off, cv_scale = [], [], []
-    for r in recs:
-        s, p, w, o = full[logo["held_out_choice"][r.group]]
-        cv_dets.append(dets[(s, p, w)][recs.index(r)])
+    for i, r in enumerate(recs):
+        s, p, w, f, o = full[logo["held_out_choice"][r.group]]
+        v, k = sl_held.get(r.trial_group, (ship_v, shipped.sl_correction))
+        cv_dets.append(dets[(s, p, w, f)][i] if r.dataset != "mobilised" else with_sl(r, (s, p, w, f, o), v))
         cv_off.append(o)
-        cv_scale.append(sl_held.get(r.trial_group, shipped.sl_correction) / shipped.sl_correction)
-    si, pi, wi, oi = full[logo["in_sample_choice"]]
-    ins_dets = dets[(si, pi, wi)]
-    ins_scale = [(sl_ins or shipped.sl_correction) / shipped.sl_correction] * len(recs)
-    by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_offset_s"), full[c]))
+        cv_scale.append(k / shipped.sl_correction)
+    si, pi, wi, fi, oi = full[logo["in_sample_choice"]]
+    vi, ki = sl_ins or (ship_v, shipped.sl_correction)
+    ins_dets = [dets[(si, pi, wi, fi)][i] if r.dataset != "mobilised" else with_sl(r, (si, pi, wi, fi, oi), vi)
+                for i, r in enumerate(recs)]
+    ins_scale = [ki / shipped.sl_correction] * len(recs)
+    by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
+                             "ic_fill_edge_steps", "ic_offset_s"),
+                            (*full[c][:3], *full[c][3], full[c][4])))
                 for g, c in logo["held_out_choice"].items()}
     return {
         "shipped_defaults": {**blocks(recs, ship_dets),
                              "params": {k: getattr(shipped, k) for k in ("ic_smooth_s", "ic_prominence",
-                                                                          "ic_local_window_s", "ic_offset_s",
-                                                                          "sl_correction")}},
+                                                                          "ic_local_window_s", "ic_fill_prominence",
+                                                                          "ic_fill_edge_steps", "ic_offset_s",
+                                                                          "sl_correction",
+                                                                          "sl_hampel_half_width",
+                                                                          "bout_average")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
-                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_offset_s): "
+                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_fill_prominence, "
+                                      "ic_fill_edge_steps, ic_offset_s): "
                                       "leave-one-group-out "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
-                                      "sl_correction: leave-one-trial-out over the trials of the single Mobilise-D "
+                                      "sl_hampel_half_width, bout_average, sl_correction: leave-one-trial-out over the "
+                                      "trials of the single Mobilise-D "
                                       "participant (the only stride-length reference)",
-                            "held_out_choice_by_group": by_group, "sl_correction_held_out_by_trial": sl_held},
+                            "held_out_choice_by_group": by_group, "sl_held_out_by_trial": {
+                                t: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_correction": k}
+                                for t, (v, k) in sl_held.items()},
+                            **({"note": "only one group: nothing could be held out, this block is in-sample"}
+                               if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
-                      "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi, "ic_offset_s": oi,
-                                 "sl_correction": sl_ins}},
+                      "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi,
+                                 "ic_fill_prominence": fi[0], "ic_fill_edge_steps": fi[1], "ic_offset_s": oi,
+                                 "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1]}},
         "_ship_dets": ship_dets,
     }
 
 
 # ---------------------------------------------------------------------------------------------------- mobgap
 
-def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
-    """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
-    if not python.is_file():
-        return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
-                      "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
+def mobgap_inputs(recs: list[Rec]) -> tuple[list[str], dict]:
+    """(input names, arrays) for the mobgap runner: per recording an "as worn" and an "aligned" variant."""
     from estimators.trunk_gait import detect_trunk_frame
-    variants = {"as_worn": [], "aligned": []}
     arrays = {}
     names = []
     for i, r in enumerate(recs):
@@ -366,14 +396,28 @@ def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, 
         arrays[f"aligned_{key}/acc"] = r.acc @ M.T
         arrays[f"aligned_{key}/gyr"] = np.rad2deg(r.gyr @ M.T)
         arrays[f"aligned_{key}/meta"] = meta
-    all_names = [f"{v}_{k}" for v in variants for k in names]
-    # mobgap's output depends only on its inputs and its environment: cached beside that environment, keyed by
-    # the hash of the inputs, the runner and the interpreter (a rerun of the bench then costs seconds, not minutes)
-    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + str(python.resolve()).encode())
+    return names, arrays
+
+
+def mobgap_cache_path(python: Path, all_names: list[str], arrays: dict) -> Path:
+    """Cache file of mobgap's output beside its environment, keyed by the hash of the runner, the environment's
+    pinned requirements and the inputs (a rerun of the bench then costs seconds, not minutes)."""
+    h = hashlib.sha256(MOBGAP_RUNNER.read_bytes() + MOBGAP_REQUIREMENTS.read_bytes())
     for n in all_names:
         for part in ("acc", "gyr", "meta"):
             h.update(np.ascontiguousarray(arrays[f"{n}/{part}"]).tobytes())
-    cache = python.resolve().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+    return python.absolute().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
+
+
+def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
+    """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
+    if not python.is_file():
+        return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
+                      "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
+    variants = ("as_worn", "aligned")
+    names, arrays = mobgap_inputs(recs)
+    all_names = [f"{v}_{k}" for v in variants for k in names]
+    cache = mobgap_cache_path(python, all_names, arrays)
     if cache.is_file():
         out = json.loads(cache.read_text())
         if show:
@@ -554,9 +598,10 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
             _say("measuring the 24 h day …")
         res["speed_day"] = day_speed(recs)
     res["constants"] = [
-        {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s",
+        {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s / "
+                 "ic_fill_prominence / ic_fill_edge_steps",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
-        {"name": "TrunkGaitParams.sl_correction",
+        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average",
          "chosen_on": "Mobilise-D HA-001 INDIP stride length (leave-one-trial-out; single participant)"}]
     res["failed_files"] = failed
     res["recordings"] = {"voisard": sum(r.dataset == "voisard" for r in recs),

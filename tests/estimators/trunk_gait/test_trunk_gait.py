@@ -207,3 +207,68 @@ def test_chest_placement_and_given_height_are_reported():
     # stride length scales with the pendulum length (Zijlstra & Hof Eq. 1): a longer leg, longer strides
     res2 = analyse_trunk_gait(acc_b, gyr_b, FS, placement="chest", height_m=1.60, leg_length_m=1.0)
     assert res2.bouts.stride_length_m[0] > res.bouts.stride_length_m[0]
+
+
+def test_slow_small_steps_are_still_walking():
+    # about 0.3 m/s: 1.1 s per step (55 steps/min), upward acceleration only ±0.6 m/s²
+    acc_b, gyr_b, ic, left = walking_body(60.0, rest_s=5.0, step_s=1.1, amp=0.6, seed=3)
+    res = analyse_trunk_gait(acc_b, gyr_b, FS, height_m=1.65, params=TrunkGaitParams(ic_offset_s=0.0))
+    m = match_initial_contacts(res.initial_contacts_s, ic, tolerance_s=0.1)
+    met = ic_metrics(m)
+    assert met["sensitivity"] > 0.9 and met["precision"] > 0.95, met
+    assert len(res.bouts) == 1 and res.bouts.cadence_spm[0] == pytest.approx(60 / 1.1, rel=0.02)
+    assert (res.ic_side[m.det_idx] == np.where(left[m.ref_idx], "left", "right")).mean() == 1.0
+
+
+def test_hampel_replaces_an_isolated_step_but_keeps_a_change_of_pace_and_runs_apart():
+    from estimators.trunk_gait._spatial import hampel
+    x = np.array([0.60, 0.62, 0.61, 1.30, 0.60, 0.62, 0.61])   # one step measured twice as long
+    y = hampel(x, 1, 3.0)
+    assert y[3] == pytest.approx(0.61) and np.array_equal(np.delete(y, 3), np.delete(x, 3))
+    # a lasting change of pace (slow -> fast) is not an outlier
+    pace = np.r_[np.full(5, 0.5), np.full(5, 0.7)]
+    assert np.array_equal(hampel(pace, 2, 3.0), pace)
+    # windows do not cross runs: the first step of a new run is judged only among its own run
+    runs = np.r_[np.zeros(4, int), np.ones(4, int)]
+    z = np.r_[np.full(4, 0.5), 0.9, 0.9, 0.9, 0.9]
+    assert np.array_equal(hampel(z, 1, 3.0, runs), z)
+    # NaN stays NaN and does not spread
+    w = np.array([0.6, np.nan, 0.6, 0.61, 0.6])
+    out = hampel(w, 1, 3.0)
+    assert np.isnan(out[1]) and np.allclose(out[[0, 2, 3, 4]], w[[0, 2, 3, 4]])
+
+
+def test_bout_average_must_be_mean_or_median():
+    acc, gyr = walking_body(20.0)[:2]
+    with pytest.raises(ValueError, match="bout_average"):
+        analyse_trunk_gait(acc, gyr, 100.0, params=dataclasses.replace(TrunkGaitParams(), bout_average="mode"))
+
+
+def test_fill_missed_steps_adds_the_rhythm_s_missing_contact_and_edge_steps_only_when_asked():
+    from estimators.trunk_gait._icd import fill_missed_steps
+    kept = np.array([100, 150, 200, 300, 350, 400])          # T = 50 samples; the contact near 250 was missed
+    cand = np.array([120, 248, 262, 58, 445, 520])            # 248 (prominent) and 262 in the gap; 58 / 445 at edges
+    prom = np.array([0.9, 0.5, 0.3, 0.4, 0.4, 0.9])
+    out = fill_missed_steps(kept, cand, prom, max_step=150)
+    assert out.tolist() == [100, 150, 200, 248, 300, 350, 400]   # 120 is inside a regular step: not added
+    out1 = fill_missed_steps(kept, cand, prom, max_step=150, edge_steps=1)
+    assert out1.tolist() == [58, 100, 150, 200, 248, 300, 350, 400, 445]   # 520 is 1.5 T beyond 445: not with 1 step
+    # a pause (gap > 2.5 T) is not filled
+    assert fill_missed_steps(np.array([0, 50, 100, 300, 350]), np.array([200]), np.array([1.0]),
+                             max_step=150).tolist() == [0, 50, 100, 300, 350]
+
+
+def test_fill_finds_a_weak_step_inside_a_synthetic_walk():
+    from estimators.trunk_gait._icd import detect_initial_contacts
+    fs = 100.0
+    t = np.arange(0, 12, 1 / fs)
+    ic = np.arange(0.5, 11.6, 0.55)
+    amp = np.ones(len(ic))
+    amp[10] = 0.15                                           # one weak step (a turn) among strong ones
+    v = sum(a * np.exp(-0.5 * ((t - c) / 0.05) ** 2) for a, c in zip(amp, ic))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.03, min_step_s=0.25, prominence=0.7)
+    plain = detect_initial_contacts(v, fs, **kw) / fs
+    filled = detect_initial_contacts(v, fs, **kw, fill_prominence=0.1) / fs
+    assert not np.any(np.abs(plain - ic[10]) < 0.05)
+    assert np.any(np.abs(filled - ic[10]) < 0.05) and len(filled) == len(plain) + 1
