@@ -58,9 +58,10 @@ def test_metadata_names_and_events(manifest):
     walk_win = next(e for e in cal.events if e.get("label") == "straight_walking")
     assert walk_win["steps"] == manifest.lab.straight_steps
     assert set(recs[1].imu) == {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right",
-                                "foot_left", "foot_right", "chest"}
+                                "foot_left", "foot_right", "chest"} | ({"lower_back"} if manifest.lab.lower_back else set())
     assert set(recs[1].ranges) == {"foot_left/A", "foot_left/B", "foot_right/A", "foot_right/B"}
     assert recs[2].imu["chest"].mag is None
+    assert ("lower_back" in recs[2].imu) == manifest.free_living.lower_back
 
 
 def test_deterministic(manifest):

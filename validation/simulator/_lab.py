@@ -37,7 +37,8 @@ class LabTrialTruth:
       frame -> ENU, for pelvis, thigh_*, shank_*, foot_*, chest (noise-free; the recording's
       ``reference_poses`` are these plus marker noise).
     - ``mounting_quat[placement]`` (4,) constant segment -> sensor rotation: q_sensor = q_segment ⊗ q_mount
-      (before strap wobble); ``sensor_offset_m[placement]`` (3,) sensor position in the segment frame.
+      (before strap wobble); ``sensor_offset_m[placement]`` (3,) sensor position in the segment frame
+      (``lower_back``, when the protocol has it: on the pelvis segment).
     - ``sensor_quat[placement]`` (N, 4) true sensor orientation (with wobble) and ``sensor_pos`` (N, 3).
     - ``acc_true`` / ``gyr_true`` / ``mag_true`` [placement] (N, 3): error-free signals in the sensor frame.
     - ``joint_angles_deg[joint]`` (N, 3) for hip_left/right, knee_left/right, ankle_left/right: columns
@@ -369,7 +370,7 @@ def simulate_trial(model: LowerBodyModel, *, t0_ns: int, rate_hz: float, devices
     seg_R = {s: poses5[s][1][2] for s in SEGMENTS}
     truth = LabTrialTruth(t_ns=t_ns, t_s=t_s, segment_pos=seg_pos,
                           segment_quat={s: quat_from_matrix(seg_R[s]) for s in SEGMENTS},
-                          mounting_quat={p: quat_from_matrix(devices.mounts[p]) for p in SEGMENTS},
+                          mounting_quat={p: quat_from_matrix(devices.mounts[p]) for p in devices.mounts},
                           sensor_offset_m=dict(devices.offsets), sensor_quat={}, sensor_pos={}, acc_true={},
                           gyr_true={}, mag_true={}, joint_angles_deg={}, events={}, foot_points={},
                           windows=list(windows), geometry=geo, gait=model.gait)
