@@ -324,23 +324,26 @@ def repair(paths, out_dir, as_json) -> None:
 @main.command()
 @_warehouse_option
 @click.option("--repair", is_flag=True,
-              help="Recompute damaged series: raw samples from their recording (when it is still where it was "
-                   "ingested from), stage outputs at the next `stridelab run`. Takes the run lock.")
+              help="Recompute damaged series: raw samples from their recording (found in the inbox or a "
+                   "--search folder by its SHA-256), stage outputs at the next `stridelab run`. Takes the run lock.")
+@click.option("--search", "search", multiple=True, type=click.Path(exists=True, path_type=Path),
+              help="With --repair: a folder (or file) to look for the recordings in, besides the inbox (the "
+                   "catalog keeps only a keyed hash of each path). Repeatable.")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def verify(warehouse_dir, repair, as_json) -> None:
+def verify(warehouse_dir, repair, search, as_json) -> None:
     """Check a whole warehouse: the catalog, every snapshot, and every series file in full (page checksums,
     row counts). Exit 0 when all is well, 1 when something is damaged (and, with --repair, not repaired).
 
     \b
     Examples:
       stridelab verify
-      stridelab verify --repair --warehouse /data/wh
+      stridelab verify --repair --warehouse /data/wh --search /data/recordings
     """
     from pipeline.console import UserError, emit_json, err_console
     from pipeline.verify import verify as run_verify
     from warehouse.lock import WarehouseBusy
     try:
-        rep = run_verify(_wh(warehouse_dir), repair=repair)
+        rep = run_verify(_wh(warehouse_dir), repair=repair, search=search)
     except WarehouseBusy as e:
         raise UserError(str(e)) from None
     if as_json:
