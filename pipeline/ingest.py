@@ -71,6 +71,8 @@ class Prepared:
     sample_hash: str = ""                    # XXH3-128 over the decoded samples of every topic (re-export check)
     legacy_sample_hash: str = ""             # their SHA-256 identity of before, when asked for (IngestOptions)
     display_name: str = ""                   # the file's own name, for the console only (never stored)
+    console_reason: str = ""                 # the refusal as the operator needs it (topic names as in the file,
+                                             # e.g. for --skip-topic); console only, never stored (``reason`` is)
 
 
 def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
@@ -469,8 +471,8 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
         for s in states.values():
             s.abort()
         out.status = "quarantined"
-        out.reason = _redacted(str(e).splitlines()[0] if str(e) else type(e).__name__, path,
-                               list(states) + list(res.found_topics()))
+        out.console_reason = str(e).splitlines()[0] if str(e) else type(e).__name__
+        out.reason = _redacted(out.console_reason, path, list(states) + list(res.found_topics()))
         out.sensors, out.events = [], []
         if not out.content_hash:
             out.content_hash = _content_hash(path)
@@ -703,6 +705,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                           "ingested_at": now}])
                 return CommitResult("reexport", f"{_console(p)}: {reason}")
         emptied = supersede.sessions_emptied(con, old)
+        shown = p.console_reason if p.status == "quarantined" and p.console_reason else None   # refused by prepare
         if p.status == "ingested" and not old:
             clash = first(con.execute("SELECT content_hash, session_id FROM recordings WHERE file_name = ? "
                                 "AND status = 'ingested'", [p.file_name]))
@@ -728,7 +731,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
                                       "status": "quarantined", "reason": p.reason, "ingested_at": now, **extra}])
-            return CommitResult("quarantined", f"{_console(p)}: quarantined: {p.reason}")
+            return CommitResult("quarantined", f"{_console(p)}: quarantined: {shown or p.reason}")
         superseded = supersede.supersede(con, old, p, emptied)
         s = p.metadata
         con.execute("INSERT OR IGNORE INTO participants VALUES (?, ?)", [s["study"], s["participant"]])

@@ -43,9 +43,10 @@ class Recovery:
     def complete(self) -> bool:
         return not self.lost_ranges and self.broken_at is None
 
-    def summary(self) -> str:
-        """One line: what was kept and what was lost."""
-        name = Path(self.source).name
+    def summary(self, name: str | None = None) -> str:
+        """One line: what was kept and what was lost, starting with ``name`` (default: the file's name; a stored
+        note gets another, pipeline.privacy)."""
+        name = Path(self.source).name if name is None else name
         if self.complete:
             return f"{name}: intact, {self.messages_kept:,} messages; nothing to recover"
         lost = []

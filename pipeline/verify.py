@@ -5,8 +5,9 @@ catalog refers to in full with the checksums verified, and compares its row coun
 file is never served (every read verifies the pages it touches and raises
 :class:`warehouse.store.SeriesDamaged`); with ``repair``:
 
-- a raw series (``sensors``) is recomputed from its recording when the file is still at its ``source_path`` with
-  the same SHA-256: the recording is decoded again (with the ingest settings it was ingested with) into a
+- a raw series (``sensors``) is recomputed from its recording when the file is found with the same SHA-256 (the
+  catalog keeps only a keyed hash of the path, pipeline.privacy: the recording is looked for in the folders given
+  with ``search`` and the default inbox, by that hash, else by size and SHA-256): the recording is decoded again (with the ingest settings it was ingested with) into a
   scratch folder, the new file must give the recording's sample hash, and it replaces the damaged one;
 - a stage output is dropped from the stage's state, so the next ``stridelab run`` recomputes it (the new file
   takes the same name).
@@ -116,8 +117,9 @@ def check_snapshots(root: Path) -> list[dict]:
     return out
 
 
-def verify(root: str | os.PathLike, *, repair: bool = False, on_progress=lambda msg: None) -> VerifyReport:
-    """Check the warehouse at ``root``; with ``repair`` (holding the run lock) recompute what can be."""
+def verify(root: str | os.PathLike, *, repair: bool = False, search=(), on_progress=lambda msg: None) -> VerifyReport:
+    """Check the warehouse at ``root``; with ``repair`` (holding the run lock) recompute what can be, finding
+    recordings in the folders (or files) ``search`` and the default inbox."""
     root = Path(root)
     rep = VerifyReport()
     rep.catalog = check_catalog(root)
@@ -131,7 +133,7 @@ def verify(root: str | os.PathLike, *, repair: bool = False, on_progress=lambda 
             return rep                   # the catalog itself: `stridelab repair-catalog` (pipeline/recover.py)
         with RunLock(root, "verify --repair"), Warehouse.open(root) as wh:
             _check_all(root, wh.con, rep, on_progress)
-            _repair(wh, rep, on_progress)
+            _repair(wh, rep, on_progress, [Path(x) for x in search])
         return rep
     con = _reader(root)
     if con is None:
@@ -161,7 +163,7 @@ def _check_all(root: Path, con, rep: VerifyReport, on_progress) -> None:
             on_progress(f"damaged: {rel} ({problem})")
 
 
-def _repair(wh, rep: VerifyReport, on_progress) -> None:
+def _repair(wh, rep: VerifyReport, on_progress, search: list[Path]) -> None:
     from pipeline.stages import registry
     owner = {t: s.name for s in registry() for t in s.tables}
     raw = {}
@@ -177,7 +179,7 @@ def _repair(wh, rep: VerifyReport, on_progress) -> None:
             d["repair"] = "no producer known: cannot be recomputed"
             rep.unrepaired.append(d["path"])
     for content_hash, items in raw.items():
-        why = _recompute_raw(wh, content_hash, [d["path"] for d in items])
+        why = _recompute_raw(wh, content_hash, [d["path"] for d in items], search)
         for d in items:
             if why is None:
                 d["repair"] = "recomputed from the recording"
@@ -190,19 +192,53 @@ def _repair(wh, rep: VerifyReport, on_progress) -> None:
         wh.publish_snapshot()
 
 
-def _recompute_raw(wh, content_hash: str, paths: list[str]) -> str | None:
+def _candidates(search: list[Path]):
+    """Recording files and bag folders in (or given as) ``search`` and the default inbox."""
+    from pipeline.config import default_inbox
+    from pipeline.formats.rosbag2 import is_bag
+    for d in [*search, default_inbox()]:
+        if d.is_file() or is_bag(d):
+            yield d
+        elif d.is_dir():
+            for p in sorted(d.rglob("*")):
+                if (p.is_file() and not p.is_symlink() and p.suffix.lower() in (".mcap", ".db3")) or is_bag(p):
+                    yield p
+
+
+def find_recording(wh, content_hash: str, search: list[Path]) -> Path | None:
+    """Where the recording with ``content_hash`` is now: the catalog keeps only a keyed hash of its path and its
+    size (pipeline.privacy), so a candidate matches by that hash, else (moved or renamed) by size and SHA-256."""
+    from pipeline import ingest
+    from pipeline.privacy import stored_path
+    r = first(wh.con.execute("SELECT source_path, size_bytes FROM recordings WHERE content_hash = ?", [content_hash]))
+    source, size = (r or (None, None))
+    cands = list(dict.fromkeys(_candidates(search)))
+    for p in cands:
+        if stored_path(p) == source and ingest._content_hash(p) == content_hash:
+            return p
+    for p in cands:
+        if (p.is_dir() or size is None or p.stat().st_size == size) and ingest._content_hash(p) == content_hash:
+            return p
+    return None
+
+
+def _recompute_raw(wh, content_hash: str, paths: list[str], search: list[Path] = ()) -> str | None:
     """Decode the recording again and put the damaged files back; None on success, else why not."""
     from pipeline import ingest
     r = first(wh.con.execute("SELECT source_path, sample_hash, status FROM recordings WHERE content_hash = ?",
                              [content_hash]))
     if r is None or r[2] != "ingested":
         return "its recording is not ingested"
-    source, sample_hash, _ = r
-    src = Path(source) if source else None
-    if src is None or not src.exists():
-        return f"cannot be recomputed: the recording is no longer at {source}; ingest it again with --replace"
-    if ingest._content_hash(src) != content_hash:
-        return f"cannot be recomputed: the file at {source} changed since it was ingested"
+    _, sample_hash, _ = r
+    src = find_recording(wh, content_hash, list(search))
+    if src is None:
+        from pipeline.privacy import stored_path
+        moved = [p for p in _candidates(list(search)) if stored_path(p) == r[0]]
+        if moved:
+            return f"cannot be recomputed: the file at {moved[0]} changed since it was ingested"
+        return ("cannot be recomputed: the recording is no longer at its path nor in the folders searched (the "
+                "inbox" + "".join(f", {p}" for p in search) + "); pass its folder with --search DIR, or ingest it "
+                "again with --replace")
     options = _stored_options(wh, content_hash)
     scratch = wh.root / f".repair-{uuid.uuid4().hex[:8]}"
     try:

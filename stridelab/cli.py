@@ -255,14 +255,15 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
     (pipeline/recover.py) and the recovered copies ingested; a file recovered counts as handled."""
     import shutil
     from pipeline.console import err_console
+    from pipeline.privacy import stored_name, stored_path
     from pipeline.recover import recover, recovered_name
     from pipeline.session_sources import sidecar_paths
     from warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     if con is None:
         return summary
-    try:
-        wanted = {str(Path(f).resolve()): Path(f) for f in files if Path(f).is_file()}
+    try:     # the catalog keeps a keyed hash of each path (pipeline.privacy), not the path
+        wanted = {stored_path(f): Path(f) for f in files if Path(f).is_file()}
         rows = [(p, r) for p, r in con.execute("SELECT source_path, reason FROM recordings WHERE status = "
                                                "'quarantined'").fetchall() if p in wanted]
     finally:
@@ -272,7 +273,7 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
         if not any(m in (reason or "") for m in marks):
             continue
         f = wanted[src]
-        out = wh / "recovered" / recovered_name(f)
+        out = wh / "recovered" / recovered_name(stored_name(f))     # no operator file name under the warehouse
         rep = recover(f, out)
         err_console.print(f"recover: {rep.summary()}", markup=False, highlight=False)
         if rep.messages_kept == 0:
@@ -280,7 +281,7 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
         for side in sidecar_paths(f):
             if side.is_file():
                 shutil.copyfile(side, sidecar_paths(out)[0])
-        opts = dict(options or {}, notes=[f"recovered from a damaged file: {rep.summary()}"])
+        opts = dict(options or {}, notes=[f"recovered from a damaged file: {rep.summary(name=stored_name(f))}"])
         again = _run_with_progress(root=wh, inbox=None, files=[out], jobs=jobs, stages=False, command="ingest",
                                    ingest_options=opts)
         if again.ingested:
@@ -323,23 +324,26 @@ def repair(paths, out_dir, as_json) -> None:
 @main.command()
 @_warehouse_option
 @click.option("--repair", is_flag=True,
-              help="Recompute damaged series: raw samples from their recording (when it is still where it was "
-                   "ingested from), stage outputs at the next `stridelab run`. Takes the run lock.")
+              help="Recompute damaged series: raw samples from their recording (found in the inbox or a "
+                   "--search folder by its SHA-256), stage outputs at the next `stridelab run`. Takes the run lock.")
+@click.option("--search", "search", multiple=True, type=click.Path(exists=True, path_type=Path),
+              help="With --repair: a folder (or file) to look for the recordings in, besides the inbox (the "
+                   "catalog keeps only a keyed hash of each path). Repeatable.")
 @click.option("--json", "as_json", is_flag=True, help="Print the outcome as JSON.")
-def verify(warehouse_dir, repair, as_json) -> None:
+def verify(warehouse_dir, repair, search, as_json) -> None:
     """Check a whole warehouse: the catalog, every snapshot, and every series file in full (page checksums,
     row counts). Exit 0 when all is well, 1 when something is damaged (and, with --repair, not repaired).
 
     \b
     Examples:
       stridelab verify
-      stridelab verify --repair --warehouse /data/wh
+      stridelab verify --repair --warehouse /data/wh --search /data/recordings
     """
     from pipeline.console import UserError, emit_json, err_console
     from pipeline.verify import verify as run_verify
     from warehouse.lock import WarehouseBusy
     try:
-        rep = run_verify(_wh(warehouse_dir), repair=repair)
+        rep = run_verify(_wh(warehouse_dir), repair=repair, search=search)
     except WarehouseBusy as e:
         raise UserError(str(e)) from None
     if as_json:

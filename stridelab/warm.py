@@ -87,7 +87,12 @@ def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_
         config.study_manifest.cache_clear()
     if summary.failed or summary.quarantined:
         raise RuntimeError(f"warm-up study failed: {summary.failed or summary.quarantined}")
-    return {**kernel_stats(), "stage_runs": summary.stage_runs}
+    import duckdb
+    with duckdb.connect(str(workdir / "warehouse" / "catalog.duckdb"), read_only=True) as con:
+        ran = con.execute("SELECT stage, status, count(*) FROM stage_runs WHERE run_id = ? GROUP BY ALL ORDER BY ALL",
+                          [summary.run_id]).fetchall()
+    return {**kernel_stats(), "stage_runs": summary.stage_runs,
+            "stage_status": {f"{stage}:{status}": n for stage, status, n in ran}}
 
 
 def fingerprint(root: Path | None = None) -> str:

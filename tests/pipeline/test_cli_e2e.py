@@ -32,16 +32,18 @@ def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
     assert n_imu == first(con.execute("SELECT count(*) FROM orientation"))[0] > 0
     placements = {p for (p,) in con.execute("SELECT DISTINCT placement FROM sensors WHERE kind = 'imu'").fetchall()}
     assert placements == {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left",
-                          "foot_right", "chest"}
+                          "foot_right", "chest", "lower_back"}       # the demo study wears a lower-back IMU too
     # every registered stage ran on every session it applies to, and wrote its tables
     ok = dict(con.execute("SELECT stage, count(*) FROM stage_runs WHERE status = 'ok' GROUP BY 1").fetchall())
     n = 2 * visits
     assert {k: v for k, v in ok.items() if k != "clinical"} == {"orientation": n, "gait": n, "calibration": n,
-                                                               "joint_angles": n, "activity": n}
+                                                               "joint_angles": n, "activity": n,
+                                                               "trunk_gait": 2 * n}   # lab and home: lower_back
     done = dict(con.execute("SELECT stage, count(*) FROM stage_runs WHERE status IN ('ok', 'skipped') "
                             "GROUP BY 1").fetchall())
     assert done.get("clinical") == n                          # every lab visit: measures, or skipped with a reason
-    for table in ("gait_events", "strides", "calibration", "joint_angles", "activity_bouts", "activity_daily"):
+    for table in ("gait_events", "strides", "calibration", "joint_angles", "activity_bouts", "activity_daily",
+                  "walking_bouts", "daily_gait_outcomes"):
         assert first(con.execute(f"SELECT count(*) FROM {table}"))[0] > 0, table
     day = con.execute("SELECT session_id, sum(end_ns - start_ns) / 1e9 FROM activity_bouts GROUP BY 1").fetchall()
     assert all(abs(sec - 360.0) < 2 for _, sec in day)       # every second of the 0.1 h recording has a class

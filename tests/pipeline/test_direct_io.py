@@ -260,7 +260,8 @@ def test_a_series_file_written_direct_is_the_file_arrow_writes(tmp_path, monkeyp
         assert w._sink.direct
     ref = pq.ParquetWriter(tmp_path / "ref.parquet", tab.schema, compression={"t_ns": "zstd", "acc_x": "lz4",
                            "acc_y": "lz4"}, compression_level=1, use_dictionary=False,
-                           column_encoding={"t_ns": "DELTA_BINARY_PACKED"}, write_statistics=["t_ns"])
+                           column_encoding={"t_ns": "DELTA_BINARY_PACKED"}, write_statistics=["t_ns"],
+                               write_page_checksum=True)         # every series page carries a CRC (#47)
     for i in range(0, n, 30_000):
         ref.write_table(tab.slice(i, 30_000), row_group_size=1 << 20)
     ref.close()

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 
+from pipeline.privacy import shown_topic, stored_name as N    # what the catalog keeps of a topic / a file name
 from tests.corpus import small_recording
 from tests.pipeline._interop import IMU_DEF, MAG_DEF, imu_dict, mag_dict
 from tests.pipeline.test_runner import cli
@@ -74,25 +75,31 @@ def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_pa
                                                     "/spare/imu": ("shank_left", "imu")})
     wh = tmp_path / "wh"
     r = cli("ingest", f, "--warehouse", wh)
-    assert r.returncode == 1 and "/spare/imu" in r.stderr and "--skip-topic" in r.stderr, r.stderr
+    assert r.returncode == 1 and "--skip-topic /spare/imu" in r.stderr, r.stderr     # the console: the name to pass
+    (reason,) = _rows(wh, "SELECT reason FROM recordings WHERE status = 'quarantined'")[0]
+    assert "/spare/imu" not in reason and shown_topic("/spare/imu") in reason and "--skip-topic" in reason
     r = cli("ingest", f, "--warehouse", wh, "--skip-topic", "/spare/imu")
     assert r.returncode == 0, r.stderr
     assert "/spare/imu: skipped on request" in r.stderr
     (skipped,) = _rows(wh, "SELECT skipped_topics FROM recordings WHERE status = 'ingested'")[0]
-    assert json.loads(skipped) == [{"topic": "/spare/imu", "reason": "skipped on request (--skip-topic)"}]
+    assert json.loads(skipped) == [{"topic": shown_topic("/spare/imu"), "reason": "skipped on request (--skip-topic)"}]
     from warehouse import queries as Q                  # what the dashboard's runs page lists
     con = connect_snapshot(wh)
     page = Q.skipped_topics(con)
     con.close()
-    assert page[["file_name", "topic"]].values.tolist() == [["walk.mcap", "/spare/imu"]]
+    assert page[["file_name", "topic"]].values.tolist() == [[N("walk.mcap"), shown_topic("/spare/imu")]]
 
 
 def test_a_magnetometer_mapped_to_a_placement_without_imu_is_an_error(tmp_path):
     f = write_ros2(tmp_path / "walk.mcap", _rec(), {"/imu/foot_left": ("foot_left", "imu"),
                                                     "/foot/mag": ("foot_left", "mag")})
-    r = cli("ingest", f, "--warehouse", tmp_path / "wh", "--topic-map", "/foot/mag=foot_rigth")
+    r = cli("ingest", f, "--warehouse", tmp_path / "wh", "--topic-map", "/foot/mag=foot_right")
     assert r.returncode == 1 and "has no IMU" in r.stderr, r.stderr
     assert _series_files(tmp_path / "wh") == []
+    # a typo of a placement is refused first by the placement vocabulary (pipeline.privacy), naming the fix
+    r = cli("ingest", f, "--warehouse", tmp_path / "wh2", "--topic-map", "/foot/mag=foot_rigth")
+    assert r.returncode == 1 and "not in the study's vocabulary" in r.stderr and "--topic-map" in r.stderr, r.stderr
+    assert _series_files(tmp_path / "wh2") == []
 
 
 def test_replace_ingests_the_same_file_again_and_keeps_the_earlier_ingest(tmp_path):
@@ -115,12 +122,13 @@ def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_pat
     wh = tmp_path / "wh"
     r = cli("ingest", with_crc, without, "--warehouse", wh)
     assert r.returncode == 0, r.stderr
-    assert dict(_rows(wh, "SELECT file_name, crc_verified FROM recordings")) == {"a.mcap": True, "b.mcap": False}
+    assert dict(_rows(wh, "SELECT file_name, crc_verified FROM recordings")) == {N("a.mcap"): True,
+                                                                                  N("b.mcap"): False}
     from warehouse import queries as Q                  # the dashboard's recordings table flags it
     con = connect_snapshot(wh)
     page = Q.recordings(con, "P001")
     con.close()
-    assert dict(zip(page["file_name"], page["crc"])) == {"a.mcap": "", "b.mcap": "unverified"}
+    assert dict(zip(page["file_name"], page["crc"])) == {N("a.mcap"): "", N("b.mcap"): "unverified"}
     r = cli("ingest", without, "--warehouse", tmp_path / "strict", "--require-crc")
     assert r.returncode == 1 and "no CRCs" in r.stderr, r.stderr
 

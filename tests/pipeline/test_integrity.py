@@ -10,6 +10,7 @@ import pytest
 
 from pipeline import runner
 from pipeline.formats.mcap_write import write_recording
+from pipeline.privacy import stored_name
 from pipeline.verify import verify
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
@@ -51,7 +52,9 @@ def test_flipped_bytes_in_a_series_file_are_never_served_and_are_recomputed(tmp_
     r = cli("verify", "--warehouse", wh)
     assert r.returncode == 1, r.stderr
     assert rel in r.stderr and "damaged" in r.stderr and "Traceback" not in r.stderr
-    r = cli("verify", "--warehouse", wh, "--repair", "--json")
+    r = cli("verify", "--warehouse", wh, "--repair", "--json")          # the catalog keeps no path (privacy):
+    assert r.returncode == 1 and json.loads(r.stdout)["unrepaired"] == [rel], r.stderr   # the file is not found
+    r = cli("verify", "--warehouse", wh, "--repair", "--json", "--search", tmp_path / "in")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["repaired"] == [rel] and not out["unrepaired"]
@@ -140,7 +143,8 @@ def test_a_corrupt_catalog_names_the_file_and_is_rebuilt_from_the_newest_snapsho
     import duckdb
     for snap in (wh / "snapshots").glob("catalog-*.duckdb"):       # the snapshots that hold r1 too: the rebuild
         with duckdb.connect(str(snap), read_only=True) as c:        # falls back to one from before it
-            has_r1 = c.execute("SELECT count(*) FROM recordings WHERE file_name = 'r1.mcap'").fetchall()[0][0]
+            has_r1 = c.execute("SELECT count(*) FROM recordings WHERE file_name = ?",        # a keyed hash
+                               [stored_name("r1.mcap")]).fetchall()[0][0]
         if has_r1:
             snap.write_bytes(b"\0" * 4096)
     r = cli("ingest", tmp_path / "inbox", "--warehouse", wh)

@@ -6,6 +6,7 @@ import json
 import os
 
 from pipeline.formats.mcap_write import write_recording
+from pipeline.privacy import stored_name
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
 from warehouse.read import connect_snapshot
@@ -45,6 +46,7 @@ def test_odd_inbox_entries_are_listed_with_the_reason_and_odd_names_forge_nothin
     assert "\x1b" not in r.stderr and "evil\\nrun" in r.stderr.replace("\\\\", "\\")
     assert "skipped:" in r.stderr and "fifo.mcap: a FIFO" in r.stderr
     con = connect_snapshot(tmp_path / "wh2")
-    assert sorted(n for (n,) in con.execute("SELECT file_name FROM recordings").fetchall()) == \
-        sorted([long_name, f"{FORGED}.mcap"])
+    stored = sorted(n for (n,) in con.execute("SELECT file_name FROM recordings").fetchall())
+    assert stored == sorted([stored_name(long_name), stored_name(f"{FORGED}.mcap")])   # keyed hashes of the
+    assert all(n.isascii() and n.isprintable() and len(n) < 64 for n in stored)       # whole names (privacy)
     con.close()
