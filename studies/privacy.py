@@ -101,7 +101,7 @@ _DATE = re.compile(
     r"|\d{1,2}[-_./]\d{1,2}[-_./]\d{2,4}"                                             # 02.03.1950, 12/31/51
     r"|\d{1,2}\s+\d{1,2}\s+(?:1[89]|20)\d{2}"                                         # 02 03 1950
     rf"|(?i:\d{{1,2}}{_ORD}[\s./-]*(?:of\s+)?{_MONTHS}[\s,./-]*{_Y})"                # 12-MAR-1951, 12th March 1951
-    rf"|(?i:{_MONTHS}[\s./-]*\d{{1,2}}{_ORD},?[\s./-]*{_Y})"                          # March 12th, 1951
+    rf"|(?i:(?<![^\W\d_]){_MONTHS}[\s./-]*\d{{1,2}}{_ORD},?[\s./-]*{_Y})"             # March 12th, 1951 (not 'offset 0.25')
     rf"|(?i:\b{_MONTHS}[\s,./-]*(?:1[89]|20)\d{{2}})"                                 # March 1951
     r"|(?i:\b(?:born|geb(?:oren)?|n[ée]e?|dob|d\.o\.b|birth\w*|geburt\w*|naissance)\b\W{0,3}\d{2,4})"  # born 1951
     r")(?!\d)")

@@ -40,7 +40,8 @@ LEGITIMATE = ["stridelab-lab-gait-v1", "x-io CSV", "APDM Opal", "Xsens MT Manage
               "OptiTrack orientation of the IMU case (BROAD opt_quat), movement mask",
               "Voisard et al. 2023 gait events", "C3D markers (foot_left = LHEE/LTOE/LMT5; mm -> m, 100 Hz, offset 0 s)",
               "walked well, no problems", "10m walk test, 3 repetitions", "Mobilise-D Test5 (straight walks)",
-              "Mobilise-D INDIP (inertial + pressure insoles + distance sensors), Stereophoto"]
+              "Mobilise-D INDIP (inertial + pressure insoles + distance sensors), Stereophoto",
+              "C3D markers (21 on 7 segments; mm -> m, 100 Hz, offset 0.25 s)"]
 
 
 @pytest.mark.parametrize("value", LEGITIMATE)
