@@ -63,6 +63,19 @@ def _output_name(recording: Path, c3d: Path) -> str:
     return f"{rec}+c3d-{name_token(c3d.name)}.mcap"
 
 
+def reference_text(segments: list[Segment], units: str, rate_hz: float, offset_s: float) -> str:
+    """The session's ``reference`` label: the markers of each placement, or (when that would pass the label's
+    120 characters, pipeline.privacy: many segments) the marker count and the placements or their number."""
+    tail = f"; {units} -> m, {rate_hz:g} Hz, offset {offset_s:g} s)"
+    text = "C3D markers (" + "; ".join(f"{s.placement} = {'/'.join(s.markers)}" for s in segments) + tail
+    n = sum(len(s.markers) for s in segments)
+    if len(text) > 120:
+        text = f"C3D markers ({n} on " + ", ".join(s.placement for s in segments) + tail
+    if len(text) > 120:
+        text = f"C3D markers ({n} on {len(segments)} segments" + tail
+    return text
+
+
 def parse_segments(items) -> list[Segment]:
     """``PLACEMENT=M1[,M2,M3]`` options -> segments (raises C3DImportRejected)."""
     out = []
@@ -180,9 +193,7 @@ def import_c3d_reference(c3d: Path, recording: Path, inbox: Path, segments: list
             if "session" not in meta:
                 raise C3DImportRejected(f"{recording}: no 'session' metadata record; import or ingest it with "
                                         f"--session fields first")
-            desc = "; ".join(f"{pl} = {'/'.join(s.markers)}" for s in segments for pl in [s.placement])
-            meta["session"].update({"reference": f"C3D markers ({desc}; {markers.units} -> m, "
-                                                 f"{markers.rate_hz:g} Hz, offset {offset_s:g} s)",
+            meta["session"].update({"reference": reference_text(segments, markers.units, markers.rate_hz, offset_s),
                                     "reference_frame": "segment_lab"})
             for name, md in meta.items():
                 w.add_metadata(name, md)

@@ -138,8 +138,8 @@ def _uci(path: Path, placement: str | None) -> list[Converted]:
         end = int(t[b - 1]) + int(round(0.5e9 / u.sampling_rate_hz))     # half a period after the run's last sample
         events.append({"t_ns": int(t[a]), "end_ns": end, "type": "activity", "code": code,
                        "label": SCORED_CLASSES[cls] if cls is not None else "unscored",
-                       "source": "UCI chest label column (the default window model was fitted on UCI 1-8 labels: "
-                                 "its accuracy here is in-sample; rules only are not fitted)"})
+                       "source": "UCI chest label column (window model fitted on UCI labels 1-8: in-sample here; "
+                                 "rules only: not fitted)"})
     rec = Recording(metadata={}, imu={pl: ImuData(t, u.acc, None, None)}, events=events, name=path.stem)
     return [Converted(rec, {"participant": f"uci{_slug(u.participant).zfill(2)}", "trial": "day",
                             "kind": "free_living", "protocol": "UCI chest activities",

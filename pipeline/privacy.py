@@ -35,19 +35,25 @@ ENUMS = {"paretic_side": ("left", "right", "none"), "pseudonymised": ("hmac-sha2
 #: values of ``condition`` every study knows (a study adds its own with ``[privacy] conditions``)
 CONDITIONS = ("healthy", "hemiparetic", "stroke", "parkinson", "multiple_sclerosis", "osteoarthritis",
               "amputee", "cerebral_palsy", "elderly", "unknown")
-#: numbers the stages read (plausible ranges checked by pipeline.ingest); ``*_length_m`` too
+#: numbers the stages read (plausible ranges checked by pipeline.ingest) or an importer records (``counts_per_g``:
+#: the UCI conversion used); ``*_length_m`` too
 NUMERIC_FIELDS = tuple(dict.fromkeys(("height_m", "mass_kg", "sampling_rate_hz", "thigh_length_m", "shank_length_m",
-                                     "foot_length_m", *SESSION_BODY_FIELDS, *SESSION_DESIGN_FIELDS)))   # body measures, repeat_baseline (#42; ranges: ingest)
+                                     "foot_length_m", "counts_per_g", *SESSION_BODY_FIELDS, *SESSION_DESIGN_FIELDS)))   # body measures, repeat_baseline (#42; ranges: ingest)
 #: the session schema of the recording format: field -> type
 SCHEMA = {"study": "identifier", "participant": "identifier", "session": "identifier", "trial": "identifier",
           "kind": "closed", "timezone": "closed", "reference_frame": "closed", "accelerometer_only": "closed",
-          "paretic_side": "enum", "pseudonymised": "enum", "condition": "condition", "protocol": "label"}
+          "paretic_side": "enum", "pseudonymised": "enum", "condition": "condition", "protocol": "label",
+          "reference": "label"}   # reference: which reference system an importer recorded ("scored against")
 #: reference-event labels every study knows (activity classes, calibration windows, importer annotations)
 EVENT_LABELS = ("sitting", "standing", "walking", "stairs", "lying", "level_walking", "stairs_up", "stairs_down",
                 "non_wear", "unscored", "quiet_standing", "hip_flexion_extension", "straight_walking",
-                "labelled strides", "movement", "trial", "turning", "transition", "shuffling")
+                "labelled strides", "movement", "trial", "turning", "transition", "shuffling",
+                "INDIP", "Stereophoto")                 # Mobilise-D reference systems (#42: trunk_gait scores on INDIP)
+#: numeric keys of a reference event: codes and counts, and the Mobilise-D walking-bout / turn values (#42)
+EVENT_NUMBERS = ("code", "repetitions", "n_strides", "cadence_spm", "stride_length_m", "walking_speed_m_s",
+                 "angle_deg")
 #: keys of a reference event that are stored; ``source`` is screened text, the rest closed or numbers
-EVENT_KEYS = ("t_ns", "end_ns", "type", "side", "placement", "label", "code", "source", "repetitions")
+EVENT_KEYS = ("t_ns", "end_ns", "type", "side", "placement", "label", "source", *EVENT_NUMBERS)
 EVENT_SIDES = ("left", "right", "both", None)
 _LABEL_MAX = 120
 
@@ -152,8 +158,9 @@ def screen_session(s: dict, policy: PrivacyPolicy, notes: list[dict] | None = No
 
 def screen_events(events: list[dict], policy: PrivacyPolicy, notes: list[dict] | None = None) -> list[dict]:
     """Reference events keeping only what the vocabulary allows: type a code, side and placement closed values,
-    label from :func:`event_labels` (else dropped), ``source`` screened text (else dropped), numbers kept; other
-    keys dropped. Raises ValueError (one line, no value) for an event whose type is not a code."""
+    label from :func:`event_labels` (else dropped), ``source`` screened text (else dropped), the keys of
+    :data:`EVENT_NUMBERS` kept as plain numbers (floats rounded to 6 decimals; None kept; a number that could be a
+    phone or record number dropped); other keys dropped. Raises ValueError (one line, no value) for an event whose type is not a code."""
     pls, labels = placements(policy), event_labels(policy)
     out, n_drop = [], 0
     for e in events:
@@ -176,8 +183,12 @@ def screen_events(events: list[dict], policy: PrivacyPolicy, notes: list[dict] |
                 keep = val is None or val in labels
             elif key == "source":
                 keep = isinstance(val, str) and _text_problem(val, policy) is None
-            elif key in ("code", "repetitions"):
-                keep = isinstance(val, (int, float)) and not isinstance(val, bool) and _plain_number(val)
+            elif key in EVENT_NUMBERS:
+                if val is None:                 # a value the reference does not give (NaN in the export)
+                    keep = True
+                elif isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val):
+                    val = round(val, 6) if isinstance(val, float) else val     # no digit run hides in the decimals
+                    keep = _plain_number(val)
             if keep:
                 k[key] = val
             else:

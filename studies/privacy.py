@@ -101,7 +101,7 @@ _DATE = re.compile(
     r"|\d{1,2}[-_./]\d{1,2}[-_./]\d{2,4}"                                             # 02.03.1950, 12/31/51
     r"|\d{1,2}\s+\d{1,2}\s+(?:1[89]|20)\d{2}"                                         # 02 03 1950
     rf"|(?i:\d{{1,2}}{_ORD}[\s./-]*(?:of\s+)?{_MONTHS}[\s,./-]*{_Y})"                # 12-MAR-1951, 12th March 1951
-    rf"|(?i:{_MONTHS}[\s./-]*\d{{1,2}}{_ORD},?[\s./-]*{_Y})"                          # March 12th, 1951
+    rf"|(?i:(?<![^\W\d_]){_MONTHS}[\s./-]*\d{{1,2}}{_ORD},?[\s./-]*{_Y})"             # March 12th, 1951 (not 'offset 0.25')
     rf"|(?i:\b{_MONTHS}[\s,./-]*(?:1[89]|20)\d{{2}})"                                 # March 1951
     r"|(?i:\b(?:born|geb(?:oren)?|n[ée]e?|dob|d\.o\.b|birth\w*|geburt\w*|naissance)\b\W{0,3}\d{2,4})"  # born 1951
     r")(?!\d)")
@@ -129,7 +129,8 @@ TERMS = frozenset(w.lower() for w in (
     "IMU", "IMUs", "FCC", "TOE", "FM5", "UCI", "C3D", "Axivity", "CWA", "AX3", "AX6", "Voisard", "TrialBoundaries",
     "Shimmer", "NilsPod", "gaitmap", "Mobilise", "Mobilise-D", "ROS", "MCAP", "HDF5", "ENU", "NED", "ISB", "GPS",
     "TUG", "MWT", "Hz", "Vicon", "Nexus", "StrideLab", "Delsys", "Noraxon", "Movella", "Qualisys", "Motive",
-    "Kistler", "GAITRite", "Zebris", "Opals", "HC", "PD", "MS", "OA", "TKA", "THA", "ACL"))
+    "Kistler", "GAITRite", "Zebris", "Opals", "HC", "PD", "MS", "OA", "TKA", "THA", "ACL",
+    "INDIP", "Stereophoto", "MicroWB"))                                  # Mobilise-D reference systems, bouts
 
 
 def _tokens(text: str) -> list[str]:
@@ -174,7 +175,10 @@ def name_problem(value: str, terms=()) -> str | None:
     case (``王小明``: names there are not told from other words by their shape), or a title or cue before a
     capitalised word (``Dr Weber``, ``patient Weber``). ``terms``: capitalised words known not to be names."""
     terms = TERMS | {t.lower() for t in terms}
+    spans = [m.span() for t in terms if not _WORDS.fullmatch(t)        # terms of several words (Mobilise-D)
+             for m in re.finditer(rf"(?<![\w-]){re.escape(t)}(?![\w-])", value, re.IGNORECASE)]
     words = list(_WORDS.finditer(value))
+    in_term = [any(a <= m.start() and m.end() <= b for a, b in spans) for m in words]
     for i, m in enumerate(words):
         w = m.group()
         if _caseless(w) and not any(c.isascii() for c in w):
@@ -183,7 +187,8 @@ def name_problem(value: str, terms=()) -> str | None:
             nxt = words[i + 1]
             gap = value[m.end():nxt.start()]
             if re.fullmatch(r"[\s._,'’-]{1,3}", gap):
-                if _name_like(w, terms) and _name_like(nxt.group(), terms) and len(w) + len(nxt.group()) >= 4:
+                if (not in_term[i] and not in_term[i + 1] and _name_like(w, terms) and _name_like(nxt.group(), terms)
+                        and len(w) + len(nxt.group()) >= 4):
                     return "it holds what looks like a person's name"
                 if w.lower() in _CUES and nxt.group()[0].isupper() and nxt.group().lower() not in terms:
                     return "it holds what looks like a person's name"

@@ -174,3 +174,21 @@ def test_gait_stage_scores_c3d_markers_as_it_scores_the_gaitmap_markers(tmp_path
     # before the alignment's multi-start: lab x is ≈150° from the IMUs' heading)
     ori = got["c3d"][(got["c3d"]["stage"] == "orientation") & (got["c3d"]["metric"] == "total_rmse_deg")]
     assert len(ori) == 2 and (ori["value"] < 8.0).all(), ori
+
+
+def test_reference_text_of_many_segments_fits_the_screened_label():
+    """Seven segments' marker lists would pass the 120 characters of a screened label (the recording would be
+    refused at ingest): the text then gives the marker count and the placements, or their number."""
+    from pipeline.c3d_reference import Segment, reference_text
+    from pipeline.privacy import screen_session
+    from studies.privacy import PrivacyPolicy
+    one = reference_text([Segment("foot_left", ("LHEE", "LTOE", "LMT5"))], "mm", 100.0, 0.5)
+    assert one == "C3D markers (foot_left = LHEE/LTOE/LMT5; mm -> m, 100 Hz, offset 0.5 s)"
+    pls = ("pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right")
+    many = reference_text([Segment(p, tuple(f"M{j}{i}" for i in range(3))) for j, p in enumerate(pls)],
+                          "mm", 100.0, 0.25)
+    assert len(many) <= 120 and "21 on 7 segments" in many
+    four = reference_text([Segment(p, ("A", "B", "C")) for p in pls[3:]], "mm", 100.0, 0.25)
+    assert len(four) <= 120 and "12 on shank_left, shank_right, foot_left, foot_right;" in four
+    base = {"study": "testing", "participant": "P001", "session": "S01", "kind": "lab", "trial": "walk-1"}
+    assert screen_session({**base, "reference": many}, PrivacyPolicy())["reference"] == many

@@ -16,7 +16,7 @@ PERSONAL = ["Łukasz Żółć", "Иван Петров", "王小明", "JANE DOE"
             "12-MAR-1951", "born 12th March 1951", "12/31/51", "1951-03-12", "March 12th, 1951", "born 1951",
             "+41791234567", "MRN 00482913", "7561234567897", "MRN48291377", "call +41 79 123 45 67",
             "Bahnhofstrasse 12, 8001 Zürich", "221b Baker Street", "rue de Lausanne 5", "jane@hospital",
-            "eva.roth@example.org"]
+            "eva.roth@example.org", "Mobilise-D Karl Huber", "Jean-Pierre Dupont"]
 
 
 @pytest.mark.parametrize("value", PERSONAL)
@@ -39,7 +39,9 @@ LEGITIMATE = ["stridelab-lab-gait-v1", "x-io CSV", "APDM Opal", "Xsens MT Manage
               "Qualisys markers (heel FCC position, foot orientation from FCC/TOE/FM5)",
               "OptiTrack orientation of the IMU case (BROAD opt_quat), movement mask",
               "Voisard et al. 2023 gait events", "C3D markers (foot_left = LHEE/LTOE/LMT5; mm -> m, 100 Hz, offset 0 s)",
-              "walked well, no problems", "10m walk test, 3 repetitions"]
+              "walked well, no problems", "10m walk test, 3 repetitions", "Mobilise-D Test5 (straight walks)",
+              "Mobilise-D INDIP (inertial + pressure insoles + distance sensors), Stereophoto",
+              "C3D markers (21 on 7 segments; mm -> m, 100 Hz, offset 0.25 s)"]
 
 
 @pytest.mark.parametrize("value", LEGITIMATE)
@@ -100,6 +102,31 @@ def test_event_labels_from_the_vocabulary_payloads_without_free_text():
     assert len(notes) == 1 and "3 reference-event values dropped" in notes[0]["message"]
     with pytest.raises(ValueError):
         screen_events([{"t_ns": 1, "type": "Hildegard Müller"}], PrivacyPolicy())
+
+
+def test_the_reference_field_is_a_screened_label_kept_without_warning():
+    notes: list[dict] = []
+    ref = "Vicon foot position (PyShoe gt, y flipped to right-handed z up)"
+    assert screen_session({**BASE, "reference": ref}, POLICY, notes)["reference"] == ref and not notes
+    with pytest.raises(ValueError, match="'reference' looks like personal data"):
+        screen_session({**BASE, "reference": "Vicon, operator Dr. Weber"}, POLICY)
+
+
+def test_mobilised_reference_events_keep_their_system_label_and_numbers():
+    notes: list[dict] = []
+    src = "Mobilise-D INDIP MicroWB (data.mat Standards)"
+    ev = screen_events([{"t_ns": 1, "end_ns": 9, "type": "walking_bout", "label": "INDIP", "placement": "lower_back",
+                         "source": src, "n_strides": 7, "cadence_spm": 104.34782608695652, "stride_length_m": None,
+                         "walking_speed_m_s": 1.1},
+                        {"t_ns": 2, "end_ns": 3, "type": "turn", "label": "Stereophoto", "angle_deg": -92.5},
+                        {"t_ns": 4, "type": "walking_bout", "cadence_spm": 41791234567.0, "n_strides": True}],
+                       PrivacyPolicy(), notes)
+    assert ev[0] == {"t_ns": 1, "end_ns": 9, "type": "walking_bout", "label": "INDIP", "placement": "lower_back",
+                     "source": src, "n_strides": 7, "cadence_spm": 104.347826, "stride_length_m": None,
+                     "walking_speed_m_s": 1.1}
+    assert ev[1] == {"t_ns": 2, "end_ns": 3, "type": "turn", "label": "Stereophoto", "angle_deg": -92.5}
+    assert ev[2] == {"t_ns": 4, "type": "walking_bout"}          # a phone-like number and a bool are not stored
+    assert len(notes) == 1 and "2 reference-event values dropped" in notes[0]["message"]
 
 
 def test_topics_are_shown_only_when_made_of_known_words():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -107,7 +108,11 @@ def test_import_of_a_folder_names_the_bad_file_and_imports_the_repeated_one(tmp_
     assert len(res.warnings) == 1 and "1-2_lf.txt" in res.warnings[0] and "repeats" in res.warnings[0]
     from pipeline.formats.mcap_read import ReadResult, iter_blocks
     rr = ReadResult()
-    t = np.concatenate([b.t_ns for b in iter_blocks(tmp_path / "inbox" / "voisard-1-2.mcap", rr)
+    # a study's imports are named by a token, not the export's file name (docs/privacy.md): the console line says
+    # which written file came from trial 1-2
+    out = [ln.split()[1] for ln in lines if ln.startswith("wrote ") and " from 1-2." in ln]
+    assert len(out) == 1 and "1-2" not in Path(out[0]).name
+    t = np.concatenate([b.t_ns for b in iter_blocks(Path(out[0]), rr)
                         if b.topic == "/imu/foot_left"])
     assert len(t) == 60 and np.all(np.diff(t) > 0)                          # every row, times increasing
 
