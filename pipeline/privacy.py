@@ -50,8 +50,8 @@ EVENT_LABELS = ("sitting", "standing", "walking", "stairs", "lying", "level_walk
                 "labelled strides", "movement", "trial", "turning", "transition", "shuffling",
                 "INDIP", "Stereophoto")                 # Mobilise-D reference systems (#42: trunk_gait scores on INDIP)
 #: numeric keys of a reference event: codes and counts, and the Mobilise-D walking-bout / turn values (#42)
-EVENT_NUMBERS = ("code", "repetitions", "n_strides", "cadence_spm", "stride_length_m", "walking_speed_m_s",
-                 "angle_deg")
+EVENT_NUMBERS = ("code", "repetitions", "steps", "n_strides", "cadence_spm", "stride_length_m", "walking_speed_m_s",
+                 "angle_deg")          # steps: the simulator's true step count of an activity bout
 #: keys of a reference event that are stored; ``source`` is screened text, the rest closed or numbers
 EVENT_KEYS = ("t_ns", "end_ns", "type", "side", "placement", "label", "source", *EVENT_NUMBERS)
 EVENT_SIDES = ("left", "right", "both", None)
