@@ -2,8 +2,9 @@
 
 * ``missing_wh``: a directory with nothing published;
 * ``empty_wh``: a migrated warehouse whose snapshot has no data;
-* ``ingested_wh``: recordings ingested by a real run (two participants, a quarantined file) with the
-  stages registered today (orientation), none of the later ones;
+* ``ingested_wh``: recordings ingested by a real run (two participants, a quarantined file ``broken.mcap``, which
+  the catalog and pages name ``rec-<keyed hash>.mcap``) with every registered stage run on its 6-s trials (too
+  short for strides: the pages' "nothing yet" paths);
 * ``demo_wh``: the demo study made small (2 participants, 6-min free-living days) simulated and run through
   every stage by the real pipeline — what a newcomer's ``stridelab demo`` shows;
 * ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write

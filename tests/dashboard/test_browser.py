@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from pipeline.privacy import stored_name
 from tests.dashboard.conftest import APP
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -24,7 +25,8 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-net
         "--disable-sync", "--no-first-run"]
 # page url path -> texts that must be visible
 EXPECT = {      # the default page (Overview) lives at the root URL
-    "": ["StrideLab overview", "Participants", "Quarantined files", "broken.mcap", "Quality flags"],
+    # the quarantined file (conftest's broken.mcap) appears under its stored name with its reason (the name: in the test)
+    "": ["StrideLab overview", "Participants", "Quarantined files", "truncated MCAP", "Quality flags"],
     "accuracy": ["Accuracy against references", "orientation", "rmse_deg"],
     "participant": ["Participant", "P001", "Sessions", "Gait parameters"],
     "activity": ["Daily activity", "Posture transitions", "Daily totals"],
@@ -127,12 +129,16 @@ def test_every_page_in_chromium(server, tmp_path_factory):
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
             errors: list[str] = []
-            _open_every_page(browser, server, EXPECT, shots, errors)
+            # the quarantined file is listed under its stored name (a keyed hash), never under the name it had
+            expect = dict(EXPECT, **{"": EXPECT[""] + [stored_name("broken.mcap")]})
+            _open_every_page(browser, server, expect, shots, errors)
             # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
             page.on("pageerror", lambda e: errors.append(str(e)))
             page.goto(server, wait_until="domcontentloaded")
             page.get_by_text("Quality flags").first.wait_for(state="attached", timeout=30_000)
+            page.get_by_text(stored_name("broken.mcap")).first.wait_for(state="attached", timeout=30_000)
+            assert page.get_by_text("broken", exact=False).count() == 0
             link = page.locator('[data-testid="stSidebarNavLink"]', has_text="Runs").first
             link.wait_for(state="visible", timeout=30_000)
             link.click()

@@ -4,6 +4,7 @@ from __future__ import annotations
 import pytest
 from streamlit.testing.v1 import AppTest
 
+from pipeline.privacy import stored_name
 from tests.dashboard.conftest import APP, PAGES
 
 TITLES = {"overview": "StrideLab overview", "accuracy": "Accuracy against references", "participant": "Participant",
@@ -49,7 +50,11 @@ def test_ingest_only_warehouse_hints_at_missing_stages(page, app_env, ingested_w
     t = texts(at)
     if page == "overview":
         assert [m.value for m in at.metric][:3] == ["1", "2", "3"]          # studies, participants, sessions
-        assert any("broken.mcap" in df.value.to_string() for df in at.dataframe)   # quarantined with a reason
+        # quarantined with its reason, under the stored (keyed-hash) name: the original name is never shown
+        quarantined = next(df.value for df in at.dataframe if "reason" in df.value.columns)
+        row = quarantined.set_index("file_name").loc[stored_name("broken.mcap")]
+        assert "truncated MCAP" in row["reason"]
+        assert "broken" not in t and not any("broken" in df.value.to_string() for df in at.dataframe)
     elif page == "runs":
         assert at.dataframe[0].value["command"].tolist() == ["run"]
     elif page != "participant":
