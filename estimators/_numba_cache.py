@@ -16,6 +16,8 @@ so a value set here holds for every kernel module imported afterwards.
 """
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import os
 import sys
 from pathlib import Path
@@ -44,9 +46,37 @@ def configure() -> str | None:
     d = venv_cache_dir()
     if d is None:
         return None
-    from numba.core import config      # the kernels import numba anyway; this only comes first
-    config.CACHE_DIR = str(d)
+    config = sys.modules.get("numba.core.config")
+    if config is not None:                # numba is already loaded: set it now
+        config.CACHE_DIR = str(d)
+    else:                                 # set it when numba loads, so importing estimators stays light
+        sys.meta_path.insert(0, _SetCacheDirOnLoad(str(d)))
     return str(d)
+
+
+class _SetCacheDirOnLoad(importlib.abc.MetaPathFinder):
+    """Sets ``numba.core.config.CACHE_DIR`` right after numba executes that module (before any ``@njit`` of ours
+    runs), then removes itself: ``import estimators`` (and ``pipeline``, which the engines' workers import before
+    the heavy libraries) does not import numba just to configure it."""
+
+    def __init__(self, cache_dir: str):
+        self.cache_dir = cache_dir
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname != "numba.core.config":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
+        if spec is None or spec.loader is None:
+            return spec
+        exec_module, cache_dir = spec.loader.exec_module, self.cache_dir
+
+        def exec_and_set(module):
+            exec_module(module)
+            module.CACHE_DIR = cache_dir
+
+        spec.loader.exec_module = exec_and_set
+        return spec
 
 
 CACHE_DIR = configure()
