@@ -157,6 +157,28 @@ def _record(rec) -> bytes:
     return b.end()
 
 
+def summary_and_footer(groups, summary_start: int) -> bytes:
+    """The summary section (each non-empty (opcode, records) group, then its SummaryOffset records) and the footer
+    record, for a summary that starts at byte ``summary_start`` of the file; the footer CRC covers the summary
+    section and the footer's fields before the CRC (MCAP spec). The trailing magic is the caller's."""
+    summary, offsets = bytearray(), []
+    for opcode, recs in groups:
+        if not recs:
+            continue
+        g0 = len(summary)
+        for r in recs:
+            summary += _record(r)
+        offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
+                                     group_length=len(summary) - g0))
+    so_start = summary_start + len(summary)
+    for so in offsets:
+        summary += _record(so)
+    foot_head = bytes([int(Opcode.FOOTER)]) + (20).to_bytes(8, "little") + \
+        summary_start.to_bytes(8, "little") + so_start.to_bytes(8, "little")
+    crc = crc32(foot_head, crc32(bytes(summary)))
+    return bytes(summary) + _record(Footer(summary_start=summary_start, summary_offset_start=so_start, summary_crc=crc))
+
+
 def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: dict[str, dict[str, str]],
                *, chunk_bytes: int = 1 << 20, zstd_level: int = 1) -> Path:
     """Write channels and metadata records to ``path`` atomically (temporary file + rename).
@@ -271,26 +293,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
                       chunk_count=len(chunk_indexes), message_start_time=t_min, message_end_time=t_max,
                       channel_message_counts=counts)]),
                   (Opcode.CHUNK_INDEX, chunk_indexes), (Opcode.METADATA_INDEX, meta_indexes)]
-        summary = bytearray()
-        offsets = []
-        for opcode, recs in groups:
-            if not recs:
-                continue
-            g0 = len(summary)
-            for r in recs:
-                summary += _record(r)
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
-                                         group_length=len(summary) - g0))
-        summary_offset_start = summary_start + len(summary)
-        for so in offsets:
-            summary += _record(so)
-        f.write(summary)
-        # the footer CRC covers the summary section and the footer's fields before the CRC
-        foot_head = bytes([int(Opcode.FOOTER)]) + (20).to_bytes(8, "little") + \
-            summary_start.to_bytes(8, "little") + summary_offset_start.to_bytes(8, "little")
-        summary_crc = crc32(foot_head, crc32(bytes(summary)))
-        f.write(_record(Footer(summary_start=summary_start, summary_offset_start=summary_offset_start,
-                               summary_crc=summary_crc)))
+        f.write(summary_and_footer(groups, summary_start))
         f.write(MAGIC)
         f.flush()
         os.fsync(f.fileno())

@@ -28,11 +28,12 @@ import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema,
-                          Statistics, SummaryOffset)
+                          Statistics)
 
 from pipeline.formats import ros2_cdr
 from pipeline.formats.mcap_read import crc32
-from pipeline.formats.mcap_write import MAGIC, _gather, _message_index, _message_records, _record
+from pipeline.formats.mcap_write import (MAGIC, _gather, _message_index, _message_records, _record,
+                                         summary_and_footer)
 
 LIVE_DIR = ".live"
 #: live outputs: ``std_msgs/msg/String`` (CDR) holding one JSON document each, readable by every ROS 2 / MCAP
@@ -223,23 +224,7 @@ class McapRecorder:
                           chunk_count=len(self._chunks), message_start_time=self._t_min or 0,
                           message_end_time=self._t_max or 0, channel_message_counts=dict(self._counts))]),
                       (Opcode.CHUNK_INDEX, self._chunks), (Opcode.METADATA_INDEX, [self._meta_index])]
-            summary, offsets = bytearray(), []
-            for opcode, recs in groups:
-                if not recs:
-                    continue
-                g0 = len(summary)
-                for r in recs:
-                    summary += _record(r)
-                offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
-                                             group_length=len(summary) - g0))
-            so_start = summary_start + len(summary)
-            for so in offsets:
-                summary += _record(so)
-            foot_head = bytes([int(Opcode.FOOTER)]) + (20).to_bytes(8, "little") + \
-                summary_start.to_bytes(8, "little") + so_start.to_bytes(8, "little")
-            s_crc = crc32(foot_head, crc32(bytes(summary)))
-            tail = data_end + bytes(summary) + _record(Footer(summary_start=summary_start,
-                                                              summary_offset_start=so_start, summary_crc=s_crc)) + MAGIC
+            tail = data_end + summary_and_footer(groups, summary_start) + MAGIC
             os.pwrite(self._fd, tail, self._pos)
             os.ftruncate(self._fd, self._pos + len(tail))
             os.fsync(self._fd)
