@@ -12,6 +12,7 @@ import numpy as np
 from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from estimators.trunk_gait._gsd import detect_gait_sequences
 from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
+from estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
 from estimators.trunk_gait._spatial import hampel, step_lengths, vertical_position
 from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
@@ -25,6 +26,42 @@ def _sequences(acc: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
     return detect_gait_sequences(acc, fs_hz, window_s=p.gsd_window_s, hop_s=p.gsd_hop_s,
                                  min_std_m_s2=p.gsd_min_std_m_s2, min_autocorr=p.gsd_min_autocorr,
                                  merge_gap_s=p.gsd_merge_gap_s)
+
+
+def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
+    """Steps per minute of one bout from its sorted initial contacts (NaN with fewer than two).
+
+    "median": 60 / the median step time (robust to a missed or an extra contact). "count": steps per time,
+    60 Σ n_i / Σ d_i over the step intervals d_i ≤ ``max_step_s`` (longer ones are pauses), where an interval
+    counts n_i = max(1, round(d_i / T)) steps with T the median step time, so a missed contact (d ≈ 2 T)
+    counts as the two steps it spans: the bout's step count over its walking time, the definition of the
+    reference cadence of Mobilise-D (steps per minute of the walking bout, Micó-Amigo et al. 2023) and of the
+    Voisard reference (60 (n - 1) / span), which differs from the median where step times vary (turns, the
+    slower first and last steps)."""
+    d = np.diff(ic_s)
+    d = d[d <= max_step_s]
+    if len(d) == 0:
+        return float("nan")
+    T = float(np.median(d))
+    if method == "median":
+        return 60.0 / T
+    if method != "count":
+        raise ValueError(f"cadence_method must be 'median' or 'count', got {method!r}")
+    n = np.maximum(1.0, np.rint(d / T))
+    return 60.0 * float(n.sum()) / float(d.sum())
+
+
+def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
+    if p.ic_method == "ionescu":
+        return detect_initial_contacts_ionescu(v, fs_hz, sigma_s=p.ic_zc_sigma_s, min_depth=p.ic_zc_min_depth,
+                                               min_step_s=p.ic_min_step_s)
+    if p.ic_method != "peak":
+        raise ValueError(f"ic_method must be 'peak' or 'ionescu', got {p.ic_method!r}")
+    return detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
+                                   prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
+                                   fill_prominence=p.ic_fill_prominence, fill_edge_steps=p.ic_fill_edge_steps,
+                                   fill_end_steps=p.ic_fill_end_steps,
+                                   max_step_s=p.stride_max_s / 2.0)
 
 
 def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
@@ -87,10 +124,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         ab = a @ R.T
         gb = gyr[s:e] @ R.T
         v = ab[:, 1] - ab[:, 1].mean()
-        peaks = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
-                                        prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
-                                        fill_prominence=p.ic_fill_prominence,
-                                        fill_edge_steps=p.ic_fill_edge_steps, max_step_s=p.stride_max_s / 2.0)
+        peaks = _contacts(v, fs_hz, p)
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
@@ -131,15 +165,8 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         ic_bout[(ic >= b_start[b] - 1e-9) & (ic <= b_end[b] + 1e-9)] = b
     n_ic = np.bincount(ic_bout[ic_bout >= 0], minlength=n_b)
     n_steps = np.maximum(n_ic - 1, 0)
-    # cadence from the median step time of the bout's consecutive contacts (robust to a missed or extra contact
-    # at the edges and to pauses inside the bout, which a count over the duration is not)
-    cadence = np.full(n_b, np.nan)
-    for b in range(n_b):
-        tb = ic[ic_bout == b]
-        st_b = np.diff(tb)
-        st_b = st_b[st_b <= p.stride_max_s / 2.0]
-        if len(st_b):
-            cadence[b] = 60.0 / float(np.median(st_b))
+    cadence = np.array([bout_cadence(ic[ic_bout == b], max_step_s=p.stride_max_s / 2.0, method=p.cadence_method)
+                        for b in range(n_b)])
     n_str = np.bincount(strides.bout, minlength=n_b)
     # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
     # (three steps measured as two) and would inflate length and speed

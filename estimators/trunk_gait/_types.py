@@ -32,7 +32,13 @@ class TrunkGaitParams:
       gsd_min_std_m_s2: minimum standard deviation of the acceleration norm in a walking window, m/s².
       gsd_min_autocorr: minimum normalised autocorrelation at the step lag (0.25-1.6 s) in a walking window.
       gsd_merge_gap_s: walking windows closer than this are merged into one gait sequence, s.
-    Initial contacts (peak of the smoothed upward acceleration, McCamley et al. 2012 / Zijlstra & Hof 2003):
+    Initial contacts (``ic_method``: "peak" = peak of the smoothed upward acceleration, McCamley et al. 2012 /
+    Zijlstra & Hof 2003, ``_icd``; "ionescu" = minima of the wavelet-smoothed vertical jerk between its zero
+    crossings, Paraschiv-Ionescu et al. 2020, ``_icd_ionescu``):
+      ic_method: "peak" | "ionescu".
+      ic_zc_sigma_s: Gaussian σ of the jerk ("ionescu"; 0.159 s = the source's gaus2 scale 9 at 40 Hz), s.
+      ic_zc_min_depth: minimum lobe depth in SDs of the smoothed jerk over the sequence ("ionescu"; 0 = source).
+    For "peak":
       ic_smooth_s: standard deviation of the Gaussian smoothing of the vertical acceleration, s.
       ic_min_step_s: minimum time between two initial contacts, s.
       ic_prominence: minimum peak prominence as a fraction of the smoothed signal's standard deviation within
@@ -41,7 +47,10 @@ class TrunkGaitParams:
       ic_fill_prominence: weaker peaks (prominence ≥ this fraction of the sequence's SD) are added where the step
         rhythm of the kept contacts expects a missed one (0 = off; ``_icd.fill_missed_steps``).
       ic_fill_edge_steps: how many such steps may be added before the first and after the last kept contact.
-      ic_offset_s: added to every detected peak time (trunk peak vs heel strike), s.
+      ic_fill_end_steps: how many more may be added after the last kept contact only (the closing step).
+      ic_offset_s: added to every detected contact time (trunk event vs heel strike; both methods), s.
+      cadence_method: per-bout cadence, "median" (60 / median step time) or "count" (steps over walking time,
+        a missed contact counted by the rhythm; ``_pipeline.bout_cadence``).
     Side (McCamley et al. 2012: sign of the yaw rate):
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
       side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
@@ -68,13 +77,18 @@ class TrunkGaitParams:
     gsd_min_std_m_s2: float = 0.25
     gsd_min_autocorr: float = 0.3
     gsd_merge_gap_s: float = 1.0
+    ic_method: str = "peak"
+    ic_zc_sigma_s: float = 0.159
+    ic_zc_min_depth: float = 0.0
     ic_smooth_s: float = 0.11
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
     ic_fill_prominence: float = 0.0
     ic_fill_edge_steps: int = 0
+    ic_fill_end_steps: int = 0
     ic_offset_s: float = -0.06
+    cadence_method: str = "median"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.18

@@ -15,8 +15,10 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
-one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_fill_prominence``,
-``ic_fill_edge_steps``, ``ic_offset_s``); stride
+one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_smooth_s``, ``ic_prominence``,
+``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, or "ionescu" with ``ic_zc_sigma_s``,
+``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``; the block ``shipped_defaults`` names the detector
+that ships under ``ic_detector``); stride
 length only has a reference in the Mobilise-D data: its factor ``sl_correction``, jointly with the step-length
 Hampel filter ``sl_hampel_half_width`` and the bout average ``bout_average`` (mean/median), by leave-one-trial-out
 over the trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
@@ -59,11 +61,26 @@ MOBGAP_RUNNER = PROJECT_ROOT / "validation" / "anchors" / "mobgap_runner.py"
 MOBGAP_REQUIREMENTS = PROJECT_ROOT / "validation" / "anchors" / "mobgap-requirements.txt"
 KEYS = ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct", "stride_length_mae_m",
         "walking_speed_mae_m_s")
+# IC detector candidates (each scored with every ic_offset_s of GRID_OFFSET_S): the "peak" detector of _icd over
+# ic_smooth_s x ic_prominence x fill (ic_fill_prominence, ic_fill_edge_steps, ic_fill_end_steps), and the "ionescu"
+# detector of _icd_ionescu over ic_zc_sigma_s x ic_zc_min_depth. Dropped after the 2026-12-07 runs (never chosen):
+# ic_prominence 0.3, ic_local_window_s 3 s, fill (0.2, 0/1 edge steps).
 GRID_SMOOTH_S = (0.08, 0.11, 0.14)
-GRID_PROMINENCE = (0.3, 0.5, 0.7)
-GRID_LOCAL_S = (0.0,)      # 3 s was never chosen (0 in 10/10 folds, 2026-12-07 run); dropped to make room for
-GRID_FILL = ((0.0, 0), (0.1, 0), (0.2, 0), (0.1, 1), (0.2, 1))   # (ic_fill_prominence, ic_fill_edge_steps)
-GRID_OFFSET_S = tuple(np.round(np.arange(-0.14, 0.061, 0.01), 3))
+GRID_PROMINENCE = (0.5, 0.7)
+GRID_FILL = ((0.0, 0, 0), (0.1, 0, 0), (0.1, 1, 0), (0.05, 0, 1), (0.1, 0, 1))
+GRID_ZC_SIGMA_S = (0.12, 0.159, 0.2)
+GRID_ZC_DEPTH = (0.0, 0.2, 0.4)
+IC_CANDIDATES = tuple(
+    [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
+      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2]}
+     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL]
+    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d} for g in GRID_ZC_SIGMA_S
+       for d in GRID_ZC_DEPTH])
+IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
+             "ic_fill_edge_steps", "ic_fill_end_steps", "ic_zc_sigma_s", "ic_zc_min_depth", "ic_offset_s",
+             "cadence_method")
+CADENCE_METHODS = ("median", "count")   # TrunkGaitParams.cadence_method, chosen after the IC constants
+GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.061, 0.01), 3))   # the jerk minimum lags the heel strike more
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
 SL_VARIANTS = tuple((h, a) for h in (0, 1, 2) for a in ("mean", "median"))   # (sl_hampel_half_width, bout_average)
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
@@ -169,6 +186,14 @@ class Det:
     """What a method found on one recording (times in s)."""
     ic_s: np.ndarray
     bouts: dict             # start_s, end_s, cadence_spm, stride_length_m, walking_speed_m_s
+    cadence_by_method: dict = field(default_factory=dict)   # ours: per-bout cadence of each CADENCE_METHODS
+
+
+def _with_cadence(d: Det, method: str | None) -> Det:
+    if method is None or method not in d.cadence_by_method:
+        return d
+    return Det(ic_s=d.ic_s, bouts={**d.bouts, "cadence_spm": d.cadence_by_method[method]},
+               cadence_by_method=d.cadence_by_method)
 
 
 def _ic_counts(rec: Rec, ic_s: np.ndarray) -> tuple[int, int, int, np.ndarray]:
@@ -249,14 +274,29 @@ def ic_loss(s: dict) -> float:
 
 # ----------------------------------------------------------------------------------------------- our method
 
+def _detector_name(p) -> str:
+    cad = f"; cadence_method {p.cadence_method}"
+    if p.ic_method == "ionescu":
+        return (f"ionescu (Paraschiv-Ionescu et al. 2020: jerk-lobe minima, sigma {p.ic_zc_sigma_s} s, "
+                f"min depth {p.ic_zc_min_depth} SD), offset {p.ic_offset_s} s" + cad)
+    fill = (f", fill of missed steps at {p.ic_fill_prominence} SD (edge {p.ic_fill_edge_steps}, closing "
+            f"{p.ic_fill_end_steps})" if p.ic_fill_prominence > 0 else "")
+    return (f"peak (McCamley et al. 2012 / Zijlstra & Hof 2003: smoothed upward-acceleration peak, sigma "
+            f"{p.ic_smooth_s} s, prominence {p.ic_prominence} SD{fill}), offset {p.ic_offset_s} s" + cad)
+
+
 def run_ours(rec: Rec, params) -> Det:
     from estimators.trunk_gait import analyse_trunk_gait
     res = analyse_trunk_gait(rec.acc, rec.gyr, rec.fs, placement="lower_back", height_m=rec.height_m,
                              leg_length_m=rec.leg_length_m, params=params)
+    from estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
-    return Det(ic_s=res.initial_contacts_s, bouts={"start_s": b.start_s, "end_s": b.end_s,
-                                                   "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
-                                                   "walking_speed_m_s": b.walking_speed_m_s})
+    ic = res.initial_contacts_s
+    cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
+                                     method=m) for s, e in zip(b.start_s, b.end_s)]) for m in CADENCE_METHODS}
+    return Det(ic_s=ic, bouts={"start_s": b.start_s, "end_s": b.end_s,
+                               "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
+                               "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad)
 
 
 def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
@@ -275,26 +315,22 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     """Run our estimator for the IC grid, choose constants by LOGO, score shipped / CV / in-sample."""
     from estimators.trunk_gait import TrunkGaitParams
     shipped = TrunkGaitParams()
-    # group-level means of the IC loss: each candidate = (smooth, prominence, offset)
-    cands = [(s, p, w, f) for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for w in GRID_LOCAL_S for f in GRID_FILL]
-    dets: dict[tuple, list[Det]] = {}
-    for ci, (s, p, w, f) in enumerate(cands):
-        params = dataclasses.replace(shipped, ic_smooth_s=s, ic_prominence=p, ic_local_window_s=w, ic_offset_s=0.0,
-                                     ic_fill_prominence=f[0], ic_fill_edge_steps=f[1])
-        dets[(s, p, w, f)] = [run_ours(r, params) for r in recs]
+    # group-level means of the IC loss: each candidate = (IC detector candidate, offset)
+    dets: dict[int, list[Det]] = {}
+    for ci, ic in enumerate(IC_CANDIDATES):
+        dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0)) for r in recs]
         if show:
-            _say(f"  grid {ci + 1}/{len(cands)}: ic_smooth_s={s} ic_prominence={p} ic_local_window_s={w} "
-                 f"ic_fill_prominence={f[0]} ic_fill_edge_steps={f[1]}")
-    full = [(s, p, w, f, o) for (s, p, w, f) in cands for o in GRID_OFFSET_S]
+            _say(f"  grid {ci + 1}/{len(IC_CANDIDATES)}: " + " ".join(f"{k}={v}" for k, v in ic.items()))
+    full = [(ci, o) for ci in range(len(IC_CANDIDATES)) for o in GRID_OFFSET_S]
     groups = [r.group for r in recs]
     cache: dict = {}
 
     def group_loss(g: str, c: int) -> float:
         key = (g, c)
         if key not in cache:
-            s, p, w, f, o = full[c]
+            ci, o = full[c]
             idx = [i for i, r in enumerate(recs) if r.group == g]
-            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[(s, p, w, f)][i] for i in idx], offset_s=o))
+            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[ci][i] for i in idx], offset_s=o))
         return cache[key]
 
     logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
@@ -323,40 +359,49 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         sl_ins = sl_cands[sl["in_sample_choice"]]
     ship_v = (shipped.sl_hampel_half_width, shipped.bout_average)
 
-    def with_sl(r: Rec, ic: tuple, v: tuple) -> Det:
-        s_, p_, w_, f_, _o = ic
-        return run_ours(r, dataclasses.replace(shipped, ic_smooth_s=s_, ic_prominence=p_, ic_local_window_s=w_,
-                                               ic_fill_prominence=f_[0], ic_fill_edge_steps=f_[1],
-                                               ic_offset_s=0.0, sl_hampel_half_width=v[0], bout_average=v[1]))
+    def with_sl(r: Rec, ci: int, v: tuple) -> Det:
+        return run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+                                               sl_hampel_half_width=v[0], bout_average=v[1]))
+    # cadence method: leave-one-group-out on the cadence MAPE of the bouts of the fold's IC choice (nested: the
+    # held-out group's IC choice was made without it, its cadence method too)
+    def cad_loss(ci: int, gs: list[str], m: str) -> float:
+        idx = [i for i, r in enumerate(recs) if r.group in gs]
+        v = score([recs[i] for i in idx], [_with_cadence(dets[ci][i], m) for i in idx])["cadence_mape_pct"]
+        return float("inf") if v is None else float(v)
+    ug = sorted(set(groups))
+    cad_held = {}
+    for g in ug:
+        ci = full[logo["held_out_choice"][g]][0]
+        train = [x for x in ug if x != g] or [g]
+        cad_held[g] = min(CADENCE_METHODS, key=lambda m: cad_loss(ci, train, m))
+    cad_ins = min(CADENCE_METHODS, key=lambda m: cad_loss(full[logo["in_sample_choice"]][0], ug, m))
     # cross-validated: per recording, the detections of its held-out choice
     cv_dets, cv_off, cv_scale = [], [], []
     for i, r in enumerate(recs):
-        s, p, w, f, o = full[logo["held_out_choice"][r.group]]
+        ci, o = full[logo["held_out_choice"][r.group]]
         v, k = sl_held.get(r.trial_group, (ship_v, shipped.sl_correction))
-        cv_dets.append(dets[(s, p, w, f)][i] if r.dataset != "mobilised" else with_sl(r, (s, p, w, f, o), v))
+        cv_dets.append(_with_cadence(dets[ci][i] if r.dataset != "mobilised" else with_sl(r, ci, v),
+                                     cad_held[r.group]))
         cv_off.append(o)
         cv_scale.append(k / shipped.sl_correction)
-    si, pi, wi, fi, oi = full[logo["in_sample_choice"]]
+    cii, oi = full[logo["in_sample_choice"]]
     vi, ki = sl_ins or (ship_v, shipped.sl_correction)
-    ins_dets = [dets[(si, pi, wi, fi)][i] if r.dataset != "mobilised" else with_sl(r, (si, pi, wi, fi, oi), vi)
+    ins_dets = [_with_cadence(dets[cii][i] if r.dataset != "mobilised" else with_sl(r, cii, vi), cad_ins)
                 for i, r in enumerate(recs)]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
-    by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
-                             "ic_fill_edge_steps", "ic_offset_s"),
-                            (*full[c][:3], *full[c][3], full[c][4])))
+    by_group = {g: {**IC_CANDIDATES[full[c][0]], "ic_offset_s": full[c][1], "cadence_method": cad_held[g]}
                 for g, c in logo["held_out_choice"].items()}
     return {
         "shipped_defaults": {**blocks(recs, ship_dets),
-                             "params": {k: getattr(shipped, k) for k in ("ic_smooth_s", "ic_prominence",
-                                                                          "ic_local_window_s", "ic_fill_prominence",
-                                                                          "ic_fill_edge_steps", "ic_offset_s",
+                             "ic_detector": _detector_name(shipped),
+                             "params": {k: getattr(shipped, k) for k in (*IC_FIELDS,
                                                                           "sl_correction",
                                                                           "sl_hampel_half_width",
                                                                           "bout_average")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
-                            "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_fill_prominence, "
-                                      "ic_fill_edge_steps, ic_offset_s): "
-                                      "leave-one-group-out "
+                            "scheme": "IC constants (ic_method and its constants, IC_CANDIDATES, x ic_offset_s): "
+                                      "leave-one-group-out (then cadence_method, median/count, on the cadence MAPE "
+                                      "of the fold's IC choice, same folds) "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_hampel_half_width, bout_average, sl_correction: leave-one-trial-out over the "
                                       "trials of the single Mobilise-D "
@@ -368,8 +413,7 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
-                      "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi,
-                                 "ic_fill_prominence": fi[0], "ic_fill_edge_steps": fi[1], "ic_offset_s": oi,
+                      "choice": {**IC_CANDIDATES[cii], "ic_offset_s": oi, "cadence_method": cad_ins,
                                  "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1]}},
         "_ship_dets": ship_dets,
     }
@@ -598,8 +642,9 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
             _say("measuring the 24 h day …")
         res["speed_day"] = day_speed(recs)
     res["constants"] = [
-        {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s / "
-                 "ic_fill_prominence / ic_fill_edge_steps",
+        {"name": "TrunkGaitParams.ic_method / ic_offset_s / ic_smooth_s / ic_prominence / ic_fill_prominence / "
+                 "ic_fill_edge_steps / ic_fill_end_steps / ic_zc_sigma_s / ic_zc_min_depth / cadence_method",
+         "grid": "IC_CANDIDATES x GRID_OFFSET_S of validation/bench/trunk_gait.py",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
         {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average",
          "chosen_on": "Mobilise-D HA-001 INDIP stride length (leave-one-trial-out; single participant)"}]

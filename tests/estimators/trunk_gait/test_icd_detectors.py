@@ -1,0 +1,112 @@
+"""Initial-contact detectors on hand-made signals of known answer: the jerk-lobe detector after Paraschiv-Ionescu et
+al. 2020 (``_icd_ionescu``) and the closing-step fill of the peak detector (``_icd.fill_missed_steps``)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from estimators.trunk_gait import TrunkGaitParams, analyse_trunk_gait
+from estimators.trunk_gait._icd import detect_initial_contacts, fill_missed_steps
+from scipy.signal import butter, sosfreqz
+
+from estimators.trunk_gait._icd_ionescu import (IONESCU_BAND_HZ, IONESCU_SIGMA_S, detect_initial_contacts_ionescu, ionescu_signal,
+                                                lobe_minima)
+from tests.estimators.trunk_gait._signals import walking_body
+
+FS = 100.0
+
+
+def test_lobe_minima_one_minimum_per_closed_negative_lobe():
+    w = np.array([1.0, -1.0, -3.0, -2.0, 1.0, 2.0, -0.5, 0.5, 1.0, -4.0, -1.0, 2.0, -5.0, -6.0])
+    # lobes: [1, 4) min at 2; [6, 7) min at 6; [9, 11) min at 9; [12, end) still open -> not counted
+    assert lobe_minima(w, 0.0, 1).tolist() == [2, 6, 9]
+    assert lobe_minima(w, 1.0, 1).tolist() == [2, 9]                  # the shallow lobe (-0.5) is dropped
+    assert lobe_minima(w, 0.0, 4).tolist() == [2, 9]                  # 6 is within 4 samples of 2: the deeper stays
+    assert lobe_minima(-np.ones(10), 0.0, 1).tolist() == []           # starts negative: no opening crossing
+
+
+def test_ionescu_signal_is_the_smoothed_jerk():
+    # Eq. (3): for a sinusoid the smoothed derivative is the derivative times the zero-phase band-pass gain |H|^2
+    # and the Gaussian's gain exp(-(2 pi f sigma)^2 / 2): minima where the acceleration falls fastest,
+    # t = (k + 1/2) / f
+    f = 1.8
+    t = np.arange(0, 20, 1 / FS)
+    v = np.sin(2 * np.pi * f * t)
+    w = ionescu_signal(v, FS)
+    _, h = sosfreqz(butter(2, IONESCU_BAND_HZ, "bandpass", fs=FS, output="sos"), worN=[f], fs=FS)
+    gain = np.exp(-0.5 * (2 * np.pi * f * IONESCU_SIGMA_S) ** 2) * np.abs(h[0]) ** 2
+    mid = slice(int(3 * FS), int(17 * FS))
+    expect = 2 * np.pi * f * np.cos(2 * np.pi * f * t) * gain
+    assert np.max(np.abs(w[mid] - expect[mid])) < 0.05 * np.max(np.abs(expect))
+    ic = detect_initial_contacts_ionescu(v, FS) / FS
+    ic = ic[(ic > 2) & (ic < 18)]
+    want = (np.arange(0, 40) + 0.5) / f
+    want = want[(want > 2) & (want < 18)]
+    np.testing.assert_allclose(ic, want, atol=1.5 / FS)
+
+
+def test_ionescu_keeps_small_closing_and_turning_steps_the_prominence_threshold_misses():
+    t = np.arange(0, 12, 1 / FS)
+    ic = np.arange(1.0, 10.0, 0.55)
+    amp = np.ones(len(ic))
+    amp[7] = 0.2                                            # a small turning step
+    amp[-1] = 0.15                                          # the closing step
+    v = sum(a * np.exp(-0.5 * ((t - c) / 0.06) ** 2) for a, c in zip(amp, ic))
+    v = v - v.mean()
+    peak = detect_initial_contacts(v, FS, smooth_s=0.05, min_step_s=0.25, prominence=0.7) / FS
+    lobes = detect_initial_contacts_ionescu(v, FS, sigma_s=0.06) / FS
+    assert not np.any(np.abs(peak - ic[7]) < 0.1) and not np.any(np.abs(peak - ic[-1]) < 0.1)
+    # one contact per step, each a constant delay after the pulse (the fastest fall of the acceleration)
+    assert len(lobes) == len(ic)
+    d = lobes - ic
+    assert np.all((d > 0) & (d < 0.15)) and np.ptp(d) < 0.03
+
+
+def test_ionescu_min_depth_drops_sway_lobes_while_standing():
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 16, 1 / FS)
+    ic = np.arange(5.0, 11.0, 0.55)
+    v = sum(np.exp(-0.5 * ((t - c) / 0.06) ** 2) for c in ic) + rng.normal(0, 0.004, len(t))
+    v = v - v.mean()
+    loose = detect_initial_contacts_ionescu(v, FS, min_depth=0.0) / FS
+    strict = detect_initial_contacts_ionescu(v, FS, min_depth=0.2) / FS
+    # standing (more than 1 s from the walk: closer, the zero-phase band-pass rings before the first and after the
+    # last step, one lobe each, which is the extra contact before a walk's first step)
+    still = lambda x: np.sum((x < 4.0) | (x > 11.5))             # noqa: E731
+    assert still(loose) > 0 and still(strict) == 0
+    steps = strict[(strict > ic[0]) & (strict < ic[-1] + 0.3)]
+    assert len(steps) == len(ic)
+
+
+def test_fill_end_steps_add_the_closing_step_only_after_the_walk():
+    kept = np.array([100, 150, 200, 250, 300])               # T = 50
+    cand = np.array([52, 349])                               # a weak peak before the walk and the closing step
+    prom = np.array([0.3, 0.3])
+    assert fill_missed_steps(kept, cand, prom, max_step=150).tolist() == kept.tolist()
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1).tolist() == [100, 150, 200, 250, 300,
+                                                                                       349]
+    assert fill_missed_steps(kept, cand, prom, max_step=150, edge_steps=1).tolist() == [52, 100, 150, 200, 250,
+                                                                                        300, 349]
+
+
+@pytest.mark.parametrize("step_s", [0.55, 1.1], ids=["normal", "slow_55_spm"])
+def test_pipeline_with_the_ionescu_detector_finds_every_simulated_step(step_s):
+    # the upward acceleration is amp cos(2 pi (t - ic) / step_s): it falls fastest a quarter step after each
+    # contact, which is where the jerk-lobe minima must be
+    acc, gyr, ic_true, _ = walking_body(40.0, rest_s=3.0, step_s=step_s)
+    # lobes deeper than 0.2 SD: with 0 the sensor noise while standing still gives lobes too (next test)
+    p = dataclasses.replace(TrunkGaitParams(), ic_method="ionescu", ic_zc_min_depth=0.2, ic_offset_s=0.0)
+    det = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=p).initial_contacts_s
+    want = ic_true + step_s / 4
+    hit = np.array([np.min(np.abs(det - x)) for x in want])
+    inner = (want > 3.0 + 2 * step_s) & (want < 43.0 - 2 * step_s)    # bout edges depend on the bout rules
+    assert np.all(hit[inner] < 0.03)
+    assert len(det) <= len(ic_true) + 1
+
+
+def test_unknown_ic_method_is_an_error():
+    acc, gyr = walking_body(20.0)[:2]
+    with pytest.raises(ValueError, match="ic_method"):
+        analyse_trunk_gait(acc, gyr, FS, params=dataclasses.replace(TrunkGaitParams(), ic_method="shin"))
