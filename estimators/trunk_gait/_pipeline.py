@@ -51,17 +51,21 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
     return 60.0 * float(n.sum()) / float(d.sum())
 
 
-def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
+def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams,
+              turning: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(sample indices, closing (K,) bool: closing steps added by the fill, see ``_icd.detect_initial_contacts``)."""
     if p.ic_method == "ionescu":
-        return detect_initial_contacts_ionescu(v, fs_hz, sigma_s=p.ic_zc_sigma_s, min_depth=p.ic_zc_min_depth,
-                                               min_step_s=p.ic_min_step_s)
+        idx = detect_initial_contacts_ionescu(v, fs_hz, sigma_s=p.ic_zc_sigma_s, min_depth=p.ic_zc_min_depth,
+                                              min_step_s=p.ic_min_step_s)
+        return idx, np.zeros(len(idx), bool)
     if p.ic_method != "peak":
         raise ValueError(f"ic_method must be 'peak' or 'ionescu', got {p.ic_method!r}")
     return detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
                                    prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
                                    fill_prominence=p.ic_fill_prominence, fill_edge_steps=p.ic_fill_edge_steps,
                                    fill_end_steps=p.ic_fill_end_steps,
-                                   max_step_s=p.stride_max_s / 2.0)
+                                   max_step_s=p.stride_max_s / 2.0, turning=turning,
+                                   turn_prominence=p.ic_turn_prominence, return_closing=True)
 
 
 def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
@@ -113,7 +117,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     seqs = _sequences(acc, fs_hz, p)
     frame = frame_from_sequences(acc, fs_hz, seqs) if len(acc) else None
     warnings = list(frame.warnings) if frame is not None else ["no samples"]
-    ic_all, left_all, run_all, step_all = [], [], [], []
+    ic_all, left_all, run_all, step_all, closing_all = [], [], [], [], []
     turns: list[Turns] = []
     run_offset = 0
     offset_n = p.ic_offset_s
@@ -124,9 +128,21 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         ab = a @ R.T
         gb = gyr[s:e] @ R.T
         v = ab[:, 1] - ab[:, 1].mean()
-        peaks = _contacts(v, fs_hz, p)
+        tt = detect_turns(gb[:, 1], fs_hz, t0_s=s / fs_hz, lowpass_hz=p.turn_lowpass_hz,
+                          min_peak_deg_s=p.turn_min_peak_deg_s, edge_deg_s=p.turn_edge_deg_s,
+                          min_angle_deg=p.turn_min_angle_deg, min_s=p.turn_min_s, max_s=p.turn_max_s)
+        turning = None
+        if p.ic_turn_prominence != 1.0 and len(tt):
+            turning = np.zeros(e - s, bool)
+            for a0, a1 in zip(tt.start_s, tt.end_s):
+                turning[max(0, int(round(a0 * fs_hz)) - s):max(0, int(round(a1 * fs_hz)) - s)] = True
+        peaks, closing = _contacts(v, fs_hz, p, turning)
         t = (s + peaks) / fs_hz + offset_n
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
+        # a closing step gets a run of its own: no stride starts or ends there (the reference walking bouts of
+        # Mobilise-D end with the last complete stride), it still is a contact of the bout it closes
+        if closing.any():
+            runs[closing] = runs.max() + 1 + np.arange(int(closing.sum()))
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
         left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
@@ -136,16 +152,16 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
             same = runs[1:] == runs[:-1]
             sl = hampel(sl, p.sl_hampel_half_width, 3.0, np.where(same, runs[1:], -1 - np.arange(len(sl))))
         ic_all.append(t)
+        closing_all.append(closing)
         left_all.append(left)
         run_all.append(runs)
         step_all.append(np.r_[sl, np.nan] if len(peaks) else np.empty(0))   # step i -> i+1; last has none
-        turns.append(detect_turns(gb[:, 1], fs_hz, t0_s=s / fs_hz, lowpass_hz=p.turn_lowpass_hz,
-                                  min_peak_deg_s=p.turn_min_peak_deg_s, edge_deg_s=p.turn_edge_deg_s,
-                                  min_angle_deg=p.turn_min_angle_deg, min_s=p.turn_min_s, max_s=p.turn_max_s))
+        turns.append(tt)
     cat = lambda xs, dt: np.concatenate(xs) if xs else np.empty(0, dt)  # noqa: E731
     ic = cat(ic_all, float)
     left = cat(left_all, bool)
     runs = cat(run_all, np.int64)
+    closing = cat(closing_all, bool)
     step_len = cat(step_all, float)
     turn = Turns(*(cat([getattr(tt, f) for tt in turns], float)
                    for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
@@ -163,10 +179,13 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     ic_bout = np.full(len(ic), -1, np.int64)
     for b in range(n_b):
         ic_bout[(ic >= b_start[b] - 1e-9) & (ic <= b_end[b] + 1e-9)] = b
+    for k in np.flatnonzero(closing):        # a closing step belongs to the bout of the contact before it
+        if k > 0 and ic_bout[k] < 0 and ic_bout[k - 1] >= 0 and ic[k] - ic[k - 1] <= p.stride_max_s / 2.0:
+            ic_bout[k] = ic_bout[k - 1]
     n_ic = np.bincount(ic_bout[ic_bout >= 0], minlength=n_b)
     n_steps = np.maximum(n_ic - 1, 0)
-    cadence = np.array([bout_cadence(ic[ic_bout == b], max_step_s=p.stride_max_s / 2.0, method=p.cadence_method)
-                        for b in range(n_b)])
+    cadence = np.array([bout_cadence(ic[(ic_bout == b) & ~closing], max_step_s=p.stride_max_s / 2.0,
+                                     method=p.cadence_method) for b in range(n_b)])
     n_str = np.bincount(strides.bout, minlength=n_b)
     # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
     # (three steps measured as two) and would inflate length and speed

@@ -48,6 +48,7 @@ class TrunkGaitParams:
         rhythm of the kept contacts expects a missed one (0 = off; ``_icd.fill_missed_steps``).
       ic_fill_edge_steps: how many such steps may be added before the first and after the last kept contact.
       ic_fill_end_steps: how many more may be added after the last kept contact only (the closing step).
+      ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
       ic_offset_s: added to every detected contact time (trunk event vs heel strike; both methods), s.
       cadence_method: per-bout cadence, "median" (60 / median step time) or "count" (steps over walking time,
         a missed contact counted by the rhythm; ``_pipeline.bout_cadence``).
@@ -84,11 +85,12 @@ class TrunkGaitParams:
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
-    ic_fill_prominence: float = 0.0
+    ic_fill_prominence: float = 0.05
     ic_fill_edge_steps: int = 0
-    ic_fill_end_steps: int = 0
-    ic_offset_s: float = -0.06
-    cadence_method: str = "median"
+    ic_fill_end_steps: int = 2
+    ic_turn_prominence: float = 1.0
+    ic_offset_s: float = -0.07
+    cadence_method: str = "count"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.18

@@ -110,3 +110,42 @@ def test_unknown_ic_method_is_an_error():
     acc, gyr = walking_body(20.0)[:2]
     with pytest.raises(ValueError, match="ic_method"):
         analyse_trunk_gait(acc, gyr, FS, params=dataclasses.replace(TrunkGaitParams(), ic_method="shin"))
+
+
+def test_turn_prominence_lowers_the_threshold_inside_turns_only():
+    t = np.arange(0, 12, 1 / FS)
+    ic = np.arange(1.0, 11.0, 0.55)
+    amp = np.ones(len(ic))
+    amp[[4, 12]] = 0.1                                       # two weak steps: 4 outside the turn, 12 inside it
+    v = sum(a * np.exp(-0.5 * ((t - c) / 0.06) ** 2) for a, c in zip(amp, ic))
+    v = v - v.mean()
+    turning = (t > ic[11] - 0.2) & (t < ic[13] + 0.2)
+    kw = dict(smooth_s=0.05, min_step_s=0.25, prominence=0.7)
+    plain = detect_initial_contacts(v, FS, **kw) / FS
+    turned = detect_initial_contacts(v, FS, **kw, turning=turning, turn_prominence=0.3) / FS
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
+    assert not near(plain, ic[4]) and not near(plain, ic[12])
+    assert near(turned, ic[12]) and not near(turned, ic[4])
+    assert len(turned) == len(plain) + 1
+
+
+def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
+    from tests.estimators.trunk_gait._signals import G
+    step = 0.55
+    acc, gyr, ic, _ = walking_body(20.0, rest_s=4.0, step_s=step)
+    t = np.arange(len(acc)) / FS
+    last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
+    acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
+    base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, cadence_method="count", ic_fill_prominence=0.0,
+                               ic_fill_end_steps=0)
+    plain = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
+    filled = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                                params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1))
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.05))    # noqa: E731
+    assert not near(plain.initial_contacts_s, ic[-1]) and near(filled.initial_contacts_s, ic[-1])
+    assert len(filled.initial_contacts_s) == len(plain.initial_contacts_s) + 1
+    # no stride ends at the closing contact; the bout, its strides and its cadence are those without it
+    assert filled.strides.end_s.max() == pytest.approx(plain.strides.end_s.max())
+    assert len(filled.strides) == len(plain.strides)
+    np.testing.assert_allclose(filled.bouts.cadence_spm, plain.bouts.cadence_spm)
+    assert filled.bouts.cadence_spm[0] == pytest.approx(60 / step, rel=0.01)
