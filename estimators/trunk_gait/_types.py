@@ -136,9 +136,10 @@ class TrunkFrame:
 class Bouts:
     """Walking bouts, one entry per bout (arrays of equal length B).
 
-    start_s, end_s: first and last initial contact of the bout, s from the first sample.
+    start_s, end_s: first and last initial contact of the bout's strides, s from the first sample (closing steps
+      added by the fill, ``ic_fill_end_steps``, may follow ``end_s``: contacts of the bout, but no stride).
     n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
-    cadence_spm: steps per minute (60 / median step time); stride_length_m: mean stride length, m;
+    cadence_spm: steps per minute (``TrunkGaitParams.cadence_method``); stride_length_m: mean stride length, m;
     walking_speed_m_s: mean stride speed, m/s.
     n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
     flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
@@ -203,7 +204,8 @@ class TrunkGaitResult:
     """Everything ``analyse_trunk_gait`` found.
 
     bouts: ``Bouts``; strides: ``Strides``; turns: ``Turns``.
-    initial_contacts_s: (K,) every initial contact inside a walking bout, s from the first sample, sorted.
+    initial_contacts_s: (K,) every initial contact of a walking bout (inside it, or a closing step right after
+      it), s from the first sample, sorted.
     ic_side: (K,) "left" / "right".
     gait_sequences_s: (G, 2) [start, end) of the detected gait sequences, s.
     frame: the ``TrunkFrame`` used. height_m, leg_length_m: what the spatial model used.
