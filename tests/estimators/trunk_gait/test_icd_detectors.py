@@ -149,3 +149,20 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     assert len(filled.strides) == len(plain.strides)
     np.testing.assert_allclose(filled.bouts.cadence_spm, plain.bouts.cadence_spm)
     assert filled.bouts.cadence_spm[0] == pytest.approx(60 / step, rel=0.01)
+
+
+def test_bout_cadence_count_is_steps_over_walking_time_and_counts_a_missed_contact():
+    from estimators.trunk_gait._pipeline import bout_cadence
+    ic = np.cumsum(np.r_[0.0, 0.7, 0.5, 0.5, 0.5, 0.5, 0.7])        # slower first and last steps (1.4 T)
+    assert bout_cadence(ic, max_step_s=1.5, method="median") == pytest.approx(120.0)
+    assert bout_cadence(ic, max_step_s=1.5, method="count") == pytest.approx(60 * 6 / 3.4)
+    # an interval of 1.5 T or more is read as a missed contact (two steps), as the fill reads it
+    slow = np.cumsum(np.r_[0.0, 0.8, 0.5, 0.5, 0.5, 0.5])
+    assert bout_cadence(slow, max_step_s=1.5, method="count") == pytest.approx(60 * 6 / 2.8)
+    missed = np.delete(np.arange(0, 5.01, 0.5), 4)                  # one contact missed: a 1.0 s interval
+    assert bout_cadence(missed, max_step_s=1.5, method="count") == pytest.approx(120.0)
+    paused = np.r_[np.arange(0, 2.01, 0.5), 5.0 + np.arange(0, 2.01, 0.5)]   # a 3 s pause is no step
+    assert bout_cadence(paused, max_step_s=1.5, method="count") == pytest.approx(120.0)
+    assert np.isnan(bout_cadence(np.array([1.0]), max_step_s=1.5, method="count"))
+    with pytest.raises(ValueError, match="cadence_method"):
+        bout_cadence(ic, max_step_s=1.5, method="mean")
