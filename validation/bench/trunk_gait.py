@@ -10,8 +10,8 @@ stands). Mobilise-D standardized data (``--mobilised``): the lower-back SU of ev
 the reference walking bouts ± the tolerance (as Voisard's inside the trial, and as Mobilise-D validated the
 contact detectors, within the reference walking: Micó-Amigo et al. 2023), bouts over the whole recording. INDIP's
 bouts leave out closing steps and some walking (turns, 110-115 s of Test11) that both tools detect; the figure over
-the whole recording, as scored before 2026-12-07, is printed beside as ``mobilised_whole_recording``. Trunk initial contacts and foot heel strikes are different events: the constant ``ic_offset_s`` maps
-one to the other and is chosen by cross-validation (below), never on the recording it is scored on.
+the whole recording, as scored before 2026-12-07, is printed beside as ``mobilised_whole_recording``. Trunk initial
+contacts and foot heel strikes are different events: the constant ``ic_offset_s`` maps one to the other and is chosen by cross-validation (below), never on the recording it is scored on.
 
 One scorer: ``estimators.trunk_gait.evaluation`` (contacts one-to-one within 0.25 s; bouts one-to-one by IoU ≥ 0.5;
 per matched bout the cadence / stride length / speed errors), for StrideLab and mobgap alike.
@@ -19,9 +19,11 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
 one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_smooth_s``, ``ic_prominence``,
-``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, or "ionescu" with ``ic_zc_sigma_s``,
-``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``; the block ``shipped_defaults`` names the detector
-that ships under ``ic_detector``); stride
+``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, ``ic_turn_prominence``, or "ionescu" with
+``ic_zc_sigma_s``,
+``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then ``cadence_method``; the block
+``shipped_defaults`` names the detector that ships under ``ic_detector``, ``ic_grid_in_sample`` scores every
+candidate in-sample); stride
 length only has a reference in the Mobilise-D data: its factor ``sl_correction``, jointly with the step-length
 Hampel filter ``sl_hampel_half_width`` and the bout average ``bout_average`` (mean/median), by leave-one-trial-out
 over the trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored

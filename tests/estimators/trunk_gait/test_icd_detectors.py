@@ -1,18 +1,18 @@
 """Initial-contact detectors on hand-made signals of known answer: the jerk-lobe detector after Paraschiv-Ionescu et
-al. 2020 (``_icd_ionescu``) and the closing-step fill of the peak detector (``_icd.fill_missed_steps``)."""
+al. 2020 (``_icd_ionescu``), the closing-step fill and the turn threshold of the peak detector (``_icd``), closing
+steps in the pipeline and the count cadence."""
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
 import pytest
+from scipy.signal import butter, sosfreqz
 
 from estimators.trunk_gait import TrunkGaitParams, analyse_trunk_gait
 from estimators.trunk_gait._icd import detect_initial_contacts, fill_missed_steps
-from scipy.signal import butter, sosfreqz
-
-from estimators.trunk_gait._icd_ionescu import (IONESCU_BAND_HZ, IONESCU_SIGMA_S, detect_initial_contacts_ionescu, ionescu_signal,
-                                                lobe_minima)
+from estimators.trunk_gait._icd_ionescu import (IONESCU_BAND_HZ, IONESCU_SIGMA_S, detect_initial_contacts_ionescu,
+                                                ionescu_signal, lobe_minima)
 from tests.estimators.trunk_gait._signals import walking_body
 
 FS = 100.0
