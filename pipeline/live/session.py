@@ -24,6 +24,22 @@ from pipeline.live.engine import LiveEngine, LiveParams, LiveOutput
 DISPLAY_JOINTS = ("hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right")
 
 
+def calibration_rows(cal) -> list[dict]:
+    """The session calibration as the calibration stage's catalog rows (what
+    ``pipeline.stages.joint_angles.session_calibration`` rebuilds it from): the recording carries the calibration
+    the live angles were computed with, so the nightly compares like with like."""
+    import dataclasses
+    import json
+    rows = []
+    for p, c in sorted(cal.imus.items() if cal is not None else ()):
+        q = c.quat_sensor_af if c.valid else np.full(4, np.nan)
+        rows.append({"placement": p, **{f"q{k}": (float(v) if np.isfinite(v) else None) for k, v in zip("wxyz", q)},
+                     "method": c.method, "status": c.status, "reasons": json.dumps(list(c.reasons)),
+                     "n_reps": int(c.n_cycles), "params": json.dumps(dataclasses.asdict(cal.params), default=list),
+                     "session_status": cal.status, "session_reasons": json.dumps(list(cal.reasons))})
+    return {"rows": rows}
+
+
 class LatencyStats:
     """Latency histogram with fixed memory (10 µs bins up to 1 s, beyond counted in the last bin) and the max."""
 
@@ -238,11 +254,24 @@ class LiveSession:
             self._rec_q.put((b, out))
 
     def _record_loop(self) -> None:
+        first, standing_done = True, False
         while True:
             item = self._rec_q.get()
             if item is None:
                 return
             b, out = item
+            if first:              # what the live computation ran with: calibration rows and filter settings
+                prm = self.engine.params
+                self.recorder.add_json("/live/calibration", int(b.t_ns[0]), {
+                    **calibration_rows(self.engine.calibration), "estimator": prm.estimator,
+                    "use_magnetometer": prm.use_magnetometer, "sampling_rate_hz": self.fs})
+            first = False
+            if not standing_done and out.offset_ready.any():
+                eng = self.engine          # the offsets never change once found (engine state read, not frames)
+                self.recorder.add_json("/live/standing", int(b.t_ns[0]), {
+                    "offset_frame": int(eng.offset_frame), "standing": list(eng.standing),
+                    "offset_deg": {k: np.where(np.isfinite(v), v, None).tolist() for k, v in eng.offset.items()}})
+                standing_done = True
             host = b.t_ns      # log time: the frame's session time (host clock of the replay / device stamps)
             for p in self.placements:
                 v = b.valid[p]
