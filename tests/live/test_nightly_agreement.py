@@ -16,7 +16,7 @@ from warehouse.read import connect_snapshot
 
 
 @pytest.mark.slow
-def test_live_session_enters_the_nightly_and_its_agreement_is_stored(tmp_path, lab_files):
+def test_live_session_enters_the_nightly_and_its_agreement_is_stored(tmp_path, lab_files, monkeypatch):
     cal, walk = lab_files
     inbox = tmp_path / "inbox"
     r = CliRunner().invoke(main, ["live", "--replay", str(walk), "--calibration", str(cal), "--speed", "max",
@@ -64,3 +64,18 @@ def test_live_session_enters_the_nightly_and_its_agreement_is_stored(tmp_path, l
         assert ev[0] == kinds["events"] and ev[1] == ev[0] and ev[2] >= 0.9 * ev[0] and ev[3] == 0.0, ev
     finally:
         con.close()
+    # ... and shown on the dashboard's runs page (Streamlit AppTest on the published snapshot)
+    import streamlit as st
+    from streamlit.testing.v1 import AppTest
+    from tests.dashboard.conftest import APP
+    monkeypatch.setenv("STRIDELAB_WAREHOUSE", str(tmp_path / "wh"))
+    st.cache_data.clear()
+    st.cache_resource.clear()
+    at = AppTest.from_file(str(APP), default_timeout=60)
+    at.run()
+    at.switch_page("views/runs.py")
+    at.run()
+    assert not at.exception, [e.value for e in at.exception]
+    assert "Live sessions beside the nightly" in [h.value for h in at.subheader]
+    joints = [set(d.value["joint"]) for d in at.dataframe if "joint" in d.value.columns]
+    assert {"knee_left", "knee_right"} <= set().union(*joints), joints
