@@ -292,6 +292,8 @@ class LiveSession:
         return {"frames": self.frames_done, "samples_in": self.samples_in,
                 "samples_dropped": int(getattr(self.source, "dropped", 0)),
                 "gaps": {p: v["gaps"] for p, v in c.items()}, "late": {p: v["late"] for p, v in c.items()},
+                **({"clock_drift_ppm": {p: v["drift_ppm"] for p, v in c.items()}}
+                   if any("drift_ppm" in v for v in c.values()) else {}),
                 "latency": self.latency.summary(), "event_latency": self.event_latency.summary(),
                 "compute_per_batch": self.compute.summary(),
                 "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
