@@ -8,6 +8,7 @@ not fit is counted as dropped by the source.
 """
 from __future__ import annotations
 
+import gc
 import queue
 import sys
 import threading
@@ -77,7 +78,10 @@ class Hub:
     strides: deque = field(default_factory=lambda: deque(maxlen=40))
     state: dict = field(default_factory=dict)
     seq: int = 0
+    eid: int = 0                      # events published so far (each event's ``eid``)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    #: called (from the computing thread) right after new events were published: the server sends them at once
+    listeners: list = field(default_factory=list)
 
     def publish(self, out: LiveOutput) -> None:
         rows = np.full((out.n, len(DISPLAY_JOINTS)), np.nan)
@@ -93,17 +97,25 @@ class Hub:
             while len(self.frames) > self.keep_frames:
                 self.frames.popleft()
             for e in out.events:
-                self.events.append({**e, "seq": self.seq})
+                self.eid += 1
+                self.events.append({**e, "seq": self.seq, "eid": self.eid})
             for s in out.strides:
                 self.strides.append(s)
             if out.metrics:
                 self.state["metrics"] = out.metrics
+        if out.events:
+            for cb in self.listeners:
+                cb()
 
     def since(self, seq: int, limit: int = 400) -> tuple[list, list, dict]:
         with self.lock:
             fr = [f for f in self.frames if f[0] >= seq][-limit:]
             ev = [e for e in self.events if e["seq"] > seq]
             return fr, ev, dict(self.state)
+
+    def events_after(self, eid: int) -> list:
+        with self.lock:
+            return [e for e in self.events if e["eid"] > eid]
 
 
 class LiveSession:
@@ -184,6 +196,12 @@ class LiveSession:
         if self.recorder is not None:
             rec_thread = threading.Thread(target=self._record_loop, name="live-recorder", daemon=True)
             rec_thread.start()
+        # the cyclic garbage collector's full collections walk every object of the process (numba, pyarrow,
+        # tornado: about a million) and stop every thread meanwhile: measured up to 405 ms on the bench, the
+        # whole of the worst event latency. Everything alive now (imports, compiled kernels, the warm-up) is
+        # moved out of its reach (gc.freeze); collections then see only what the session allocates
+        gc.collect()
+        gc.freeze()
         t_cpu, t_wall = time.thread_time(), time.perf_counter()
         self.source.start(self.sink)
         try:
@@ -213,6 +231,7 @@ class LiveSession:
                 for b in self.aligner.flush():
                     self._process(b)
         finally:
+            gc.unfreeze()
             sys.setswitchinterval(switch)
             self.source.stop()
             self.cpu_s += time.thread_time() - t_cpu
@@ -236,19 +255,20 @@ class LiveSession:
     def _process(self, b) -> None:
         t0 = time.perf_counter_ns()
         out = self.engine.process(b)
-        self.hub.publish(out)
-        now = time.perf_counter_ns()
-        self.compute.add(np.array([now - t0]))
         arr = b.arrival_ns
-        ok = arr > 0
-        self.latency.add(now - arr[ok])
         ks = np.arange(b.k0, b.k0 + b.n)
         self._arrivals[ks % len(self._arrivals)] = arr
         for e in out.events:       # (an event further back than the ring, in a long backlog batch, is not timed)
-            if b.k0 + b.n - e["k"] < len(self._arrivals):
-                a0 = self._arrivals[e["k"] % len(self._arrivals)]
-                if a0 > 0:
-                    self.event_latency.add(np.array([now - a0]))
+            a0 = self._arrivals[e["k"] % len(self._arrivals)] if b.k0 + b.n - e["k"] < len(self._arrivals) else 0
+            e["arrival_ns"] = int(a0)          # when the event's sample arrived (perf_counter ns; 0: unknown)
+        self.hub.publish(out)                  # events go to the pages now (Hub.listeners), frames at the next tick
+        now = time.perf_counter_ns()
+        self.compute.add(np.array([now - t0]))
+        ok = arr > 0
+        self.latency.add(now - arr[ok])
+        for e in out.events:
+            if e["arrival_ns"] > 0:
+                self.event_latency.add(np.array([now - e["arrival_ns"]]))
         self.frames_done += b.n
         if self.recorder is not None:
             self._rec_q.put((b, out))

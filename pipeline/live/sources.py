@@ -65,6 +65,8 @@ class ReplaySource(_ThreadedSource):
         self.fs = self.streams.sampling_rate_hz
         self.frames_per_put = frames_per_put or (1 if speed is not None else 20)
         self.sent = 0
+        from pipeline.live.session import LatencyStats
+        self.wake_late = LatencyStats()     # how late this thread woke for a due frame: the scheduler's share
 
     def _run(self, sink) -> None:
         try:
@@ -93,6 +95,7 @@ class ReplaySource(_ThreadedSource):
                     # receiving thread, releases what queued meanwhile); each "arrived" when it was due, so the
                     # wake-up delay counts in the latency
                     now = time.perf_counter_ns()
+                    self.wake_late.add(np.array([max(0, now - int(due(i)))]))
                     m = 1
                     while i + m < total and m < 200 and due(i + m) <= now:
                         m += 1

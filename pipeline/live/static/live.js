@@ -3,7 +3,7 @@
 const JOINTS = ["hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right"];
 const COLORS = {left: "#1f6fd1", right: "#d1401f"};
 const L = {
-  config: {}, frames: [], events: [], seen: new Set(), metrics: {}, summary: {},
+  config: {}, frames: [], events: [], seen: new Set(), pendingIC: [], metrics: {}, summary: {},
   strideCurves: {left: [], right: []}, current: {left: null, right: null},
   stats: {frames: 0, events: 0, drawn: 0, fps: 0, cueOn: false, cueCount: 0, connected: false},
 };
@@ -29,18 +29,27 @@ function connect(onUpdate) {
   ws.onmessage = (msg) => {
     const m = JSON.parse(msg.data);
     if (m.type === "config") { L.config = m; if (window.onLiveConfig) window.onLiveConfig(m); return; }
-    for (const f of m.frames) ingestFrame(f);
+    // events come on their own as soon as they are detected, usually before the frames that hold them
     for (const e of m.events) {
       const key = `${e.side}${e.type}${e.k}`;
       if (L.seen.has(key)) continue;
       L.seen.add(key); L.events.push(e); L.stats.events += 1;
-      if (e.type === "IC") closeStride(e.side, e.k);
+      if (e.type === "IC") L.pendingIC.push(e);
     }
     if (L.events.length > 400) L.events.splice(0, L.events.length - 400);
-    L.metrics = m.metrics || {}; L.summary = m.summary || {};
+    if (m.type === "frames") {
+      for (const f of m.frames) ingestFrame(f);
+      L.metrics = m.metrics || {}; L.summary = m.summary || {};
+    }
+    closePending();
     evaluateCue();
     if (onUpdate) onUpdate();
   };
+}
+
+function closePending() {          // an IC closes its stride once the frames up to it are in
+  const last = L.frames.length ? L.frames[L.frames.length - 1][0] : -1;
+  L.pendingIC = L.pendingIC.filter((e) => { if (e.k > last) return true; closeStride(e.side, e.k); return false; });
 }
 
 function ingestFrame(f) {           // f = [k, t_ms, [6 sagittal angles], offset_ready]
