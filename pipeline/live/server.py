@@ -153,7 +153,7 @@ class LiveServer:
                 continue
             c.seq = fr[-1][0] + 1
             msg = {"type": "frames", "frames": [[f[1], f[2], f[3], f[4]] for f in fr], "events": [],
-                   "metrics": st.get("metrics", {}), "summary": self.summary()}
+                   "metrics": st.get("metrics", {}), "speed": st.get("speed"), "summary": self.summary()}
             try:
                 c.write_message(json.dumps(_clean(msg)))
             except tornado.websocket.WebSocketClosedError:

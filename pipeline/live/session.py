@@ -124,7 +124,7 @@ class LiveSession:
 
     def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
                  params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
-                 max_wait_ms: float = 40.0, inline: bool = True):
+                 max_wait_ms: float = 40.0, inline: bool = True, speed_estimate: bool = False):
         self.source = source
         self.placements = tuple(placements)
         self.fs = float(sampling_rate_hz)
@@ -149,9 +149,18 @@ class LiveSession:
         self._proc_lock = threading.Lock()
         self.cpu_s = 0.0
         self.wall_s = 0.0
+        self.speed = None           # walking speed for the speed-matched bands (pipeline.live.speed)
+        sides = [sd for sd in ("left", "right") if f"foot_{sd}" in self.placements]
+        if speed_estimate and sides:
+            from pipeline.live.speed import LiveSpeed
+            self.speed = LiveSpeed(sides, sampling_rate_hz=self.fs, on_update=self._speed_update)
         self._warm_up(calibration, params)
         self.hub.state.update({"placements": list(self.placements), "sampling_rate_hz": self.fs,
                                "calibration": None if calibration is None else calibration.status})
+
+    def _speed_update(self, speed: dict) -> None:
+        with self.hub.lock:
+            self.hub.state["speed"] = speed
 
     def _warm_up(self, calibration, params) -> None:
         """Run a throwaway engine over two seconds of rest so every compiled kernel is loaded before the
@@ -200,6 +209,8 @@ class LiveSession:
         # tornado: about a million) and stop every thread meanwhile: measured up to 405 ms on the bench, the
         # whole of the worst event latency. Everything alive now (imports, compiled kernels, the warm-up) is
         # moved out of its reach (gc.freeze); collections then see only what the session allocates
+        if self.speed is not None:
+            self.speed.start()
         gc.collect()
         gc.freeze()
         t_cpu, t_wall = time.thread_time(), time.perf_counter()
@@ -231,6 +242,8 @@ class LiveSession:
                 for b in self.aligner.flush():
                     self._process(b)
         finally:
+            if self.speed is not None:
+                self.speed.close()
             gc.unfreeze()
             sys.setswitchinterval(switch)
             self.source.stop()
@@ -262,6 +275,12 @@ class LiveSession:
             a0 = self._arrivals[e["k"] % len(self._arrivals)] if b.k0 + b.n - e["k"] < len(self._arrivals) else 0
             e["arrival_ns"] = int(a0)          # when the event's sample arrived (perf_counter ns; 0: unknown)
         self.hub.publish(out)                  # events go to the pages now (Hub.listeners), frames at the next tick
+        if self.speed is not None:
+            for side in self.speed.rings:
+                p = f"foot_{side}"
+                self.speed.add(side, b.gyr[p], b.acc[p])
+            for st in out.strides:
+                self.speed.stride_done(st["side"])
         now = time.perf_counter_ns()
         self.compute.add(np.array([now - t0]))
         ok = arr > 0
@@ -317,4 +336,5 @@ class LiveSession:
                 "latency": self.latency.summary(), "event_latency": self.event_latency.summary(),
                 "compute_per_batch": self.compute.summary(),
                 "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
-                "standing": self.engine.standing, "metrics": self.engine.metrics}
+                "standing": self.engine.standing, "metrics": self.engine.metrics,
+                **({"walking_speed": self.speed.current()} if self.speed is not None else {})}
