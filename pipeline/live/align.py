@@ -82,8 +82,8 @@ class ClockDrift:
         c, m = np.asarray(self._centres), np.asarray(self._minima)
         i, j = np.triu_indices(len(c), 1)
         rate = float(np.median((m[j] - m[i]) / (c[j] - c[i])))
-        if abs(rate) > self.max_rate:             # crystals are off by tens of ppm: this is no clock drift
-            self.implausible, rate = True, 0.0
+        if abs(rate) > self.max_rate or self.implausible:    # crystals are off by tens of ppm: a stream that
+            self.implausible, rate = True, 0.0                 # once ran faster than real time is no device clock
         if not self._fitted:       # the first estimate applies from the first sample (what accrued before it
             self._fitted = True    # is a few ms at most: one sample may repeat or be skipped, counted as such)
         else:                      # later ones from now on: continuous, so a new estimate never moves samples

@@ -337,4 +337,5 @@ class LiveSession:
                 "compute_per_batch": self.compute.summary(),
                 "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
                 "standing": self.engine.standing, "metrics": self.engine.metrics,
-                **({"walking_speed": self.speed.current()} if self.speed is not None else {})}
+                **({"walking_speed": {**self.speed.current(), "worker_cpu_s": round(self.speed.worker_cpu_s, 3),
+                                      "skipped": self.speed.skipped}} if self.speed is not None else {})}

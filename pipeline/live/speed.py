@@ -25,6 +25,14 @@ def last_stride_speed(gyr: np.ndarray, acc: np.ndarray, sampling_rate_hz: float)
     return float(v[-1]) if len(v) else float("nan")
 
 
+def _worker_call(gyr, acc, sampling_rate_hz):
+    """(speed, CPU seconds the worker spent): the worker's CPU is not in the session process's own CPU time."""
+    import time
+    c0 = time.process_time()
+    v = last_stride_speed(gyr, acc, sampling_rate_hz)
+    return v, time.process_time() - c0
+
+
 class LiveSpeed:
     """Per foot a ring of the last ``window_s`` of samples; :meth:`stride_done` asks the worker for the speed."""
 
@@ -38,6 +46,7 @@ class LiveSpeed:
         self.on_update = on_update
         self.pending = 0
         self.skipped = 0
+        self.worker_cpu_s = 0.0
         self._lock = threading.Lock()
         self._pool = None
 
@@ -69,17 +78,18 @@ class LiveSpeed:
                 self.skipped += 1
                 return
             self.pending += 1
-        fut = self._pool.submit(last_stride_speed, r[:, :3].copy(), r[:, 3:].copy(), self.fs)
+        fut = self._pool.submit(_worker_call, r[:, :3].copy(), r[:, 3:].copy(), self.fs)
         fut.add_done_callback(self._done)
 
     def _done(self, fut) -> None:
         with self._lock:
             self.pending -= 1
             try:
-                v = fut.result()
+                v, cpu = fut.result()
             except Exception:          # noqa: BLE001 - a failed estimate is no estimate; the session goes on
                 self.skipped += 1
                 return
+            self.worker_cpu_s += cpu
             if np.isfinite(v):
                 self.speeds.append(v)
         if self.on_update is not None:

@@ -7,8 +7,8 @@ source -> frame aligner -> engine -> hub, with the MCAP recorder writing into a 
 * ``speed_10x`` and ``speed_1x``: per-frame latency from the arrival of the frame's last sample to its joint
   angles being published (p50 / p99 / max), gait-event latency from the arrival of the event's sample to the
   event being published (it is known one sample later: at 10× one sample lasts 1 ms of wall time, at 1×
-  10 ms), CPU of the process (all threads: replay, engine, recorder) as % of one core over the session's
-  wall time, and samples dropped (the bounded input queue full);
+  10 ms), CPU of the process (all threads: replay, engine, recorder) and of the walking-speed worker process as %
+  of one core over the session's wall time, and samples dropped (the bounded input queue full);
   ``compute_ms_per_batch``: wall time of the engine and publishing per batch of frames (one frame at 1×): what
   the code costs; the rest of the latency is waiting to be scheduled;
 * ``memory``: ``--minutes`` of session time (the walk looped) at ``--speed-memory`` (default max): resident
@@ -62,7 +62,9 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
     src = ReplaySource(st, pl, speed=speed, minutes=minutes)
     rec = McapRecorder(inbox, name, pl, {"study": "bench", "participant": "B001", "session": f"B001-live-{name}",
                                          "kind": "lab", "trial": "live"})
-    session = LiveSession(src, pl, sampling_rate_hz=st.sampling_rate_hz, calibration=cal, recorder=rec)
+    # as `stridelab live` serves the page: with the live walking-speed estimate (its worker process) on
+    session = LiveSession(src, pl, sampling_rate_hz=st.sampling_rate_hz, calibration=cal, recorder=rec,
+                          speed_estimate=speed is not None)
     mem: list[tuple[float, float]] = []
     stop = threading.Event()
 
@@ -99,7 +101,9 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
            "compute_ms_per_batch": {k: round(v, 3) for k, v in summary["compute_per_batch"].items() if k != "n"},
            "n_batches": summary["compute_per_batch"]["n"],
            "sample_period_wall_ms": None if speed is None else round(1000.0 / fs / speed, 3),
-           "cpu_pct_one_core": round(100.0 * cpu / summary["wall_s"], 1),
+           "cpu_pct_one_core": round(100.0 * (cpu + summary.get("walking_speed", {}).get("worker_cpu_s", 0.0))
+                                     / summary["wall_s"], 1),
+           "walking_speed": summary.get("walking_speed"),
            "engine_thread_cpu_pct_one_core": round(100.0 * summary["engine_cpu_s"] / summary["wall_s"], 1),
            "samples_dropped": summary["samples_dropped"], "samples_lost": int(sum(summary["gaps"].values()))}
     if speed is not None:
