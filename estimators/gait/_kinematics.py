@@ -4,7 +4,8 @@ Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.traject
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
 → IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → events completed on the swings
-of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → TCs refined from the pitch
+of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → lifts that put the foot
+down where it was dropped (R6, ``drop_in_place_steps``; ``FootParams.min_step_m``) → TCs refined from the pitch
 minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → heel-strike ICs moved
 from the pitch maximum into the loading rotation (H1, ``refine_heel_strike``; ``FootParams.heel_strike_fraction``)
 → strides.
