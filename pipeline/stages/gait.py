@@ -406,5 +406,5 @@ def _session_status(statuses: dict, n_strides: dict) -> str:
     return "no_strides"
 
 
-STAGE = Stage(name="gait", version="4", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
+STAGE = Stage(name="gait", version="5", needs=(), tables=TABLES, session_kinds=("lab",), compute=compute,
               default_params=default_params)
