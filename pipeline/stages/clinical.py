@@ -15,70 +15,16 @@ participant entry; unknown = no paretic ratios (symmetry ratios still).
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
+from estimators.gait.clinical import ClinicalParams   # the stage's parameters are the estimator's (units in names)
+from pipeline.stages._clinical_inputs import SIDES, concat_phases, foot_inputs, foot_xy, paretic_side
 from pipeline.stages._shape import StageContext, shaped_stage
 
-SIDES = ("left", "right")
 TABLES = ("clinical_steps", "clinical_measures", "accuracy_metrics")
 ESTIMATOR = "clinical_v1"
 PHASE_COLUMNS = ("stride_time_s", "stance_time_s", "swing_time_s", "step_time_s", "step_length_m", "single_support_s",
                  "ds_initial_s", "ds_terminal_s", "double_support_pct", "stride_length_m")
-
-
-def _clinical_defaults():
-    from estimators.gait.clinical import ClinicalParams
-    return ClinicalParams
-
-
-ClinicalParams = _clinical_defaults()     # the stage's parameters are the estimator's (units in their names)
-
-
-def paretic_side(ctx: StageContext) -> tuple[str | None, str]:
-    """(side, where it came from) from the session metadata, else the study manifest, else (None, '')."""
-    sides = {str(r.get("metadata", {}).get("paretic_side")).lower() for r in ctx.recordings
-             if r.get("metadata", {}).get("paretic_side")}
-    if len(sides) == 1 and sides <= set(SIDES):
-        return sides.pop(), "session metadata"
-    if len(sides) > 1:
-        return None, "recordings disagree on paretic_side"
-    from pipeline.config import study_manifest
-    for p in study_manifest(ctx.session.get("study") or "").get("participants", []):
-        if str(p.get("id")) == str(ctx.session.get("participant_id")) and p.get("paretic_side") in SIDES:
-            return p["paretic_side"], "study manifest"
-    return None, ""
-
-
-def _s(ns, t0: int) -> np.ndarray:
-    return (np.asarray([np.nan if v is None else v for v in ns], float) - t0) / 1e9
-
-
-def _foot_inputs(strides: list[dict], events: list[dict], xy_at, t0: int):
-    """(strides sorted by IC, FootStrides, FootEvents) of one foot of one recording; ``xy_at(ns list) -> (n, 2)``."""
-    from estimators.gait.clinical import FootEvents, FootStrides
-    strides = sorted(strides, key=lambda r: r["ic_ns"])
-    mids = sorted({r["start_ns"] for r in strides} | {r["end_ns"] for r in strides})
-    st = FootStrides(pre_ic_s=_s([r["pre_ic_ns"] for r in strides], t0), tc_s=_s([r["tc_ns"] for r in strides], t0),
-                     ic_s=_s([r["ic_ns"] for r in strides], t0),
-                     stride_length_m=np.array([np.nan if r["stride_length_m"] is None else r["stride_length_m"]
-                                               for r in strides], float),
-                     turning_deg=np.array([r["turning_deg"] or 0.0 for r in strides], float),
-                     start_xy=xy_at([r["start_ns"] for r in strides]), end_xy=xy_at([r["end_ns"] for r in strides]))
-    ev = FootEvents(ic_s=np.sort(_s([e["t_ns"] for e in events if e["type"] == "IC"], t0)),
-                    tc_s=np.sort(_s([e["t_ns"] for e in events if e["type"] == "TC"], t0)),
-                    mid_s=_s(mids, t0), mid_xy=xy_at(mids))
-    return strides, st, ev
-
-
-def _concat(parts: list):
-    from estimators.gait.clinical import StepPhases
-    if not parts:
-        z = np.zeros(0)
-        return StepPhases(*([z] * 12), used=np.zeros(0, bool), reason=np.zeros(0, str))
-    return StepPhases(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                         for f in dataclasses.fields(StepPhases)})
 
 
 def _num(x):
@@ -86,31 +32,7 @@ def _num(x):
     return x if np.isfinite(x) else None
 
 
-def _foot_xy(ctx: StageContext, rec: dict, side: str, sd: list[dict], cp, k: dict, notes: list):
-    """``xy_at`` of one foot (its trajectory in the walking frame, scaled by ``k[side]`` when called) and the
-    lengths of its steady straight strides (:func:`equal_stride_scale`), or (NaN lookup, None) without one."""
-    from estimators.gait.clinical import positions_at, walking_frame_xy
-    tr = [r for r in ctx.upstream.get("foot_trajectories", []) if r["content_hash"] == rec["content_hash"]
-          and r["side"] == side]
-    if not tr:
-        return (lambda q: np.full((len(q), 2), np.nan)), None
-    t = ctx.read_table(tr[0]["series_path"], ["t_ns", "px", "py", "stance"])
-    t_ns = t.column("t_ns").to_numpy()
-    xy = np.column_stack([t.column("px").to_numpy(), t.column("py").to_numpy()])
-    axy, n = walking_frame_xy(t_ns, xy, t.column("stance").to_numpy(zero_copy_only=False),
-                              [r["start_ns"] for r in sd], [r["end_ns"] for r in sd],
-                              [r["turning_deg"] or 0.0 for r in sd], max_turn_deg=cp.max_turn_deg)
-    notes += [f"{rec['trial']} foot_{side}: {x}" for x in n]
-    # steady strides of the stretch whose steps are measured: a previous IC, before the first turn, not the first
-    # stride (gait initiation)
-    steady = sorted(sd, key=lambda r: r["ic_ns"])
-    stop = next((i for i, r in enumerate(steady) if abs(r["turning_deg"] or 0.0) > cp.max_turn_deg), len(steady))
-    lengths = [r["stride_length_m"] for r in steady[1:stop] if r["stride_length_m"] is not None
-               and r["pre_ic_ns"] is not None]
-    return (lambda q: positions_at(t_ns, axy, q) * k[side]), lengths
-
-
-def compute(ctx: StageContext, cp) -> None:
+def compute(ctx: StageContext, cp: ClinicalParams) -> None:
     from estimators.gait.clinical import clinical_summary, equal_stride_scale, step_phases
     sid, up = ctx.session_id, ctx.upstream
     if not up.get("strides"):
@@ -130,13 +52,13 @@ def compute(ctx: StageContext, cp) -> None:
               for side in SIDES}
         xy_at, scale = {}, {}
         for side in SIDES:
-            xy_at[side], lengths = _foot_xy(ctx, rec, side, sd[side], cp, k, notes)
+            xy_at[side], lengths = foot_xy(ctx, rec, side, sd[side], cp, k, notes)
             if lengths is not None:
                 scale[side] = lengths
         if len(scale) == 2:
             for side, other in (("left", "right"), ("right", "left")):
                 k[side] = equal_stride_scale(scale[side], scale[other])
-        feet = {side: _foot_inputs(sd[side], ev[side], xy_at[side], t0) for side in SIDES}
+        feet = {side: foot_inputs(sd[side], ev[side], xy_at[side], t0) for side in SIDES}
         for side, other in (("left", "right"), ("right", "left")):
             rows_sd, st, _ = feet[side]
             ph = step_phases(st, feet[other][2], params=cp)
@@ -151,7 +73,7 @@ def compute(ctx: StageContext, cp) -> None:
                      "used": bool(ph.used[i]), "reason": str(ph.reason[i])} for i, r in enumerate(rows_sd)]
             ctx.emit("clinical_steps", rows)
             ctx.found.append((rec, side, t0, sd, ev, ph, rows))
-    summ = clinical_summary(_concat(phases["left"]), _concat(phases["right"]), paretic_side=side_p, params=cp)
+    summ = clinical_summary(concat_phases(phases["left"]), concat_phases(phases["right"]), paretic_side=side_p, params=cp)
     note = "; ".join(dict.fromkeys(notes + list(summ.notes))) or None
     if ctx.rows.get("clinical_steps"):
         ctx.emit("clinical_measures", [{
@@ -167,7 +89,7 @@ def compute(ctx: StageContext, cp) -> None:
     ctx.set_note(f"clinical {status}" + (f" (paretic side: {side_p}, {source})" if side_p else ""))
 
 
-def score(ctx: StageContext, cp) -> None:
+def score(ctx: StageContext, cp: ClinicalParams) -> None:
     """Step lengths from the optical positions of both feet (same definitions, C6) beside the IMU ones."""
     from estimators.gait.clinical import positions_at, step_phases
     from estimators.gait.evaluation import paired_errors
@@ -176,7 +98,7 @@ def score(ctx: StageContext, cp) -> None:
         if rec["content_hash"] not in refs:
             ref = {s: ctx.reference_pose(rec, f"foot_{s}", ("px", "py")) for s in SIDES}
             refs[rec["content_hash"]] = None if any(v is None for v in ref.values()) else {
-                s: _foot_inputs(sd[s], ev[s], lambda q, r=r: positions_at(r[0], r[1], q), t0) for s, r in ref.items()}
+                s: foot_inputs(sd[s], ev[s], lambda q, r=r: positions_at(r[0], r[1], q), t0) for s, r in ref.items()}
         feet = refs[rec["content_hash"]]
         if feet is None:
             continue

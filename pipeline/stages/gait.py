@@ -15,8 +15,6 @@ stance or strides gets a summary row with that status and a note, never invented
 """
 from __future__ import annotations
 
-import dataclasses
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,13 +24,13 @@ from estimators.gait.evaluation import EVENT_TOLERANCE_S
 from estimators.timebase import contiguous_segments
 from estimators.trajectory import UNKNOWN_GEOMETRY_CALIB_VAR, DuongSuhParams
 from pipeline.stages import _gait_score as sc
+from pipeline.stages._gait_ranges import range_trajectory, read_ranges
 from pipeline.stages._gait_rows import SIDES, foot_rows, num, session_status, summary_rows, trajectory_table
 from pipeline.stages._shape import StageContext, shaped_stage
 
 CALIBRATION_TRIAL = "calibration"
 ESTIMATOR = sc.ESTIMATOR
 TABLES = ("gait_events", "strides", "gait_summary", "foot_trajectories", "accuracy_metrics", "accuracy_pairs")
-_RANGE_NAME = re.compile(r"range-([A-Za-z0-9]+)-")
 
 
 @dataclass(frozen=True)
@@ -65,41 +63,6 @@ class _Found:
     notes: list = field(default_factory=list)
     statuses: dict = field(default_factory=lambda: {side: [] for side in SIDES})
     session: object = None
-
-
-def read_ranges(ctx: StageContext, rec: dict, placement: str, t_ns: np.ndarray) -> np.ndarray | None:
-    """(N, 2) m on the IMU grid (columns A, B; NaN where no reading falls on that sample; +inf kept: beyond the
-    maximum, REP-117), or None when the foot has no distance sensor. A reading goes to the nearest IMU sample
-    within half a sample period."""
-    keys = sorted(k for k in rec["sensors"].get(placement, {}) if k.startswith("range:"))
-    if not keys or len(t_ns) < 2:
-        return None
-    out = np.full((len(t_ns), 2), np.nan)
-    half = (t_ns[-1] - t_ns[0]) / (len(t_ns) - 1) / 2
-    for j, key in enumerate(keys[:2]):
-        m = _RANGE_NAME.search(key)
-        col = {"A": 0, "B": 1}.get(m.group(1).upper(), j) if m else j
-        t = ctx.read_table(rec["sensors"][placement][key]["series_path"], ["t_ns", "range_m"])
-        tr, rv = t.column("t_ns").to_numpy(), t.column("range_m").to_numpy()
-        i = np.clip(np.searchsorted(t_ns, tr), 1, len(t_ns) - 1)
-        i = np.where(np.abs(t_ns[i - 1] - tr) <= np.abs(t_ns[i] - tr), i - 1, i)
-        ok = np.abs(t_ns[i] - tr) <= half
-        out[i[ok], col] = rv[ok]
-    return out
-
-
-def range_trajectory(gyr, acc, ranges, fs: float, placement: str, dp: DistanceSensorParams):
-    """The Duong & Suh filter of one foot segment with the configured or guessed geometry; (result, source)."""
-    from estimators.trajectory import RangeGeometry, detect_zupt, duong_suh_trajectory, geometry_from_stance
-    fp, g = dp.filter, (dp.geometry or {}).get(placement)
-    if g is not None:
-        return duong_suh_trajectory(gyr, acc, ranges, sampling_rate_hz=fs, params=fp,
-                                    geometry=RangeGeometry(**{k: tuple(v) for k, v in g.items()})), "configured"
-    geo = geometry_from_stance(acc, detect_zupt(gyr, acc, sampling_rate_hz=fs, params=fp.zupt))
-    fp = dataclasses.replace(fp, init_calib_var=float(dp.unknown_geometry_calib_var))
-    if geo is None:
-        return duong_suh_trajectory(gyr, acc, ranges, sampling_rate_hz=fs, params=fp), "unknown"
-    return duong_suh_trajectory(gyr, acc, ranges, sampling_rate_hz=fs, geometry=geo, params=fp), "guessed"
 
 
 def walking_recordings(recordings: list[dict]) -> list[dict]:
