@@ -65,6 +65,8 @@ class Stage:
     compute: Callable[[SessionInput, dict], StageOutput]
     default_params: Callable[[], dict]
     opt_in_kinds: tuple[str, ...] = ()
+    #: the frozen parameter class of a stage in the shape of :mod:`pipeline.stages._shape` (None for a bare Stage)
+    params_cls: type | None = None
 
 
 def canonical_json(obj) -> str:

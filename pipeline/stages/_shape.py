@@ -90,4 +90,5 @@ def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageCo
 
     return Stage(name=name, version=version, needs=tuple(needs), tables=tuple(tables),
                  session_kinds=tuple(session_kinds), compute=run,
-                 default_params=lambda: params_to_dict(params_cls()), opt_in_kinds=tuple(opt_in_kinds))
+                 default_params=lambda: params_to_dict(params_cls()), opt_in_kinds=tuple(opt_in_kinds),
+                 params_cls=params_cls)
