@@ -113,3 +113,26 @@ def test_series_keys_and_params_columns_come_from_the_stamped_dict(lab):
     assert all(r["series_path"].endswith(f"-{params_hash(params)[:12]}.parquet") for r in rows)
     assert params_hash(params) != params_hash(orientation.STAGE.default_params())
     assert np.isfinite([r["sampling_rate_hz"] for r in rows]).all()
+
+
+def test_the_study_manifest_is_checked_against_the_params_class(tmp_path, monkeypatch):
+    from pipeline import config
+    d = tmp_path / "s1"
+    d.mkdir()
+    (d / "study.toml").write_text('[stages.gait]\nmin_segment_s = 3.0\n[stages.gait.distance_sensors]\nuse = false\n'
+                                  'fliter = {}\n')
+    monkeypatch.setenv("STRIDELAB_STUDIES", str(tmp_path))
+    config.study_manifest.cache_clear()
+    gait = next(s for s in registry() if s.name == "gait")
+    try:
+        with pytest.raises(ValueError, match=r"study s1: \[stages\.gait\] GaitParams\.distance_sensors: unknown "
+                                             r"parameter\(s\) fliter; known: .*filter"):
+            config.stage_params("s1", "gait", gait.default_params())
+        (d / "study.toml").write_text('[stages.gait]\nmin_segment_s = 3.0\n[stages.gait.distance_sensors]\n'
+                                      'use = false\n')
+        config.study_manifest.cache_clear()
+        p = config.stage_params("s1", "gait", gait.default_params())
+        assert p["min_segment_s"] == 3.0 and p["distance_sensors"] == {"use": False}
+        assert params_from_dict(gait.params_cls, p).distance_sensors.filter == gait.params_cls().distance_sensors.filter
+    finally:
+        config.study_manifest.cache_clear()
