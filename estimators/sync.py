@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ClockFit", "clock_fit", "common_grid", "interp_columns", "nlerp", "to_clock_of"]
+__all__ = ["ClockFit", "clock_fit", "common_grid", "interp_columns", "nearest_sample", "nlerp", "to_clock_of"]
 
 #: (t0 ns, offset ns at t0, rate ns/ns) of ``log - t = offset + rate (t - t0)``
 ClockFit = tuple[float, float, float]
@@ -60,3 +60,12 @@ def nlerp(t_src: np.ndarray, q: np.ndarray, t_dst: np.ndarray) -> np.ndarray:
     q[flip] *= -1                                   # sign continuity before interpolating
     out = np.column_stack([np.interp(t_dst, t_src, q[:, k]) for k in range(4)])
     return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def nearest_sample(t_grid: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each stamp ``t`` (int64 ns) the index of the nearest sample of the regular grid ``t_grid`` (N ≥ 2) and
+    whether it lies within half a mean grid period of it (readings of a slower sensor onto an IMU's samples)."""
+    half = (t_grid[-1] - t_grid[0]) / (len(t_grid) - 1) / 2
+    i = np.clip(np.searchsorted(t_grid, t), 1, len(t_grid) - 1)
+    i = np.where(np.abs(t_grid[i - 1] - t) <= np.abs(t_grid[i] - t), i - 1, i)
+    return i, np.abs(t_grid[i] - t) <= half

@@ -48,7 +48,7 @@ import numpy as np
 __all__ = ["ClinicalParams", "FootEvents", "FootStrides", "StepPhases", "Measure", "ClinicalSummary",
            "step_phases", "clinical_summary", "common_walking_frame", "walking_direction", "equal_stride_scale",
            "mdc95", "change_mdc95", "ChangeMdc", "PublishedMdc", "PUBLISHED_MDC95", "repeated_baseline_sem",
-           "SIDE_MEASURES", "SESSION_MEASURES", "positions_at", "walking_frame_xy"]
+           "SIDE_MEASURES", "SESSION_MEASURES", "positions_at", "walking_frame_xy", "straight_stride_lengths"]
 
 #: per-side measures: name -> unit
 SIDE_MEASURES = {"step_length_m": "m", "step_time_s": "s", "swing_time_s": "s", "stance_time_s": "s",
@@ -488,3 +488,18 @@ def walking_frame_xy(t_ns: np.ndarray, xy: np.ndarray, stance: np.ndarray, start
         stop = b if not len(turns) else int(np.searchsorted(t_ns, start_ns[sel][turns[0]], side="right"))
         out[a:stop] = (xy[a:stop] - xy[a]) @ M.T
     return out, notes
+
+
+def straight_stride_lengths(ic_s: np.ndarray, stride_length_m: np.ndarray, turning_deg: np.ndarray,
+                            has_previous_ic: np.ndarray, *, max_turn_deg: float) -> np.ndarray:
+    """Lengths (m) of one foot's steady straight strides, the input of :func:`equal_stride_scale` (C6): in IC
+    order, the strides before the first turning one (|turning| > ``max_turn_deg``, where the step lengths stop),
+    without the first stride (gait initiation), with a previous IC and a finite length."""
+    order = np.argsort(np.asarray(ic_s), kind="stable")
+    L, turn = np.asarray(stride_length_m, float)[order], np.asarray(turning_deg, float)[order]
+    prev = np.asarray(has_previous_ic, bool)[order]
+    turns = np.flatnonzero(np.abs(turn) > max_turn_deg)
+    stop = int(turns[0]) if len(turns) else len(L)
+    keep = np.zeros(len(L), bool)
+    keep[1:stop] = True
+    return L[keep & prev & np.isfinite(L)]

@@ -60,7 +60,7 @@ def concat_phases(parts: list):
 def foot_xy(ctx: StageContext, rec: dict, side: str, sd: list[dict], cp, k: dict, notes: list):
     """``xy_at`` of one foot (its trajectory in the walking frame, scaled by ``k[side]`` when called) and the
     lengths of its steady straight strides (:func:`equal_stride_scale`), or (NaN lookup, None) without one."""
-    from estimators.gait.clinical import positions_at, walking_frame_xy
+    from estimators.gait.clinical import positions_at, straight_stride_lengths, walking_frame_xy
     tr = [r for r in ctx.upstream.get("foot_trajectories", []) if r["content_hash"] == rec["content_hash"]
           and r["side"] == side]
     if not tr:
@@ -72,10 +72,8 @@ def foot_xy(ctx: StageContext, rec: dict, side: str, sd: list[dict], cp, k: dict
                               [r["start_ns"] for r in sd], [r["end_ns"] for r in sd],
                               [r["turning_deg"] or 0.0 for r in sd], max_turn_deg=cp.max_turn_deg)
     notes += [f"{rec['trial']} foot_{side}: {x}" for x in n]
-    # steady strides of the stretch whose steps are measured: a previous IC, before the first turn, not the first
-    # stride (gait initiation)
-    steady = sorted(sd, key=lambda r: r["ic_ns"])
-    stop = next((i for i, r in enumerate(steady) if abs(r["turning_deg"] or 0.0) > cp.max_turn_deg), len(steady))
-    lengths = [r["stride_length_m"] for r in steady[1:stop] if r["stride_length_m"] is not None
-               and r["pre_ic_ns"] is not None]
+    lengths = straight_stride_lengths(np.array([r["ic_ns"] for r in sd], np.int64),
+                                      [np.nan if r["stride_length_m"] is None else r["stride_length_m"] for r in sd],
+                                      [r["turning_deg"] or 0.0 for r in sd], [r["pre_ic_ns"] is not None for r in sd],
+                                      max_turn_deg=cp.max_turn_deg)
     return (lambda q: positions_at(t_ns, axy, q) * k[side]), lengths

@@ -20,17 +20,14 @@ def read_ranges(ctx: StageContext, rec: dict, placement: str, t_ns: np.ndarray) 
     keys = sorted(k for k in rec["sensors"].get(placement, {}) if k.startswith("range:"))
     if not keys or len(t_ns) < 2:
         return None
+    from estimators.sync import nearest_sample
     out = np.full((len(t_ns), 2), np.nan)
-    half = (t_ns[-1] - t_ns[0]) / (len(t_ns) - 1) / 2
     for j, key in enumerate(keys[:2]):
         m = _RANGE_NAME.search(key)
         col = {"A": 0, "B": 1}.get(m.group(1).upper(), j) if m else j
         t = ctx.read_table(rec["sensors"][placement][key]["series_path"], ["t_ns", "range_m"])
-        tr, rv = t.column("t_ns").to_numpy(), t.column("range_m").to_numpy()
-        i = np.clip(np.searchsorted(t_ns, tr), 1, len(t_ns) - 1)
-        i = np.where(np.abs(t_ns[i - 1] - tr) <= np.abs(t_ns[i] - tr), i - 1, i)
-        ok = np.abs(t_ns[i] - tr) <= half
-        out[i[ok], col] = rv[ok]
+        i, ok = nearest_sample(t_ns, t.column("t_ns").to_numpy())
+        out[i[ok], col] = t.column("range_m").to_numpy()[ok]
     return out
 
 
