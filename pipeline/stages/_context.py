@@ -47,7 +47,8 @@ class StageContext:
     raw_params: dict = field(default_factory=dict)
     rows: dict[str, list[dict]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    #: what ``compute`` found, handed to the ``score`` step (estimator results, never table rows)
+    #: what ``compute`` found, handed to the ``score`` / ``finish`` steps: estimator results, and the emitted rows a
+    #: score step fills a reference column of (``strides.stride_length_ref_m``, ``clinical_steps.step_length_ref_m``)
     found: list = field(default_factory=list)
     final_note: str | None = None
     skipped: str | None = None

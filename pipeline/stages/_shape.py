@@ -8,9 +8,10 @@ A stage in this shape is one small module::
         min_bout_s: float = 10.0
 
     def compute(ctx: StageContext, p: MyParams) -> None:      # calls estimators, shapes table rows
-        for rec, imu in ctx.imus():
+        for imu in ctx.imus():
             ...
             ctx.emit("my_table", rows)
+            ctx.found.append(...)                             # what the score step needs
 
     def score(ctx: StageContext, p: MyParams) -> None:        # optional: against the session's references,
         ...                                                   # with the one scorer of the quantity
@@ -20,8 +21,10 @@ A stage in this shape is one small module::
 
 :func:`shaped_stage` adapts it onto the runner's :class:`pipeline.stages.Stage` (``compute(SessionInput, dict)
 -> StageOutput``; parameters as a JSON dict so the stamp and the ledger are unchanged): the dict is turned into
-the frozen parameter class (nested dataclasses included), a session without the declared placements is
-``skipped`` with a note naming what it has, and a row for a table the stage did not declare is refused.
+the frozen parameter class (nested dataclasses included; an unknown key refused naming its place), a session
+without the declared placements is ``skipped`` with a note naming what it has (a stage without declared
+placements decides itself: ``ctx.skip(why)``), and a row for a table the stage did not declare is refused. Every
+stage of :func:`pipeline.stages.registry` is written this way (docs/architecture.md).
 """
 from __future__ import annotations
 
