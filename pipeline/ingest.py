@@ -73,6 +73,7 @@ class Prepared:
     display_name: str = ""                   # the file's own name, for the console only (never stored)
     console_reason: str = ""                 # the refusal as the operator needs it (topic names as in the file,
                                              # e.g. for --skip-topic); console only, never stored (``reason`` is)
+    live_outputs: list[dict] = field(default_factory=list)   # a `stridelab live` recording's live outputs (014)
 
 
 def check_session_metadata(meta: dict[str, dict[str, str]], warehouse_root=None,
@@ -458,6 +459,11 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
                 out.n_samples += s.n
         out.start_ns = min(s.t0 for s in imu)
         out.end_ns = max(s.last_t for s in imu)
+        if path.is_file() and any(t.startswith("/live/") for t in res.ignored_topics):
+            from pipeline.live import stored as _live          # a `stridelab live` recording: its live outputs
+            out.live_outputs = _live.store_live_outputs(path, series_root or root, session, res.sha256,
+                                                        out.settings_hash)
+            out.skipped_topics = [d for d in out.skipped_topics if d["topic"] not in _live.JSON_TOPICS]
         out.ignored_topics = sorted({privacy.shown_topic(t) for t in set(out.ignored_topics) | set(res.ignored_topics)})
         by_key = {placement_of[t]: s for t, s in ((s.topic, s) for s in mapped.values())}
         out.sample_hash = sample_hash(by_key)
@@ -635,7 +641,7 @@ def _supersede_same_file(con, p: Prepared, why: str, now) -> str:
     con.execute("INSERT INTO superseded_ingests VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 [p.content_hash, old[0] or DEFAULT_SETTINGS_HASH, old[1], old[2], old[3], old[4],
                  json.dumps(sensors), old[5], now, f"ingested again with {why}"])
-    for t in ("sensors", "recording_issues", "reference_events", "recordings"):
+    for t in ("sensors", "recording_issues", "reference_events", "recordings", "live_outputs"):
         con.execute(f'DELETE FROM "{t}" WHERE content_hash = ?', [p.content_hash])
     sid = old[3]
     if sid is not None:
@@ -751,6 +757,9 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                   "end_ns": p.end_ns, "n_samples": p.n_samples, "ingested_at": now, **extra,
                                   **({"sample_hash": p.sample_hash} if p.sample_hash else {})}])
         wh.insert("sensors", [dict(r, content_hash=p.content_hash) for r in p.sensors])
+        if p.live_outputs and wh.has_column("live_outputs", "series_path"):
+            wh.insert("live_outputs", [dict(r, content_hash=p.content_hash, session_id=s["session"])
+                                       for r in p.live_outputs])
         wh.insert("recording_issues", [dict(r, content_hash=p.content_hash) for r in p.issues])
         wh.insert("reference_events", [{
             "content_hash": p.content_hash, "session_id": s["session"], "t_ns": int(e["t_ns"]),

@@ -292,6 +292,9 @@ def _session_inputs(wh: Warehouse, session_id: str, stage: Stage) -> SessionInpu
                      "metadata": json.loads(meta) if meta else {}})
     upstream = {}
     stages = {s.name: s for s in registry()}
+    for t in stage.reads:                       # catalog tables the ingest writes that the stage reads
+        q = con.execute(f'SELECT * FROM "{t}" WHERE session_id = ?', [session_id])
+        upstream[t] = [dict(zip([d[0] for d in q.description], r)) for r in q.fetchall()]
     for need in stage.needs:
         for t in stages[need].tables:
             q = con.execute(f'SELECT * FROM "{t}" WHERE session_id = ?', [session_id])
@@ -413,7 +416,7 @@ def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, fail
     items, why = [], {}
     for session_id, study, kind in sessions:
         wanted = why_wanted(stage, kind, study, stages)
-        if wanted is None:
+        if wanted is None or (stage.applies is not None and not stage.applies(wh.con, session_id)):
             continue
         if session_id in failed_sessions and stage.needs:
             continue

@@ -44,7 +44,7 @@ def supersede(con, old: list[tuple[str, str, str]], p, emptied: set[str]) -> lis
     for h, name, sid in old:
         con.execute("UPDATE recordings SET status = 'superseded', reason = ? WHERE content_hash = ?",
                     [f"superseded by {p.file_name} (sha256 {p.content_hash[:12]}…) with --replace", h])
-        for t in ("sensors", "recording_issues", "reference_events"):
+        for t in ("sensors", "recording_issues", "reference_events", "live_outputs"):
             con.execute(f'DELETE FROM "{t}" WHERE content_hash = ?', [h])
     for sid in emptied:
         for t in _output_tables(con):         # stage outputs and stage_state of the emptied session

@@ -765,9 +765,14 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
 @click.option("--audio", is_flag=True, help="Cue with sound as well.")
 @click.option("--duration", "duration_s", type=float, default=None,
               help="OSC: stop after this many seconds without packets.")
+@click.option("--walking-speed", "walking_speed", type=click.FloatRange(0.05, 3.0), default=None, metavar="M_S",
+              help="Walking speed for the normative bands (a treadmill's belt speed); default: estimated live.")
+@click.option("--leg-length", "leg_length", type=click.FloatRange(0.4, 1.3), default=None, metavar="M",
+              help="Leg length of the participant (m), to scale speed (default 0.90 m, shown as assumed).")
 @click.option("--json", "as_json", is_flag=True, help="Print the session summary as JSON.")
 def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibration, calibration_from, participant,
-         inbox, name, no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, as_json) -> None:
+         inbox, name, no_record, recover, compare, host, port, no_serve, cue, audio, duration_s, walking_speed,
+         leg_length, as_json) -> None:
     """Real-time session: IMU streams -> joint angles and gait events per sample, a biofeedback page
     (therapist: /, patient: /patient) and the session recorded to the inbox as it arrives.
 
@@ -782,7 +787,7 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibrat
     from pipeline.config import default_inbox
     from pipeline.console import UserError
     from pipeline.live.command import print_summary, run_live
-    from reports.normative import normative_band     # the CLI is the one place that wires every layer
+    from reports.normative import DEFAULT_LEG_LENGTH_M, speed_band_table   # the CLI wires every layer
     inbox = Path(inbox) if inbox else default_inbox()
     if recover:
         from pipeline.live.recorder import recover as _recover
@@ -813,18 +818,16 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibrat
                     click.echo(f"{side} {typ}: {m['matched']} of {m['live']} live / {m['offline']} offline matched, "
                                f"live - offline {m['mean_ms']} ± {m['sd_ms']} ms")
         return
-    bands = {}
-    for j in ("hip", "knee"):
-        pct, mean, sd = normative_band(j)
-        bands[j] = {"pct": pct.tolist(), "mean": mean.tolist(), "sd": sd.tolist()}
+    bands = {**speed_band_table(("hip", "knee")), "leg_length_m": leg_length or DEFAULT_LEG_LENGTH_M,
+             "leg_length_assumed": leg_length is None, "walking_speed_m_s": walking_speed}
     try:
         summary = run_live(replay=replay, speed=speed, minutes=minutes, osc=osc, osc_host=osc_host,
                            osc_rate_hz=osc_rate_hz, osc_clock=osc_clock, calibration=calibration,
                            calibration_from=calibration_from,
                            participant=participant, inbox=inbox, name=name, record=not no_record, host=host,
                            port=port, serve=not no_serve, cue=cue, audio=audio, bands=bands, duration_s=duration_s,
-                           band_note="grey: adult normative band at self-selected speed (reports/normative.py; "
-                                     "not speed-matched)",
+                           band_note="grey: normative band matched to the walking speed (Schwartz et al. 2008, "
+                                     "reports/normative.py)", speed_estimate=walking_speed is None,
                            on_ready=lambda url, src: url and click.echo(f"live page: {url}  (patient: {url}patient)",
                                                                         err=True))
     except ValueError as e:

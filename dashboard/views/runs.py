@@ -37,6 +37,30 @@ if snap is not None:
                 st.subheader("Errors")
                 for _, r in failed.head(50).iterrows():
                     st.error(f"{r['stage']} · {r['session_id']} · run {r['run_id']}: {r['error']}", icon=":material/error:")
+    live = snap.q(Q.live_agreement)
+    if not live.empty:
+        st.subheader("Live sessions beside the nightly")
+        st.caption("What `stridelab live` computed during a session against the nightly run on the same recording "
+                   "and calibration. **online filter**: the same online estimators rerun over the whole recording "
+                   "(causal, so equal up to rounding); **offline smoothed**: the nightly's own outputs (offline "
+                   "orientation, its standing offset, the gait stage's events): the price of computing live. "
+                   "docs/live.md")
+        sid = st.selectbox("Live session", sorted(live["session_id"].unique()), key="live_session")
+        one = live[live["session_id"] == sid]
+        ang = one[one["quantity"] == "joint_angle"]
+        if not ang.empty:
+            t = ang.pivot_table(index="key", columns=["comparison", "metric"], values="value", aggfunc="first")
+            t.columns = [f"{c} · {m}" for c, m in t.columns]
+            st.markdown("**Joint angles (deg)**")
+            st.dataframe(t.reset_index().rename(columns={"key": "joint"}), hide_index=True, key="live_angles")
+        ev = one[one["quantity"] == "event"]
+        if not ev.empty:
+            t = ev.pivot_table(index="key", columns=["comparison", "metric"], values="value", aggfunc="first")
+            t.columns = [f"{c} · {m}" for c, m in t.columns]
+            st.markdown("**Gait events (live − other, ms; matched within 0.5 s)**")
+            st.dataframe(t.reset_index().rename(columns={"key": "foot · event"}), hide_index=True, key="live_events")
+        with st.expander("Per stride and joint plane"):
+            st.dataframe(snap.q(Q.live_agreement_strides, sid), hide_index=True, key="live_strides")
     skipped = snap.q(Q.skipped_topics)
     if not skipped.empty:
         st.subheader("Skipped topics")

@@ -12,7 +12,8 @@ import numpy as np
 from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from estimators.trunk_gait._gsd import detect_gait_sequences
 from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
-from estimators.trunk_gait._spatial import hampel, step_lengths, vertical_position
+from estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, turn_shortened,
+                                            vertical_position)
 from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
@@ -97,6 +98,8 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
         pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
+        if p.sl_turn_per_rad > 0 and len(sl):
+            sl = turn_shortened(sl, step_heading_change(gb[:, 1], fs_hz, peaks), p.sl_turn_per_rad)
         if p.sl_hampel_half_width > 0 and len(sl):
             # a step is only compared with steps of the same run; a step across a pause (two runs) stands alone
             same = runs[1:] == runs[:-1]

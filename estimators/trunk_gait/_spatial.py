@@ -76,3 +76,41 @@ def step_lengths(pos: np.ndarray, ic_idx: np.ndarray, leg_length_m: float, corre
     h = (np.maximum.reduceat(d, idx) - np.minimum.reduceat(d, idx))[:-1]       # excursion over [IC_i, IC_i+1)
     h = np.minimum(h, leg_length_m)
     return correction * 2.0 * np.sqrt(np.maximum(2.0 * leg_length_m * h - h * h, 0.0))
+
+
+def step_heading_change(yaw_rate: np.ndarray, fs_hz: float, ic_idx: np.ndarray) -> np.ndarray:
+    """(K-1,) heading change, rad, attributed to each step between consecutive initial contacts.
+
+    ``yaw_rate``: (N,) angular rate about the vertical, rad/s. The pelvis turns back and forth once per stride
+    (about ±5° in straight walking), so a single step's heading change is mostly that sway; over a whole stride
+    it cancels. Each step therefore gets half the heading change of the strides that contain it (the mean of
+    [IC_i-1, IC_i+1] and [IC_i, IC_i+2] where they exist; a lone step keeps its own change)."""
+    idx = np.asarray(ic_idx, np.int64)
+    k = len(idx)
+    if k < 2:
+        return np.empty(0)
+    psi = np.concatenate([[0.0], np.cumsum(np.asarray(yaw_rate, float)) / fs_hz])
+    h = psi[np.clip(idx, 0, len(yaw_rate))]              # heading at each contact (rad, arbitrary origin)
+    if k == 2:
+        return np.array([h[1] - h[0]])
+    stride = (h[2:] - h[:-2]) / 2.0                       # stride j covers steps j and j+1 (K-2 strides)
+    acc = np.zeros(k - 1)
+    cnt = np.zeros(k - 1)
+    acc[:-1] += stride
+    cnt[:-1] += 1
+    acc[1:] += stride
+    cnt[1:] += 1
+    return acc / cnt
+
+
+def turn_shortened(step_m: np.ndarray, heading_change_rad: np.ndarray, per_rad: float) -> np.ndarray:
+    """Step lengths of turning steps shortened: ``step / (1 + per_rad · |Δψ|)``.
+
+    The pendulum model assumes straight progression: in a turn the feet take short, partly sideways or pivoting
+    steps while the trunk still rises and falls by nearly a full step's excursion, so Eq. 1 overestimates them
+    (on the Voisard U-turns by a median of about 29 % relative to straight strides; docs/trunk_gait.md).
+    ``per_rad`` (``sl_turn_per_rad``) is an empirical factor chosen by cross-validation (no published value);
+    0 turns the correction off."""
+    if per_rad <= 0:
+        return np.asarray(step_m, float)
+    return np.asarray(step_m, float) / (1.0 + per_rad * np.abs(np.asarray(heading_change_rad, float)))

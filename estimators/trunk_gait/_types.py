@@ -46,10 +46,14 @@ class TrunkGaitParams:
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
       side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
     Stride length (Zijlstra & Hof 2003 inverted pendulum):
-      sl_correction: multiplicative correction factor K of the pendulum step length.
+      sl_correction: multiplicative correction factor K of the pendulum step length (with l = leg length; chosen
+        by cross-validation on foot-INS and INDIP references, validation/provenance.toml; Zijlstra & Hof 2003 give
+        1.25).
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
       sl_hampel_half_width: half width (steps) of the Hampel filter on the step lengths within a run of regular
         steps (0 = off; Soltani et al. 2021 use 2 steps, 3 MAD).
+      sl_turn_per_rad: turning steps are shortened to step / (1 + sl_turn_per_rad · |heading change of the step,
+        rad|) (0 = off; ``_spatial.turn_shortened``).
       bout_average: "mean" or "median" of the bout's regular strides for its stride length and walking speed.
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
@@ -77,9 +81,10 @@ class TrunkGaitParams:
     ic_offset_s: float = -0.06
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.18
+    sl_correction: float = 1.23
     sl_highpass_hz: float = 0.1
     sl_hampel_half_width: int = 1
+    sl_turn_per_rad: float = 0.2
     bout_average: str = "median"
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0

@@ -8,8 +8,12 @@ sensor's first stamp and ``k0_p`` where that first sample falls on the session g
   of the session.
 * ``clock="host"``: independent sensor clocks; ``k0_p = round((h0_p - h0) / T)`` from the host receive times
   ``h`` of each sensor's first sample (one transfer latency of error, under one sample on a LAN). The
-  sensor's own stamps then place its later samples, so network jitter does not move them; clock *drift*
-  between sensors (tens of ppm, about one sample per 10 minutes at 100 Hz) is not corrected.
+  sensor's own stamps then place its later samples, so network jitter does not move them, and clock *drift*
+  (a device crystal off by tens of ppm: one sample per few minutes at 100 Hz) is corrected by
+  :class:`ClockDrift`: the rate of the sensor clock against the host clock is the slope of the lower envelope
+  of ``h − t`` (the per-second minima: the samples that met the least transfer delay) over a sliding window,
+  fitted by Theil–Sen (the median of pairwise slopes: robust to a second of late Wi-Fi packets); elapsed sensor
+  time is scaled by that rate, piecewise from one refit to the next, so a new estimate never makes a sample jump.
 
 Frame ``k`` is handed on once every sensor has delivered a sample at or after ``k``, or ``max_wait_ms`` of
 wall time after the first of its samples arrived, or once any sensor is ``max_wait_frames`` beyond it (a
@@ -25,6 +29,72 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+
+class ClockDrift:
+    """Rate of one sensor's clock against the host clock, from (sensor stamp, host receive time) pairs.
+
+    Buckets of ``bucket_s`` of sensor time keep the minimum of ``h − t`` (the lower envelope: transfer delay is
+    never negative, and its minimum is the most stable part of it); over the last ``window_s`` of buckets the
+    slope of that envelope against ``t`` is the Theil–Sen estimate (median of the pairwise slopes; Sen 1968), refit
+    as each bucket closes once ``min_buckets`` exist. ``elapsed_ns(t)``: host-clock ns since the sensor's first
+    stamp, ``(t − t_a)(1 + rate) + e_a`` with ``(t_a, e_a)`` moved to each refit (continuous: no jumps).
+    ``rate_ppm``: the current estimate (positive = the host clock runs faster than the sensor's)."""
+
+    def __init__(self, *, window_s: float = 60.0, bucket_s: float = 1.0, min_buckets: int = 3,
+                 max_rate_ppm: float = 5000.0):
+        self.max_rate = max_rate_ppm * 1e-6
+        self.implausible = False              # a rate beyond max_rate_ppm: not a clock (a replay faster than real)
+        self.window = max(2, int(round(window_s / bucket_s)))
+        self.bucket_ns = int(bucket_s * 1e9)
+        self.min_buckets = int(min_buckets)
+        self.t0 = None
+        self.rate = 0.0
+        self._ta, self._ea = 0, 0.0           # anchor: sensor ns since t0, elapsed host ns there
+        self._centres: list[float] = []
+        self._minima: list[float] = []
+        self._cur, self._cur_min = None, None
+        self._fitted = False
+
+    @property
+    def rate_ppm(self) -> float:
+        return self.rate * 1e6
+
+    def add(self, t_ns: int, host_ns: int) -> None:
+        if self.t0 is None:
+            self.t0 = int(t_ns)
+        rel = int(t_ns) - self.t0
+        b = rel // self.bucket_ns
+        d = float(int(host_ns) - int(t_ns))
+        if self._cur is None or b > self._cur:
+            if self._cur is not None:
+                self._centres.append((self._cur + 0.5) * self.bucket_ns)
+                self._minima.append(self._cur_min)
+                del self._centres[:-self.window], self._minima[:-self.window]
+                self._refit(rel)
+            self._cur, self._cur_min = b, d
+        elif b == self._cur:
+            self._cur_min = min(self._cur_min, d)
+
+    def _refit(self, rel_now: int) -> None:
+        if len(self._minima) < self.min_buckets:
+            return
+        c, m = np.asarray(self._centres), np.asarray(self._minima)
+        i, j = np.triu_indices(len(c), 1)
+        rate = float(np.median((m[j] - m[i]) / (c[j] - c[i])))
+        if abs(rate) > self.max_rate or self.implausible:    # crystals are off by tens of ppm: a stream that
+            self.implausible, rate = True, 0.0                 # once ran faster than real time is no device clock
+        if not self._fitted:       # the first estimate applies from the first sample (what accrued before it
+            self._fitted = True    # is a few ms at most: one sample may repeat or be skipped, counted as such)
+        else:                      # later ones from now on: continuous, so a new estimate never moves samples
+            self._ea = self.elapsed_ns(self.t0 + rel_now)
+            self._ta = rel_now
+        self.rate = rate
+
+    def elapsed_ns(self, t_ns: int) -> float:
+        if self.t0 is None:
+            return 0.0
+        return self._ea + (int(t_ns) - self.t0 - self._ta) * (1.0 + self.rate)
 
 
 @dataclass
@@ -47,7 +117,8 @@ class FrameAligner:
     """Collect samples of ``placements`` into :class:`FrameBatch` es (see the module docstring)."""
 
     def __init__(self, placements, *, sampling_rate_hz: float, clock: str = "shared", max_wait_ms: float = 40.0,
-                 max_wait_frames: int = 100, ring: int = 1024):
+                 max_wait_frames: int = 100, ring: int = 1024, drift_correction: bool = True,
+                 drift_window_s: float = 60.0):
         if clock not in ("shared", "host"):
             raise ValueError(f"clock must be 'shared' or 'host', got {clock!r}")
         if not sampling_rate_hz > 0:
@@ -76,10 +147,15 @@ class FrameAligner:
         self.duplicate = np.zeros(P, dtype=np.int64)
         self.received = np.zeros(P, dtype=np.int64)
         self.t0_ns = None                       # session time of frame 0
+        # host clock: each sensor's rate against the host clock (None: stamps taken at face value)
+        self.drift = [ClockDrift(window_s=drift_window_s) if clock == "host" and drift_correction else None
+                      for _ in range(P)]
 
     def counters(self) -> dict:
         return {p: {"received": int(self.received[i]), "gaps": int(self.gaps[i]), "late": int(self.late[i]),
-                    "duplicate": int(self.duplicate[i])} for p, i in self._ix.items()}
+                    "duplicate": int(self.duplicate[i]),
+                    **({"drift_ppm": round(self.drift[i].rate_ppm, 1)} if self.drift[i] is not None else {})}
+                for p, i in self._ix.items()}
 
     def add(self, placement: str, t_ns: int, host_ns: int, arrival_ns: int, gyr, acc, mag=None, *,
             emit: bool = True) -> list[FrameBatch]:
@@ -95,7 +171,12 @@ class FrameAligner:
             self._t0[i] = int(t_ns)
             ref = (t_ns - self._origin_t) if self.clock == "shared" else (host_ns - self._origin_h)
             self._k0[i] = int(round(ref / self.period_ns))
-        k = self._k0[i] + int(round((t_ns - self._t0[i]) / self.period_ns))
+        dr = self.drift[i]
+        if dr is None:
+            k = self._k0[i] + int(round((t_ns - self._t0[i]) / self.period_ns))
+        else:
+            dr.add(t_ns, host_ns)
+            k = self._k0[i] + int(round(dr.elapsed_ns(t_ns) / self.period_ns))
         self.received[i] += 1
         if k < self.next_k:
             self.late[i] += 1

@@ -36,7 +36,7 @@ def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.
              osc_clock="host",
              calibration=None, calibration_from=None, participant=None, inbox=None, name=None, record=True,
              host="127.0.0.1", port=8765, serve=True, cue="stance_asymmetry_pct:0:10", audio=False, session_fields=None,
-             bands=None, band_note="", duration_s=None, on_ready=None) -> dict:
+             bands=None, band_note="", duration_s=None, on_ready=None, speed_estimate=False) -> dict:
     """Run one live session; returns the session summary (also what ``--json`` prints)."""
     from pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
     from pipeline.live.recorder import McapRecorder
@@ -97,7 +97,7 @@ def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.
         recorder = McapRecorder(inbox, name or f"{meta['participant']}_live_{today}", placements,
                                 {k: v for k, v in meta.items()})
     session = LiveSession(source, placements, sampling_rate_hz=fs, calibration=cal, params=LiveParams(),
-                          recorder=recorder, clock=clock)
+                          recorder=recorder, clock=clock, speed_estimate=bool(speed_estimate and serve))
     server = None
     if serve:
         server = LiveServer(session.hub, host=host, port=port, config={

@@ -12,9 +12,11 @@ moved in by :func:`recover` (``stridelab live --recover``), after checking it wi
 Topics: the recording format's ``/imu/<placement>`` and ``/mag/<placement>`` (ROS 2 CDR, stamps = sensor
 time, log time = host time), plus the live outputs as JSON for the nightly comparison (docs/live.md):
 ``/live/joint_angles`` (one message per second of frames: t_ns, per joint [FE, AA, IE] deg lists) and
-``/live/events`` (one message per gait event), each a ``std_msgs/msg/String`` holding JSON: any MCAP or ROS 2
-tool reads them, and the ingest decodes no String topic (it lists them as ignored), so the raw data ingests
-exactly as any other recording.
+``/live/events`` (one message per gait event), ``/live/calibration`` (once: the session calibration the live
+angles used, as the calibration stage's rows) and ``/live/standing`` (once, when found: the standing offsets
+subtracted from the live angles and the frame they apply from), each a ``std_msgs/msg/String`` holding JSON: any
+MCAP or ROS 2 tool reads them; the ingest stores them beside the raw data (:mod:`pipeline.live.stored`, table
+``live_outputs``) and the nightly ``live_agreement`` stage compares them with its own outputs.
 """
 from __future__ import annotations
 
@@ -38,7 +40,7 @@ from pipeline.formats.mcap_write import (MAGIC, _gather, _message_index, _messag
 LIVE_DIR = ".live"
 #: live outputs: ``std_msgs/msg/String`` (CDR) holding one JSON document each, readable by every ROS 2 / MCAP
 #: tool; the ingest decodes no String topic, so they never mix with the raw data
-JSON_TOPICS = ("/live/joint_angles", "/live/events")
+JSON_TOPICS = ("/live/joint_angles", "/live/events", "/live/calibration", "/live/standing")
 STRING_SCHEMA = "std_msgs/msg/String"
 
 

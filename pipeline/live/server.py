@@ -8,7 +8,10 @@ import asyncio
 import json
 import math
 import threading
+import time
 from pathlib import Path
+
+import numpy as np
 
 import tornado.httpserver
 import tornado.ioloop
@@ -34,6 +37,7 @@ class _Ws(tornado.websocket.WebSocketHandler):
     def initialize(self, server):
         self.srv = server
         self.seq = 0
+        self.eid = 0                       # the hub's recent events go with the next event message
 
     def open(self):
         self.srv.clients.add(self)
@@ -71,6 +75,8 @@ class LiveServer:
         self.config = config or {}
         self.summary = summary or (lambda: {})
         self.clients: set = set()
+        from pipeline.live.session import LatencyStats
+        self.delivery = LatencyStats()      # event sample arrival -> event sent to the pages
         self.origins = {f"{host}:{port}", f"localhost:{port}", f"127.0.0.1:{port}"}
         self._loop = None
         self._ready = threading.Event()
@@ -114,19 +120,40 @@ class LiveServer:
             return
         self._loop = tornado.ioloop.IOLoop.current()
         tornado.ioloop.PeriodicCallback(self._push, 1000.0 / self.fps).start()
+        loop = self._loop
+        self.hub.listeners.append(lambda: loop.add_callback(self._push_events))
         self._ready.set()
         self._loop.start()
         srv.stop()
 
+    def _push_events(self) -> None:
+        """New gait events to every page as soon as the computing thread published them (not at the next frame
+        tick: up to 1/fps later); ``delivery`` times each event from its sample's arrival to this send."""
+        first = True
+        for c in list(self.clients):
+            ev = self.hub.events_after(c.eid)
+            if not ev:
+                continue
+            c.eid = ev[-1]["eid"]
+            try:
+                c.write_message(json.dumps(_clean({"type": "events", "events": ev})))
+            except tornado.websocket.WebSocketClosedError:
+                self.clients.discard(c)
+                continue
+            if first:
+                now = time.perf_counter_ns()
+                self.delivery.add(np.array([now - e["arrival_ns"] for e in ev if e.get("arrival_ns", 0) > 0],
+                                           np.int64))
+                first = False
+
     def _push(self) -> None:
         for c in list(self.clients):
-            fr, ev, st = self.hub.since(c.seq)
-            if not fr and not ev:
+            fr, _ev, st = self.hub.since(c.seq)
+            if not fr:
                 continue
-            if fr:
-                c.seq = fr[-1][0] + 1
-            msg = {"type": "frames", "frames": [[f[1], f[2], f[3], f[4]] for f in fr], "events": ev,
-                   "metrics": st.get("metrics", {}), "summary": self.summary()}
+            c.seq = fr[-1][0] + 1
+            msg = {"type": "frames", "frames": [[f[1], f[2], f[3], f[4]] for f in fr], "events": [],
+                   "metrics": st.get("metrics", {}), "speed": st.get("speed"), "summary": self.summary()}
             try:
                 c.write_message(json.dumps(_clean(msg)))
             except tornado.websocket.WebSocketClosedError:

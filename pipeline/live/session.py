@@ -8,6 +8,7 @@ not fit is counted as dropped by the source.
 """
 from __future__ import annotations
 
+import gc
 import queue
 import sys
 import threading
@@ -22,6 +23,22 @@ from pipeline.live.engine import LiveEngine, LiveParams, LiveOutput
 
 #: what a display frame carries per joint: the sagittal (FE) angle
 DISPLAY_JOINTS = ("hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right")
+
+
+def calibration_rows(cal) -> list[dict]:
+    """The session calibration as the calibration stage's catalog rows (what
+    ``pipeline.stages.joint_angles.session_calibration`` rebuilds it from): the recording carries the calibration
+    the live angles were computed with, so the nightly compares like with like."""
+    import dataclasses
+    import json
+    rows = []
+    for p, c in sorted(cal.imus.items() if cal is not None else ()):
+        q = c.quat_sensor_af if c.valid else np.full(4, np.nan)
+        rows.append({"placement": p, **{f"q{k}": (float(v) if np.isfinite(v) else None) for k, v in zip("wxyz", q)},
+                     "method": c.method, "status": c.status, "reasons": json.dumps(list(c.reasons)),
+                     "n_reps": int(c.n_cycles), "params": json.dumps(dataclasses.asdict(cal.params), default=list),
+                     "session_status": cal.status, "session_reasons": json.dumps(list(cal.reasons))})
+    return {"rows": rows}
 
 
 class LatencyStats:
@@ -61,7 +78,10 @@ class Hub:
     strides: deque = field(default_factory=lambda: deque(maxlen=40))
     state: dict = field(default_factory=dict)
     seq: int = 0
+    eid: int = 0                      # events published so far (each event's ``eid``)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    #: called (from the computing thread) right after new events were published: the server sends them at once
+    listeners: list = field(default_factory=list)
 
     def publish(self, out: LiveOutput) -> None:
         rows = np.full((out.n, len(DISPLAY_JOINTS)), np.nan)
@@ -77,17 +97,25 @@ class Hub:
             while len(self.frames) > self.keep_frames:
                 self.frames.popleft()
             for e in out.events:
-                self.events.append({**e, "seq": self.seq})
+                self.eid += 1
+                self.events.append({**e, "seq": self.seq, "eid": self.eid})
             for s in out.strides:
                 self.strides.append(s)
             if out.metrics:
                 self.state["metrics"] = out.metrics
+        if out.events:
+            for cb in self.listeners:
+                cb()
 
     def since(self, seq: int, limit: int = 400) -> tuple[list, list, dict]:
         with self.lock:
             fr = [f for f in self.frames if f[0] >= seq][-limit:]
             ev = [e for e in self.events if e["seq"] > seq]
             return fr, ev, dict(self.state)
+
+    def events_after(self, eid: int) -> list:
+        with self.lock:
+            return [e for e in self.events if e["eid"] > eid]
 
 
 class LiveSession:
@@ -96,7 +124,7 @@ class LiveSession:
 
     def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
                  params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
-                 max_wait_ms: float = 40.0, inline: bool = True):
+                 max_wait_ms: float = 40.0, inline: bool = True, speed_estimate: bool = False):
         self.source = source
         self.placements = tuple(placements)
         self.fs = float(sampling_rate_hz)
@@ -121,9 +149,18 @@ class LiveSession:
         self._proc_lock = threading.Lock()
         self.cpu_s = 0.0
         self.wall_s = 0.0
+        self.speed = None           # walking speed for the speed-matched bands (pipeline.live.speed)
+        sides = [sd for sd in ("left", "right") if f"foot_{sd}" in self.placements]
+        if speed_estimate and sides:
+            from pipeline.live.speed import LiveSpeed
+            self.speed = LiveSpeed(sides, sampling_rate_hz=self.fs, on_update=self._speed_update)
         self._warm_up(calibration, params)
         self.hub.state.update({"placements": list(self.placements), "sampling_rate_hz": self.fs,
                                "calibration": None if calibration is None else calibration.status})
+
+    def _speed_update(self, speed: dict) -> None:
+        with self.hub.lock:
+            self.hub.state["speed"] = speed
 
     def _warm_up(self, calibration, params) -> None:
         """Run a throwaway engine over two seconds of rest so every compiled kernel is loaded before the
@@ -168,6 +205,14 @@ class LiveSession:
         if self.recorder is not None:
             rec_thread = threading.Thread(target=self._record_loop, name="live-recorder", daemon=True)
             rec_thread.start()
+        # the cyclic garbage collector's full collections walk every object of the process (numba, pyarrow,
+        # tornado: about a million) and stop every thread meanwhile: measured up to 405 ms on the bench, the
+        # whole of the worst event latency. Everything alive now (imports, compiled kernels, the warm-up) is
+        # moved out of its reach (gc.freeze); collections then see only what the session allocates
+        if self.speed is not None:
+            self.speed.start()
+        gc.collect()
+        gc.freeze()
         t_cpu, t_wall = time.thread_time(), time.perf_counter()
         self.source.start(self.sink)
         try:
@@ -197,6 +242,9 @@ class LiveSession:
                 for b in self.aligner.flush():
                     self._process(b)
         finally:
+            if self.speed is not None:
+                self.speed.close()
+            gc.unfreeze()
             sys.setswitchinterval(switch)
             self.source.stop()
             self.cpu_s += time.thread_time() - t_cpu
@@ -220,29 +268,49 @@ class LiveSession:
     def _process(self, b) -> None:
         t0 = time.perf_counter_ns()
         out = self.engine.process(b)
-        self.hub.publish(out)
-        now = time.perf_counter_ns()
-        self.compute.add(np.array([now - t0]))
         arr = b.arrival_ns
-        ok = arr > 0
-        self.latency.add(now - arr[ok])
         ks = np.arange(b.k0, b.k0 + b.n)
         self._arrivals[ks % len(self._arrivals)] = arr
         for e in out.events:       # (an event further back than the ring, in a long backlog batch, is not timed)
-            if b.k0 + b.n - e["k"] < len(self._arrivals):
-                a0 = self._arrivals[e["k"] % len(self._arrivals)]
-                if a0 > 0:
-                    self.event_latency.add(np.array([now - a0]))
+            a0 = self._arrivals[e["k"] % len(self._arrivals)] if b.k0 + b.n - e["k"] < len(self._arrivals) else 0
+            e["arrival_ns"] = int(a0)          # when the event's sample arrived (perf_counter ns; 0: unknown)
+        self.hub.publish(out)                  # events go to the pages now (Hub.listeners), frames at the next tick
+        if self.speed is not None:
+            for side in self.speed.rings:
+                p = f"foot_{side}"
+                self.speed.add(side, b.gyr[p], b.acc[p])
+            for st in out.strides:
+                self.speed.stride_done(st["side"])
+        now = time.perf_counter_ns()
+        self.compute.add(np.array([now - t0]))
+        ok = arr > 0
+        self.latency.add(now - arr[ok])
+        for e in out.events:
+            if e["arrival_ns"] > 0:
+                self.event_latency.add(np.array([now - e["arrival_ns"]]))
         self.frames_done += b.n
         if self.recorder is not None:
             self._rec_q.put((b, out))
 
     def _record_loop(self) -> None:
+        first, standing_done = True, False
         while True:
             item = self._rec_q.get()
             if item is None:
                 return
             b, out = item
+            if first:              # what the live computation ran with: calibration rows and filter settings
+                prm = self.engine.params
+                self.recorder.add_json("/live/calibration", int(b.t_ns[0]), {
+                    **calibration_rows(self.engine.calibration), "estimator": prm.estimator,
+                    "use_magnetometer": prm.use_magnetometer, "sampling_rate_hz": self.fs})
+            first = False
+            if not standing_done and out.offset_ready.any():
+                eng = self.engine          # the offsets never change once found (engine state read, not frames)
+                self.recorder.add_json("/live/standing", int(b.t_ns[0]), {
+                    "offset_frame": int(eng.offset_frame), "standing": list(eng.standing),
+                    "offset_deg": {k: np.where(np.isfinite(v), v, None).tolist() for k, v in eng.offset.items()}})
+                standing_done = True
             host = b.t_ns      # log time: the frame's session time (host clock of the replay / device stamps)
             for p in self.placements:
                 v = b.valid[p]
@@ -263,7 +331,11 @@ class LiveSession:
         return {"frames": self.frames_done, "samples_in": self.samples_in,
                 "samples_dropped": int(getattr(self.source, "dropped", 0)),
                 "gaps": {p: v["gaps"] for p, v in c.items()}, "late": {p: v["late"] for p, v in c.items()},
+                **({"clock_drift_ppm": {p: v["drift_ppm"] for p, v in c.items()}}
+                   if any("drift_ppm" in v for v in c.values()) else {}),
                 "latency": self.latency.summary(), "event_latency": self.event_latency.summary(),
                 "compute_per_batch": self.compute.summary(),
                 "engine_cpu_s": self.cpu_s, "wall_s": self.wall_s,
-                "standing": self.engine.standing, "metrics": self.engine.metrics}
+                "standing": self.engine.standing, "metrics": self.engine.metrics,
+                **({"walking_speed": {**self.speed.current(), "worker_cpu_s": round(self.speed.worker_cpu_s, 3),
+                                      "skipped": self.speed.skipped}} if self.speed is not None else {})}

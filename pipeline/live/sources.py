@@ -19,13 +19,41 @@ from pipeline.live.osc import OscError, ngimu_samples
 from pipeline.live.streams import Streams, read_streams
 
 
-class ReplaySource:
+class _ThreadedSource:
+    """What every source shares: ``_run(sink)`` runs in a daemon thread named ``thread_name``; ``stop`` asks it
+    to end (``_stop``), ``join`` waits; ``done`` is set when it has ended."""
+    thread_name = "live-source"
+
+    def __init__(self):
+        self.dropped = 0
+        self.done = threading.Event()
+        self._stop = threading.Event()
+        self._thread = None
+
+    def start(self, sink) -> None:
+        self._thread = threading.Thread(target=self._run, args=(sink,), name=self.thread_name, daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def join(self, timeout=None) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def _run(self, sink) -> None:
+        raise NotImplementedError
+
+
+class ReplaySource(_ThreadedSource):
     """Replay a recording at ``speed`` × real time (``None`` = as fast as the session takes it: then the
     source waits for queue room instead of dropping). ``minutes``: loop the recording (stamps continuing)
     until that much recording time was replayed. Sensor stamps and host times are the file's."""
+    thread_name = "live-replay"
 
     def __init__(self, streams: Streams | str | Path, placements, *, speed: float | None = 1.0,
                  minutes: float | None = None, frames_per_put: int | None = None):
+        super().__init__()
         self.streams = streams if isinstance(streams, Streams) else read_streams(streams)
         self.placements = [p for p in placements if p in self.streams.sensors]
         if not self.placements:
@@ -36,22 +64,9 @@ class ReplaySource:
         self.n = n
         self.fs = self.streams.sampling_rate_hz
         self.frames_per_put = frames_per_put or (1 if speed is not None else 20)
-        self.dropped = 0
         self.sent = 0
-        self.done = threading.Event()
-        self._stop = threading.Event()
-        self._thread = None
-
-    def start(self, sink) -> None:
-        self._thread = threading.Thread(target=self._run, args=(sink,), name="live-replay", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-
-    def join(self, timeout=None) -> None:
-        if self._thread is not None:
-            self._thread.join(timeout)
+        from pipeline.live.session import LatencyStats
+        self.wake_late = LatencyStats()     # how late this thread woke for a due frame: the scheduler's share
 
     def _run(self, sink) -> None:
         try:
@@ -80,6 +95,7 @@ class ReplaySource:
                     # receiving thread, releases what queued meanwhile); each "arrived" when it was due, so the
                     # wake-up delay counts in the latency
                     now = time.perf_counter_ns()
+                    self.wake_late.add(np.array([max(0, now - int(due(i)))]))
                     m = 1
                     while i + m < total and m < 200 and due(i + m) <= now:
                         m += 1
@@ -107,21 +123,20 @@ class ReplaySource:
             self.done.set()
 
 
-class NgimuUdpSource:
+class NgimuUdpSource(_ThreadedSource):
     """x-io NGIMUs sending OSC over UDP, one receive port per sensor (``ports``: placement -> port), bound to
     ``host`` (loopback by default; give the LAN address the NGIMUs send to). Each ``/sensors`` message is one
     sample, stamped with its bundle's time tag (the device clock; host receive time when it has none).
     Malformed packets are counted (``bad_packets``) and skipped."""
+    thread_name = "live-osc"
 
     def __init__(self, ports: dict[str, int], *, host: str = "127.0.0.1", timeout_s: float | None = None):
+        super().__init__()
         self.ports = dict(ports)
         self.host = host
         self.timeout_s = timeout_s          # stop after this long without any packet (None: never)
         self.bad_packets = 0
         self.received = 0
-        self.dropped = 0
-        self.done = threading.Event()
-        self._stop = threading.Event()
         self._socks = {}
         for p, port in self.ports.items():
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -134,22 +149,10 @@ class NgimuUdpSource:
                     from None
             s.setblocking(False)
             self._socks[p] = s
-        self._thread = None
 
     @property
     def bound_ports(self) -> dict[str, int]:
         return {p: s.getsockname()[1] for p, s in self._socks.items()}
-
-    def start(self, sink) -> None:
-        self._thread = threading.Thread(target=self._run, args=(sink,), name="live-osc", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-
-    def join(self, timeout=None) -> None:
-        if self._thread is not None:
-            self._thread.join(timeout)
 
     def close(self) -> None:
         for s in self._socks.values():

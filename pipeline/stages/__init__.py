@@ -65,6 +65,11 @@ class Stage:
     compute: Callable[[SessionInput, dict], StageOutput]
     default_params: Callable[[], dict]
     opt_in_kinds: tuple[str, ...] = ()
+    #: (catalog connection, session id) -> whether the session holds what the stage is about (None: every
+    #: session of its kinds). A stage about a rare kind of recording (a live session's) runs only where one is.
+    applies: Callable | None = None
+    #: catalog tables written by the ingest (not by a stage) whose rows of the session the stage reads (upstream)
+    reads: tuple[str, ...] = ()
     #: the frozen parameter class of a stage in the shape of :mod:`pipeline.stages._shape` (None for a bare Stage)
     params_cls: type | None = None
 
@@ -98,9 +103,10 @@ def scored_mask(events: list[dict], rec: dict, placement: str, t_ns: np.ndarray)
 
 def registry() -> list[Stage]:
     """All stages in topological order."""
-    from pipeline.stages import activity, calibration, clinical, gait, joint_angles, orientation, trunk_gait
+    from pipeline.stages import (activity, calibration, clinical, gait, joint_angles, live_agreement, orientation,
+                                 trunk_gait)
     stages = [orientation.STAGE, gait.STAGE, clinical.STAGE, calibration.STAGE, joint_angles.STAGE, activity.STAGE,
-              trunk_gait.STAGE]
+              trunk_gait.STAGE, live_agreement.STAGE]
     names = set()
     for s in stages:
         missing = [n for n in s.needs if n not in names]

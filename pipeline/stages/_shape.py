@@ -71,11 +71,13 @@ def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageCo
                  tables: tuple[str, ...], session_kinds: tuple[str, ...], placements: tuple[str, ...] = (),
                  score: Callable[[StageContext, object], None] | None = None,
                  finish: Callable[[StageContext, object], None] | None = None, needs: tuple[str, ...] = (),
-                 opt_in_kinds: tuple[str, ...] = ()) -> Stage:
+                 opt_in_kinds: tuple[str, ...] = (), applies: Callable | None = None,
+                 reads: tuple[str, ...] = ()) -> Stage:
     """The runner's :class:`Stage` for a stage written in this shape (see the module docstring). With
     ``placements`` a session none of whose recordings has an IMU there is skipped before ``compute``; without,
     the stage decides (:meth:`StageContext.skip`). ``score`` runs after ``compute`` unless that skipped, then
-    ``finish`` (rows of the whole session that carry the notes of both steps, e.g. the gait summary)."""
+    ``finish`` (rows of the whole session that carry the notes of both steps, e.g. the gait summary).
+    ``applies`` / ``reads``: as :class:`pipeline.stages.Stage` (sessions the stage is about; ingest tables it reads)."""
 
     def run(inp: SessionInput, params: dict) -> StageOutput:
         p = params_from_dict(params_cls, params)
@@ -94,4 +96,4 @@ def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageCo
     return Stage(name=name, version=version, needs=tuple(needs), tables=tuple(tables),
                  session_kinds=tuple(session_kinds), compute=run,
                  default_params=lambda: params_to_dict(params_cls()), opt_in_kinds=tuple(opt_in_kinds),
-                 params_cls=params_cls)
+                 applies=applies, reads=tuple(reads), params_cls=params_cls)

@@ -216,5 +216,5 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                                 for r in pairs])
 
 
-STAGE = shaped_stage("trunk_gait", "1", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+STAGE = shaped_stage("trunk_gait", "2", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))

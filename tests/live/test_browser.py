@@ -72,6 +72,23 @@ def test_live_replay_in_chromium(lab_files, tmp_path_factory):
                 assert stats["cueCount"] >= 1 and stats["frames"] > 200
                 assert "IC" in page.evaluate("JSON.stringify(L.events.map(e => e.type))")
                 assert page.locator("#cue-banner").is_visible()
+                # the normative band follows the walking speed: first the live estimate, then one typed in
+                page.wait_for_function("() => L.speed && L.speed.speed_m_s > 0", timeout=90_000)
+                note = page.locator("#bandnote").inner_text()
+                assert "m/s (live estimate" in note and "Schwartz" in note, note
+                live_v = page.evaluate("L.speed.speed_m_s")
+                page.fill("#walk-speed", "0.4")
+                page.wait_for_timeout(600)
+                note = page.locator("#bandnote").inner_text()
+                assert "0.40 m/s (entered on this page" in note, note
+                from reports.normative import speed_matched_band
+                for v in (0.4, live_v, 1.3):
+                    page.fill("#walk-speed", str(v))
+                    js = page.evaluate("speedBand('knee')")
+                    _pct, mean, sd, _info = speed_matched_band("knee", v, 0.90, n=51)
+                    assert max(abs(a - b) for a, b in zip(js["mean"], mean)) < 1e-9
+                    assert max(abs(a - b) for a, b in zip(js["sd"], sd)) < 1e-9
+                page.fill("#walk-speed", "")
                 page.wait_for_timeout(1500)         # a few more strides drawn on the curves
                 page.screenshot(path=str(shots / "therapist.png"))
                 patient.wait_for_function("() => document.body.dataset.cue === 'on'", timeout=30_000)

@@ -108,7 +108,7 @@ def test_sensors_on_independent_clocks_meet_on_one_frame_grid():
     valid_b = np.concatenate([f.valid["b"] for f in frames])
     assert len(valid_a) == 50 and valid_a.all()
     assert np.flatnonzero(~valid_b).tolist() == [20]
-    assert al.counters()["b"] == {"received": 49, "gaps": 1, "late": 0, "duplicate": 0}
+    assert al.counters()["b"] == {"received": 49, "gaps": 1, "late": 0, "duplicate": 0, "drift_ppm": 0.0}
 
 
 def test_a_stalled_sensor_holds_the_others_only_max_wait_ms():

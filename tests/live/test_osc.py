@@ -89,3 +89,69 @@ def test_ngimus_streaming_over_loopback_udp_are_seen_live(lab_streams, lab_calib
     assert result["frames"] == n
     ev = list(session.hub.events)
     assert sum(e["type"] == "IC" for e in ev) >= 6 and {e["side"] for e in ev} == {"left", "right"}
+
+
+def test_a_drifting_ngimu_clock_is_corrected_over_loopback_udp():
+    """Two NGIMUs send the same samples at the same instants over 127.0.0.1 in real time; one device clock is
+    exact, the other runs 2000 ppm fast (exaggerated: what 50 ppm does in 40 s of session it does here in 1 s).
+    Taken at face value its stamps slide past the other's by a frame every 0.5 s; with the drift correction the
+    two meet on the same frame once the rate is known (3 s), and the estimate is the simulated rate."""
+    from pipeline.live.align import FrameAligner
+    from pipeline.live.sources import NgimuUdpSource
+    fs, n, drift = 100.0, 800, 2000e-6
+    pl = ("pelvis", "foot_left")
+    src = NgimuUdpSource({p: 0 for p in pl}, host="127.0.0.1", timeout_s=2.0)
+    ports = src.bound_ports
+    on = FrameAligner(pl, sampling_rate_hz=fs, clock="host", max_wait_ms=1e6, max_wait_frames=400)
+    off = FrameAligner(pl, sampling_rate_hz=fs, clock="host", max_wait_ms=1e6, max_wait_frames=400,
+                       drift_correction=False)
+    frames = {"on": [], "off": []}
+
+    def sink(samples):
+        for name, al in (("on", on), ("off", off)):
+            for s in samples:
+                frames[name] += al.add(*s)
+        return True
+
+    src.start(sink)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        start_wall, start_host = time.perf_counter(), time.time_ns()
+        for i in range(n):
+            ahead = i / fs - (time.perf_counter() - start_wall)
+            if ahead > 0:
+                time.sleep(ahead)
+            due = i * 1e9 / fs                           # when the sample is taken, host clock
+            gyr = np.deg2rad([float(i), 0.0, 0.0])       # the sample carries its own index
+            for p, stamp in (("pelvis", start_host + due), ("foot_left", 5_000_000_000 + due * (1 + drift))):
+                tx.sendto(ngimu_sensors_bundle(int(stamp), gyr, [0.0, 0.0, 9.81], [20.0, 0.0, -40.0]),
+                          ("127.0.0.1", ports[p]))
+    finally:
+        tx.close()
+    src.join(30)
+    assert src.done.is_set() and src.bad_packets == 0
+    for name, al in (("on", on), ("off", off)):
+        frames[name] += al.flush()
+
+    def mismatch(batches, k_from):
+        """Frames from k_from where both sensors have a sample: how many hold different samples."""
+        bad = total = 0
+        for b in batches:
+            ks = np.arange(b.k0, b.k0 + b.n)
+            both = b.valid["pelvis"] & b.valid["foot_left"] & (ks >= k_from)
+            ia = np.rint(np.rad2deg(b.gyr["pelvis"][both, 0]))
+            ib = np.rint(np.rad2deg(b.gyr["foot_left"][both, 0]))
+            bad += int((ia != ib).sum())
+            total += int(both.sum())
+        return bad, total
+
+    bad_on, total_on = mismatch(frames["on"], 400)
+    bad_off, total_off = mismatch(frames["off"], 400)
+    print(f"\nframes off: corrected {bad_on}/{total_on}, at face value {bad_off}/{total_off}; "
+          f"estimate {on.counters()['foot_left']['drift_ppm']} ppm")
+    assert total_on > 300 and total_off > 300
+    assert bad_off > 0.9 * total_off                 # at face value: 8-16 ms apart in the last 4 s
+    assert bad_on <= 0.02 * total_on, (bad_on, total_on)
+    est = on.counters()["foot_left"]["drift_ppm"]
+    assert abs(est - (-drift / (1 + drift)) * 1e6) < 200, est    # host runs slower than this device clock
+    assert abs(on.counters()["pelvis"]["drift_ppm"]) < 200

@@ -1,5 +1,6 @@
 """``stridelab bench trunk-gait`` on a few real Voisard trials plus one broken copy: the broken file is listed with
-its reason and the bench goes on; the blocks carry the six keys; mobgap absent -> anchor null with a reason."""
+its reason and the bench goes on; the blocks carry the six keys (Voisard stride length against its foot-INS
+reference); mobgap absent -> anchor null with a reason."""
 from __future__ import annotations
 
 import shutil
@@ -30,6 +31,10 @@ def test_bench_skips_a_broken_file_and_reports_every_block(tmp_path):
     assert res["anchor"] is None and "make .venv-mobgap" in res["anchor_reason"]
     for blk in ("shipped_defaults", "cross_validated", "in_sample"):
         assert set(KEYS) <= set(res[blk]["voisard"]) and set(KEYS) <= set(res[blk]["overall"])
-        assert res[blk]["voisard"]["stride_length_mae_m"] is None         # Voisard has no spatial reference
+        # Voisard's spatial reference comes from its foot sensors (foot INS), said so in the output
+        assert 0 <= res[blk]["voisard"]["stride_length_mae_m"] < 0.3
+        assert 0 <= res[blk]["voisard"]["walking_speed_mae_m_s"] < 0.3
+    assert "foot INS" in res["spatial_references"]["voisard"]
+    assert res["voisard_foot_reference"]["trials"] == 1 and res["voisard_foot_reference"]["strides"] > 10
     s = res["shipped_defaults"]["voisard"]
     assert s["ic_sensitivity"] > 0.8 and s["ic_precision"] > 0.8 and s["ic_timing_mae_ms"] < 50

@@ -7,8 +7,8 @@ source -> frame aligner -> engine -> hub, with the MCAP recorder writing into a 
 * ``speed_10x`` and ``speed_1x``: per-frame latency from the arrival of the frame's last sample to its joint
   angles being published (p50 / p99 / max), gait-event latency from the arrival of the event's sample to the
   event being published (it is known one sample later: at 10× one sample lasts 1 ms of wall time, at 1×
-  10 ms), CPU of the process (all threads: replay, engine, recorder) as % of one core over the session's
-  wall time, and samples dropped (the bounded input queue full);
+  10 ms), CPU of the process (all threads: replay, engine, recorder) and of the walking-speed worker process as %
+  of one core over the session's wall time, and samples dropped (the bounded input queue full);
   ``compute_ms_per_batch``: wall time of the engine and publishing per batch of frames (one frame at 1×): what
   the code costs; the rest of the latency is waiting to be scheduled;
 * ``memory``: ``--minutes`` of session time (the walk looped) at ``--speed-memory`` (default max): resident
@@ -62,7 +62,9 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
     src = ReplaySource(st, pl, speed=speed, minutes=minutes)
     rec = McapRecorder(inbox, name, pl, {"study": "bench", "participant": "B001", "session": f"B001-live-{name}",
                                          "kind": "lab", "trial": "live"})
-    session = LiveSession(src, pl, sampling_rate_hz=st.sampling_rate_hz, calibration=cal, recorder=rec)
+    # as `stridelab live` serves the page: with the live walking-speed estimate (its worker process) on
+    session = LiveSession(src, pl, sampling_rate_hz=st.sampling_rate_hz, calibration=cal, recorder=rec,
+                          speed_estimate=speed is not None)
     mem: list[tuple[float, float]] = []
     stop = threading.Event()
 
@@ -73,11 +75,24 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
     th = threading.Thread(target=sampler, daemon=True) if sample_memory else None
     if th:
         th.start()
+    server = client = None
+    if speed is not None:        # the page's path too: the server pushes events to a WebSocket client in-process
+        from pipeline.live.server import LiveServer
+        server = LiveServer(session.hub, port=0)
+        server.start()
+        client = _EventClient(f"ws://127.0.0.1:{server.port}/ws")
+        client.connected.wait(10)
+    gc_pauses = _GcPauses()
     cpu0 = time.process_time()
     summary = session.run()
     cpu = time.process_time() - cpu0
+    gc_pauses.close()
     stop.set()
     rec.close()
+    if client is not None:
+        time.sleep(0.3)           # the last events in flight
+        client.close()
+        server.stop()
     fs = st.sampling_rate_hz
     out = {"frames": summary["frames"], "session_s": summary["frames"] / fs, "wall_s": round(summary["wall_s"], 2),
            "latency_ms": {k: round(v, 3) for k, v in summary["latency"].items() if k != "n"},
@@ -86,9 +101,20 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
            "compute_ms_per_batch": {k: round(v, 3) for k, v in summary["compute_per_batch"].items() if k != "n"},
            "n_batches": summary["compute_per_batch"]["n"],
            "sample_period_wall_ms": None if speed is None else round(1000.0 / fs / speed, 3),
-           "cpu_pct_one_core": round(100.0 * cpu / summary["wall_s"], 1),
+           "cpu_pct_one_core": round(100.0 * (cpu + summary.get("walking_speed", {}).get("worker_cpu_s", 0.0))
+                                     / summary["wall_s"], 1),
+           "walking_speed": summary.get("walking_speed"),
            "engine_thread_cpu_pct_one_core": round(100.0 * summary["engine_cpu_s"] / summary["wall_s"], 1),
            "samples_dropped": summary["samples_dropped"], "samples_lost": int(sum(summary["gaps"].values()))}
+    if speed is not None:
+        # where an event's latency goes: compute (engine + publish, above), the replay thread waking late for a
+        # due sample (the scheduler), garbage-collector pauses, and the hand-over to the page (server send ->
+        # WebSocket client receive; events are sent as soon as they are detected, not with the next frames)
+        out["wake_late_ms"] = {k: round(v, 3) for k, v in src.wake_late.summary().items() if k != "n"}
+        out["gc_pause_ms"] = gc_pauses.summary()
+        out["event_sent_ms"] = {k: round(v, 3) for k, v in server.delivery.summary().items() if k != "n"}
+        out["event_delivered_ms"] = {k: round(v, 3) for k, v in client.stats.summary().items() if k != "n"}
+        out["n_events_delivered"] = client.stats.n
     if speed is None:      # as fast as possible: frames wait in the queue by design, latency means nothing
         for k in ("latency_ms", "event_latency_ms", "n_events_timed", "compute_ms_per_batch", "n_batches"):
             out.pop(k)
@@ -99,6 +125,66 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
                          "rss_max_mb": round(max(m for _, m in mem), 1),
                          "growth_after_warmup_mb": round(mem[-1][1] - base, 1), "n_samples": len(mem)}
     return out
+
+
+class _GcPauses:
+    """Durations of the cyclic garbage collector's runs while open (``gc.callbacks``)."""
+
+    def __init__(self):
+        import gc
+        self._gc, self._t0, self.ms = gc, None, []
+        gc.callbacks.append(self._cb)
+
+    def _cb(self, phase, info):
+        if phase == "start":
+            self._t0 = time.perf_counter_ns()
+        elif self._t0 is not None:
+            self.ms.append((time.perf_counter_ns() - self._t0) / 1e6)
+
+    def close(self):
+        self._gc.callbacks.remove(self._cb)
+
+    def summary(self) -> dict:
+        return {"n": len(self.ms), "max_ms": round(max(self.ms), 3) if self.ms else 0.0,
+                "total_ms": round(sum(self.ms), 3)}
+
+
+class _EventClient:
+    """A WebSocket client (the page's protocol) timing each event from its sample's arrival to its receipt."""
+
+    def __init__(self, url: str):
+        from pipeline.live.session import LatencyStats
+        self.stats, self.connected, self._stop = LatencyStats(), threading.Event(), threading.Event()
+        self._th = threading.Thread(target=self._run, args=(url,), name="bench-ws", daemon=True)
+        self._th.start()
+
+    def _run(self, url):
+        import asyncio
+        import json
+
+        import tornado.websocket
+
+        async def main():
+            conn = await tornado.websocket.websocket_connect(url)
+            self.connected.set()
+            while not self._stop.is_set():
+                try:
+                    msg = await asyncio.wait_for(conn.read_message(), 0.2)
+                except asyncio.TimeoutError:
+                    continue
+                if msg is None:
+                    return
+                now = time.perf_counter_ns()
+                m = json.loads(msg)
+                if m.get("type") == "events":
+                    a = [e["arrival_ns"] for e in m["events"] if e.get("arrival_ns")]
+                    self.stats.add(np.array([now - x for x in a], np.int64))
+            conn.close()
+        asyncio.run(main())
+
+    def close(self):
+        self._stop.set()
+        self._th.join(5)
 
 
 @click.command("live")

@@ -3,8 +3,9 @@ bouts, cadence, stride length and walking speed; mobgap (the Mobilise-D referenc
 
 Data. Voisard et al. 2023 (``--voisard``): the L5 sensor of each trial; reference initial contacts = heel strikes of
 both feet (foot-IMU algorithms checked by hand) inside ``TrialBoundaries``; one reference walking bout per trial
-from its first to its last heel strike, with cadence = 60 (n - 1) / span; no spatial reference (stride length and
-speed null). Detections are scored inside the trial boundaries ± the matching tolerance (outside them the subject
+from its first to its last heel strike, with cadence = 60 (n - 1) / span; its stride length and walking speed from
+the two foot MTws (``voisard_foot_reference``: StrideLab's foot INS, strides heel strike to heel strike inside the
+trial, mean over both feet; a derived reference, printed as such in ``spatial_references``). Detections are scored inside the trial boundaries ± the matching tolerance (outside them the subject
 stands). Mobilise-D standardized data (``--mobilised``): the lower-back SU of every trial; reference = INDIP
 ``MicroWB`` (initial contacts with side, per-bout cadence, stride length, walking speed), scored over the whole
 recording. Trunk initial contacts and foot heel strikes are different events: the constant ``ic_offset_s`` maps
@@ -16,14 +17,16 @@ per matched bout the cadence / stride length / speed errors), for StrideLab and 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
 one more group (IC constants: ``ic_smooth_s``, ``ic_prominence``, ``ic_local_window_s``, ``ic_fill_prominence``,
-``ic_fill_edge_steps``, ``ic_offset_s``); stride
-length only has a reference in the Mobilise-D data: its factor ``sl_correction``, jointly with the step-length
-Hampel filter ``sl_hampel_half_width`` and the bout average ``bout_average`` (mean/median), by leave-one-trial-out
-over the trials of its single participant (said so in the output). ``in_sample``: the same grid chosen on everything scored
+``ic_fill_edge_steps``, ``ic_offset_s``); the stride-length factor ``sl_correction``, jointly with the step-length
+Hampel filter ``sl_hampel_half_width``, the bout average ``bout_average`` (mean/median) and the turn shortening
+``sl_turn_per_rad`` (0 / 0.2 / 0.4), by the same
+leave-one-group-out against the spatial references (loss = mean over groups of the group's per-bout stride-length
+MAE). ``in_sample``: the same grid chosen on everything scored
 (marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
 the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
 input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
-offset chosen by the same leave-one-group-out. mobgap runs in its own interpreter (``make .venv-mobgap``); when it
+offset chosen by the same leave-one-group-out, then its stride-length factor (``GRID_MOBGAP_SL`` x its shipped
+4.587/4) by the same leave-one-group-out as ours. mobgap runs in its own interpreter (``make .venv-mobgap``); when it
 is absent the block is ``null`` with the reason.
 
 Loss for the IC constants (per group, pooled over its recordings): timing MAE in ms + 100 × ((1 - sensitivity) +
@@ -65,7 +68,9 @@ GRID_LOCAL_S = (0.0,)      # 3 s was never chosen (0 in 10/10 folds, 2026-12-07 
 GRID_FILL = ((0.0, 0), (0.1, 0), (0.2, 0), (0.1, 1), (0.2, 1))   # (ic_fill_prominence, ic_fill_edge_steps)
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.14, 0.061, 0.01), 3))
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
-SL_VARIANTS = tuple((h, a) for h in (0, 1, 2) for a in ("mean", "median"))   # (sl_hampel_half_width, bout_average)
+GRID_MOBGAP_SL = tuple(np.round(np.arange(0.80, 1.401, 0.01), 3))   # x mobgap's shipped factor 4.587/4
+# (sl_hampel_half_width, bout_average, sl_turn_per_rad)
+SL_VARIANTS = tuple((h, a, c) for h in (0, 1, 2) for a in ("mean", "median") for c in (0.0, 0.2, 0.4))
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
 
 
@@ -75,7 +80,7 @@ class Rec:
     name: str
     dataset: str            # "voisard" | "mobilised"
     group: str              # CV group (subject / participant)
-    trial_group: str        # the trial (for the leave-one-trial-out of sl_correction)
+    trial_group: str        # the trial
     acc: np.ndarray
     gyr: np.ndarray
     fs: float
@@ -86,13 +91,59 @@ class Rec:
     window_s: tuple[float, float]
     mobgap_axes: np.ndarray = field(default_factory=lambda: np.eye(3))
     sensor_height_m: float | None = None
+    foot_reference: dict = field(default_factory=dict)   # Voisard: per-foot mean stride length, stride count
+    foot_strides: np.ndarray | None = None   # Voisard: (M, 3) foot-INS strides [start_s, end_s, length_m]
+    turn_s: tuple[float, float] | None = None   # Voisard: UTurnBoundaries, s
 
 
 def _say(msg: str) -> None:
     err_console.print(msg, highlight=False)
 
 
-def load_voisard(directory: Path, failed: list, limit: int | None) -> list[Rec]:
+def foot_stride_reference(feet: list[tuple[np.ndarray, np.ndarray, np.ndarray]], s0: int, s1: int,
+                          fs: float) -> tuple[float, float, int]:
+    """(mean stride length m, mean stride speed m/s, number of strides) of the foot strides of one trial.
+
+    ``feet``: per foot (pre_ic, ic, length_m) arrays (sample indices of the heel strikes that begin and end each
+    stride, -1 when none began it). A stride counts when it runs from one heel strike to the next of the same foot
+    inside the trial [s0, s1] (as INDIP's strides: contact to contact, the first step out of standing is no
+    stride); speed = length / (ic - pre_ic). Pooled over both feet, so a scale error of one foot's sensor counts
+    half. (nan, nan, 0) when no stride qualifies."""
+    lens, speeds = [], []
+    for pre, ic, length in feet:
+        pre, ic, length = np.asarray(pre, np.int64), np.asarray(ic, np.int64), np.asarray(length, float)
+        ok = (pre >= s0) & (ic <= s1) & (ic > pre) & np.isfinite(length)
+        lens.append(length[ok])
+        speeds.append(length[ok] / ((ic[ok] - pre[ok]) / fs))
+    x, v = np.concatenate(lens), np.concatenate(speeds)
+    if not len(x):
+        return float("nan"), float("nan"), 0
+    return float(np.mean(x)), float(np.mean(v)), int(len(x))
+
+
+def voisard_foot_reference(t, s0: int, s1: int) -> tuple[float, float, dict]:
+    """Spatial reference of one Voisard trial from its two foot MTws: StrideLab's foot INS (``estimators.gait.
+    foot_kinematics``: adaptive-ZUPT ESKF, stride length between mid-stances; docs/gait.md) -> mean stride length
+    and speed over both feet (``foot_stride_reference``). A derived reference, not a gold standard: its own stride
+    length error is 1.6-1.9 cm against optical markers on the gaitmap walk (docs/gait.md); the per-trial left /
+    right disagreement is reported by the bench (``voisard_foot_reference``)."""
+    from estimators.gait import foot_kinematics
+    feet, per_foot, rows = [], {}, []
+    for side, rec in (("left", t.left), ("right", t.right)):
+        fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=rec.sampling_rate_hz)
+        st = fk.strides
+        pre, ic, ln = st.column("pre_ic"), st.column("ic"), st.column("stride_length_m")
+        feet.append((pre, ic, ln))
+        per_foot[side] = foot_stride_reference(feet[-1:], s0, s1, rec.sampling_rate_hz)[0]
+        ok = (pre >= s0) & (ic <= s1) & (ic > pre) & np.isfinite(ln)
+        rows.append(np.column_stack([pre[ok] / rec.sampling_rate_hz, ic[ok] / rec.sampling_rate_hz, ln[ok]]))
+    sl, speed, n = foot_stride_reference(feet, s0, s1, t.lower_back.sampling_rate_hz)
+    per_foot["n_strides"] = n
+    per_foot["strides"] = np.concatenate(rows)
+    return sl, speed, per_foot
+
+
+def load_voisard(directory: Path, failed: list, limit: int | None, foot_reference: bool = True) -> list[Rec]:
     from pipeline.formats.xsens_mt import load_voisard_trial
     names = sorted((p.stem for p in directory.glob("*-*.json") if p.stem.replace("-", "").isdigit()),
                    key=lambda s: tuple(int(x) for x in s.split("-")))
@@ -118,13 +169,17 @@ def load_voisard(directory: Path, failed: list, limit: int | None) -> list[Rec]:
             failed.append({"file": str(directory / f"{n}.json"), "reason": "fewer than 3 heel strikes in the trial"})
             continue
         cad = 60.0 * (len(hs) - 1) / (hs[-1] - hs[0])
-        nan = np.array([np.nan])
+        sl_ref, speed_ref, per_foot = voisard_foot_reference(t, s0, s1) if foot_reference else (np.nan, np.nan, {})
         out.append(Rec(name=f"voisard:{n}", dataset="voisard", group=f"voisard:S{a.subject}", trial_group=n,
                        acc=lb.acc, gyr=lb.gyr, fs=fs,
                        height_m=a.height_cm / 100.0 if np.isfinite(a.height_cm) else None, leg_length_m=None,
                        ref_ic_s=hs, ref_bouts={"start_s": hs[:1], "end_s": hs[-1:], "cadence_spm": np.array([cad]),
-                                               "stride_length_m": nan, "walking_speed_m_s": nan},
-                       window_s=(s0 / fs, s1 / fs), mobgap_axes=XSENS_TO_MOBGAP))
+                                               "stride_length_m": np.array([sl_ref]),
+                                               "walking_speed_m_s": np.array([speed_ref])},
+                       window_s=(s0 / fs, s1 / fs), mobgap_axes=XSENS_TO_MOBGAP,
+                       foot_reference={k: v for k, v in per_foot.items() if k != "strides"},
+                       foot_strides=per_foot.get("strides"),
+                       turn_s=tuple(float(x) / fs for x in a.uturn_boundaries)))
     return out
 
 
@@ -169,6 +224,7 @@ class Det:
     """What a method found on one recording (times in s)."""
     ic_s: np.ndarray
     bouts: dict             # start_s, end_s, cadence_spm, stride_length_m, walking_speed_m_s
+    strides: dict | None = None   # start_s, end_s, length_m of the strides in bouts (ours only)
 
 
 def _ic_counts(rec: Rec, ic_s: np.ndarray) -> tuple[int, int, int, np.ndarray]:
@@ -241,6 +297,15 @@ def _score_idx(recs, dets, idx, offsets, sl_scales) -> dict:
     return score([recs[i] for i in idx], shifted)
 
 
+def sl_mae(recs: list[Rec], dets: list[Det], sl_scale: float = 1.0) -> float:
+    """Per-bout stride-length MAE (m) of matched bouts pooled over ``recs`` (inf when none has a reference)."""
+    e = [np.asarray(_bout_errs(r, d, sl_scale).get("stride_length_m", {}).get("abs_error", []), float)
+         for r, d in zip(recs, dets)]
+    x = np.concatenate(e) if e else np.empty(0)
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if len(x) else float("inf")
+
+
 def ic_loss(s: dict) -> float:
     if s["ic_timing_mae_ms"] is None or s["ic_sensitivity"] is None or s["ic_precision"] is None:
         return float("inf")
@@ -254,9 +319,50 @@ def run_ours(rec: Rec, params) -> Det:
     res = analyse_trunk_gait(rec.acc, rec.gyr, rec.fs, placement="lower_back", height_m=rec.height_m,
                              leg_length_m=rec.leg_length_m, params=params)
     b = res.bouts
+    st = res.strides
     return Det(ic_s=res.initial_contacts_s, bouts={"start_s": b.start_s, "end_s": b.end_s,
                                                    "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
-                                                   "walking_speed_m_s": b.walking_speed_m_s})
+                                                   "walking_speed_m_s": b.walking_speed_m_s},
+               strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m})
+
+
+def turn_check(recs: list[Rec], shipped) -> dict | None:
+    """Median ratio ours / foot-INS stride length of the Voisard strides inside the annotated U-turn and outside it,
+    with the shipped defaults and with the turn shortening off (what ``sl_turn_per_rad`` corrects)."""
+    out = {}
+    for label, c in (("shipped", shipped.sl_turn_per_rad), ("turn_shortening_off", 0.0)):
+        ins, outs = [], []
+        for r in recs:
+            if r.foot_strides is None or r.turn_s is None:
+                continue
+            d = run_ours(r, dataclasses.replace(shipped, sl_turn_per_rad=c))
+            o, rf, mid = stride_pairs(r, d, with_mid=True)
+            t = (mid >= r.turn_s[0]) & (mid <= r.turn_s[1])
+            ins.append(o[t] / rf[t])
+            outs.append(o[~t] / rf[~t])
+        if not ins:
+            return None
+        i, o = np.concatenate(ins), np.concatenate(outs)
+        out[label] = {"u_turn_strides": int(len(i)), "straight_strides": int(len(o)),
+                      "u_turn_ratio_median": round(float(np.median(i)), 3) if len(i) else None,
+                      "straight_ratio_median": round(float(np.median(o)), 3) if len(o) else None}
+    out["note"] = "ours / foot-INS stride length per matched stride, Voisard, U-turn = UTurnBoundaries (in-sample)"
+    return out
+
+
+def stride_pairs(rec: Rec, det: Det, tol_s: float = 0.3, with_mid: bool = False):
+    """(ours, reference) stride lengths of the trunk strides matched to a foot stride of ``rec.foot_strides``
+    (same-foot contact to contact, so the nearest midpoint within ``tol_s``; the other foot's strides are half a
+    stride away)."""
+    fr = rec.foot_strides
+    if fr is None or not len(fr) or det.strides is None or not len(det.strides["start_s"]):
+        return (np.empty(0),) * (3 if with_mid else 2)
+    mid = (det.strides["start_s"] + det.strides["end_s"]) / 2
+    fmid = (fr[:, 0] + fr[:, 1]) / 2
+    j = np.argmin(np.abs(mid[:, None] - fmid[None, :]), axis=1)
+    ok = (np.abs(mid - fmid[j]) <= tol_s) & np.isfinite(det.strides["length_m"])
+    res = (np.asarray(det.strides["length_m"], float)[ok], fr[j[ok], 2])
+    return (*res, mid[ok]) if with_mid else res
 
 
 def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
@@ -269,6 +375,105 @@ def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
         held[g] = int(np.argmin(losses))
     ins = int(np.argmin([loss_fn(ug, c) for c in range(n_cand)]))
     return {"held_out_choice": held, "in_sample_choice": ins}
+
+
+def choose_turn(recs: list[Rec], shipped, groups: list[str]) -> float:
+    """``sl_turn_per_rad`` chosen on ``groups`` at the stride level: every trunk stride matched to a foot-INS stride
+    (``stride_pairs``; Voisard), Hampel off; per candidate the factor K = median reference / ours pooled over the
+    groups, loss = mean over groups of the stride-length MAE after K. Bout means cannot tell it: every Voisard
+    trial holds one U-turn, so sl_correction absorbs a constant turning bias. The shipped value when no group has
+    foot strides."""
+    grid = sorted({v[2] for v in SL_VARIANTS})
+    pairs = {c: {} for c in grid}
+    for i, r in enumerate(recs):
+        if r.group in groups and r.foot_strides is not None:
+            for c in grid:
+                pairs[c][i] = stride_pairs(r, _turn_det(r, shipped, c))
+    gs = sorted({recs[i].group for i in pairs[grid[0]]})
+    if not gs:
+        return shipped.sl_turn_per_rad
+
+    def loss(c):
+        o = np.concatenate([pairs[c][i][0] for i in pairs[c]])
+        rf = np.concatenate([pairs[c][i][1] for i in pairs[c]])
+        if not len(o):
+            return float("inf")
+        k = float(np.median(rf / o))
+        per_g = []
+        for g in gs:
+            e = [np.abs(k * pairs[c][i][0] - pairs[c][i][1]) for i in pairs[c] if recs[i].group == g]
+            e = np.concatenate(e) if e else np.empty(0)
+            if len(e):
+                per_g.append(float(np.mean(e)))
+        return float(np.mean(per_g)) if per_g else float("inf")
+    return float(grid[int(np.argmin([loss(c) for c in grid]))])
+
+
+_TURN_DETS: dict = {}
+
+
+def _turn_det(r: Rec, shipped, c: float) -> Det:
+    key = (r.name, c, shipped)
+    if key not in _TURN_DETS:
+        _TURN_DETS[key] = run_ours(r, dataclasses.replace(shipped, sl_hampel_half_width=0, sl_turn_per_rad=c))
+    return _TURN_DETS[key]
+
+
+def choose_spatial(recs: list[Rec], shipped) -> tuple[dict, tuple | None]:
+    """Stride length and speed: every recording with a spatial reference (Voisard: foot INS; Mobilise-D: INDIP);
+    leave-one-group-out over the same groups as the IC constants (9 Voisard subjects + the Mobilise-D participant).
+    Per fold, first the turn shortening ``sl_turn_per_rad`` at the stride level (``choose_turn``), then, with it,
+    the Hampel half width x bout mean/median (SL_VARIANTS) and the factor sl_correction (GRID_SL) at the bout level;
+    the IC constants as shipped; bout loss = mean over groups of the group's per-bout stride-length MAE.
+    Returns ({group: ((half_width, average, turn_per_rad), sl_correction) chosen without it}, the in-sample choice
+    or None)."""
+    sp = [i for i, r in enumerate(recs) if np.isfinite(np.asarray(r.ref_bouts["stride_length_m"], float)).any()]
+    if not sp:
+        return {}, None
+    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1],
+                                                             sl_turn_per_rad=v[2]))
+                    for i in sp} for v in SL_VARIANTS}
+    sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
+    sl_cache: dict = {}
+
+    def sl_group(g, c):
+        if (g, c) not in sl_cache:
+            v, k = sl_cands[c]
+            sl_cache[(g, c)] = sl_mae([recs[i] for i in sp if recs[i].group == g],
+                                      [var_dets[v][i] for i in sp if recs[i].group == g], k / shipped.sl_correction)
+        return sl_cache[(g, c)]
+
+    def choose(train: list[str]) -> tuple:
+        turn = choose_turn(recs, shipped, train)
+        cs = [c for c, (v, _k) in enumerate(sl_cands) if v[2] == turn]
+
+        def loss(c):
+            x = [sl_group(g, c) for g in train]
+            x = [y for y in x if np.isfinite(y)]
+            return float(np.mean(x)) if x else float("inf")
+        return sl_cands[cs[int(np.argmin([loss(c) for c in cs]))]]
+    groups = sorted({recs[i].group for i in sp})
+    held = {g: choose([x for x in groups if x != g] or [g]) for g in groups}
+    return held, choose(groups)
+
+
+def sensor_height_check(recs: list[Rec], shipped) -> dict | None:
+    """The shipped defaults on the recordings with a measured sensor height (Mobilise-D ``infoForAlgo``) with the
+    pendulum length l = that sensor height instead of the leg length (0.53 H) that ``sl_correction`` is calibrated
+    with: shows whether the measured height should replace the leg length (it is not used; docs/trunk_gait.md)."""
+    idx = [i for i, r in enumerate(recs) if r.sensor_height_m and
+           np.isfinite(np.asarray(r.ref_bouts["stride_length_m"], float)).any()]
+    if not idx:
+        return None
+    sub = [recs[i] for i in idx]
+    leg = [run_ours(r, shipped) for r in sub]
+    sens = [run_ours(dataclasses.replace(r, leg_length_m=r.sensor_height_m), shipped) for r in sub]
+    return {"recordings": len(sub), "sensor_height_m": sorted({round(r.sensor_height_m, 3) for r in sub}),
+            "height_m": sorted({r.height_m for r in sub if r.height_m}),
+            "stride_length_mae_m_leg_length": round(sl_mae(sub, leg), 4),
+            "stride_length_mae_m_sensor_height": round(sl_mae(sub, sens), 4),
+            "note": "shipped defaults, in-sample on these recordings; l = 0.53 H (shipped) vs l = measured sensor "
+                    "height with the same sl_correction"}
 
 
 def tune_and_score(recs: list[Rec], show: bool) -> dict:
@@ -298,47 +503,28 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         return cache[key]
 
     logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
-    # stride length: Mobilise-D trials only (the only stride-length reference); leave-one-trial-out over the
-    # aggregation variant (Hampel half width x bout mean/median, SL_VARIANTS) and the factor sl_correction (GRID_SL)
-    mob = [i for i, r in enumerate(recs) if r.dataset == "mobilised"]
     ship_dets = [run_ours(r, shipped) for r in recs]
-    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1]))
-                    for i in mob} for v in SL_VARIANTS}
-    sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
-    sl_held: dict[str, tuple] = {}
-    sl_ins = None
-    if mob:
-        def sl_loss(trials, c):
-            v, k = sl_cands[c]
-            e = []
-            for i in mob:
-                if recs[i].trial_group in trials:
-                    be = _bout_errs(recs[i], var_dets[v][i], k / shipped.sl_correction)
-                    e.extend(be.get("stride_length_m", {}).get("abs_error", []))
-            e = np.asarray(e, float)
-            e = e[np.isfinite(e)]
-            return float(np.mean(e)) if len(e) else float("inf")
-        sl = _logo([recs[i].trial_group for i in mob], sl_loss, len(sl_cands))
-        sl_held = {t: sl_cands[c] for t, c in sl["held_out_choice"].items()}
-        sl_ins = sl_cands[sl["in_sample_choice"]]
-    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average)
+    sl_held, sl_ins = choose_spatial(recs, shipped)
+    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad)
 
     def with_sl(r: Rec, ic: tuple, v: tuple) -> Det:
         s_, p_, w_, f_, _o = ic
         return run_ours(r, dataclasses.replace(shipped, ic_smooth_s=s_, ic_prominence=p_, ic_local_window_s=w_,
                                                ic_fill_prominence=f_[0], ic_fill_edge_steps=f_[1],
-                                               ic_offset_s=0.0, sl_hampel_half_width=v[0], bout_average=v[1]))
-    # cross-validated: per recording, the detections of its held-out choice
+                                               ic_offset_s=0.0, sl_hampel_half_width=v[0], bout_average=v[1],
+                                               sl_turn_per_rad=v[2]))
+    # cross-validated: per recording, the detections of its held-out choices (IC constants and spatial constants
+    # each chosen without the recording's group)
     cv_dets, cv_off, cv_scale = [], [], []
     for i, r in enumerate(recs):
         s, p, w, f, o = full[logo["held_out_choice"][r.group]]
-        v, k = sl_held.get(r.trial_group, (ship_v, shipped.sl_correction))
-        cv_dets.append(dets[(s, p, w, f)][i] if r.dataset != "mobilised" else with_sl(r, (s, p, w, f, o), v))
+        v, k = sl_held.get(r.group, (ship_v, shipped.sl_correction))
+        cv_dets.append(dets[(s, p, w, f)][i] if v == ship_v else with_sl(r, (s, p, w, f, o), v))
         cv_off.append(o)
         cv_scale.append(k / shipped.sl_correction)
     si, pi, wi, fi, oi = full[logo["in_sample_choice"]]
     vi, ki = sl_ins or (ship_v, shipped.sl_correction)
-    ins_dets = [dets[(si, pi, wi, fi)][i] if r.dataset != "mobilised" else with_sl(r, (si, pi, wi, fi, oi), vi)
+    ins_dets = [dets[(si, pi, wi, fi)][i] if vi == ship_v else with_sl(r, (si, pi, wi, fi, oi), vi)
                 for i, r in enumerate(recs)]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
     by_group = {g: dict(zip(("ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
@@ -352,40 +538,49 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                                                           "ic_fill_edge_steps", "ic_offset_s",
                                                                           "sl_correction",
                                                                           "sl_hampel_half_width",
-                                                                          "bout_average")}},
+                                                                          "bout_average", "sl_turn_per_rad")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
                             "scheme": "IC constants (ic_smooth_s, ic_prominence, ic_local_window_s, ic_fill_prominence, "
                                       "ic_fill_edge_steps, ic_offset_s): "
                                       "leave-one-group-out "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
-                                      "sl_hampel_half_width, bout_average, sl_correction: leave-one-trial-out over the "
-                                      "trials of the single Mobilise-D "
-                                      "participant (the only stride-length reference)",
-                            "held_out_choice_by_group": by_group, "sl_held_out_by_trial": {
-                                t: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_correction": k}
-                                for t, (v, k) in sl_held.items()},
+                                      "sl_hampel_half_width, bout_average, sl_turn_per_rad, sl_correction: "
+                                      "leave-one-group-out over "
+                                      "the same groups against the spatial references (Voisard: foot INS; "
+                                      "Mobilise-D: INDIP), loss = mean of the groups' per-bout stride-length MAE",
+                            "held_out_choice_by_group": by_group, "sl_held_out_by_group": {
+                                g: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_turn_per_rad": v[2],
+                                    "sl_correction": k}
+                                for g, (v, k) in sl_held.items()},
                             **({"note": "only one group: nothing could be held out, this block is in-sample"}
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {"ic_smooth_s": si, "ic_prominence": pi, "ic_local_window_s": wi,
                                  "ic_fill_prominence": fi[0], "ic_fill_edge_steps": fi[1], "ic_offset_s": oi,
-                                 "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1]}},
+                                 "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1],
+                                 "sl_turn_per_rad": vi[2]}},
         "_ship_dets": ship_dets,
+        "sensor_height_check": sensor_height_check(recs, shipped),
+        "turn_check": turn_check(recs, shipped),
     }
 
 
 # ---------------------------------------------------------------------------------------------------- mobgap
 
-def mobgap_inputs(recs: list[Rec]) -> tuple[list[str], dict]:
-    """(input names, arrays) for the mobgap runner: per recording an "as worn" and an "aligned" variant."""
+def mobgap_inputs(recs: list[Rec], measured_sensor_height: bool = True) -> tuple[list[str], dict]:
+    """(input names, arrays) for the mobgap runner: per recording an "as worn" and an "aligned" variant.
+    ``measured_sensor_height``: mobgap's pendulum length = the recording's measured sensor height where it has one
+    (mobgap's own use), else 0.53 x height (as its MsProject loader; False = 0.53 x height everywhere, the length
+    StrideLab's sl_correction is calibrated with)."""
     from estimators.trunk_gait import detect_trunk_frame
     arrays = {}
     names = []
     for i, r in enumerate(recs):
         key = f"r{i}"
         names.append(key)
-        meta = np.array([r.fs, r.height_m or 1.70, r.sensor_height_m or 0.53 * (r.height_m or 1.70)])
+        sensor_h = r.sensor_height_m if (measured_sensor_height and r.sensor_height_m) else 0.53 * (r.height_m or 1.70)
+        meta = np.array([r.fs, r.height_m or 1.70, sensor_h])
         # as worn: the device's fixed axis mapping to mobgap's x up / z forward
         arrays[f"as_worn_{key}/acc"] = r.acc @ r.mobgap_axes.T
         arrays[f"as_worn_{key}/gyr"] = np.rad2deg(r.gyr @ r.mobgap_axes.T)
@@ -409,13 +604,14 @@ def mobgap_cache_path(python: Path, all_names: list[str], arrays: dict) -> Path:
     return python.absolute().parent.parent / "stridelab-cache" / f"mobgap-{h.hexdigest()[:24]}.json"
 
 
-def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, str | None]:
+def run_mobgap(recs: list[Rec], python: Path, show: bool,
+               measured_sensor_height: bool = True) -> tuple[dict | None, str | None]:
     """{variant: {pipeline: [Det | None per recording]}} from mobgap, or (None, reason)."""
     if not python.is_file():
         return None, (f"mobgap environment not found at {python}: run `make .venv-mobgap` (isolated venv with "
                       "mobgap==1.2.0, validation/anchors/mobgap-requirements.txt)")
     variants = ("as_worn", "aligned")
-    names, arrays = mobgap_inputs(recs)
+    names, arrays = mobgap_inputs(recs, measured_sensor_height)
     all_names = [f"{v}_{k}" for v in variants for k in names]
     cache = mobgap_cache_path(python, all_names, arrays)
     if cache.is_file():
@@ -466,12 +662,38 @@ def run_mobgap(recs: list[Rec], python: Path, show: bool) -> tuple[dict | None, 
     return res, None
 
 
-def anchor_block(recs: list[Rec], mg: dict) -> dict:
-    """mobgap as shipped (both pipelines, as worn) and tuned with the same LOGO (pipeline x frame x offset)."""
-    out = {"tool": f"mobgap {mg.get('_version')}", "errors": mg.get("_errors", [])}
+def with_leg_length(recs: list[Rec], mg: dict, python: Path, show: bool) -> dict:
+    """``mg`` with the recordings that have a measured sensor height rerun with mobgap's pendulum length = 0.53 x
+    height, the length StrideLab's pendulum uses and both tools' factors are tuned with (a factor tuned on
+    0.53 x height does not carry over to a measured sensor height: ``sensor_height_check``). Unchanged when there is
+    no such recording or that run fails (said in ``_errors``)."""
+    idx = [i for i, r in enumerate(recs) if r.sensor_height_m]
+    if not idx:
+        return mg
+    sub, reason = run_mobgap([recs[i] for i in idx], python, show, measured_sensor_height=False)
+    if sub is None:
+        return {**mg, "_errors": mg.get("_errors", []) + [f"leg-length rerun: {reason}"]}
+    out = {**mg, "_errors": mg.get("_errors", []) + sub.get("_errors", [])}
+    for v in ("as_worn", "aligned"):
+        out[v] = {}
+        for p in ("healthy", "impaired"):
+            lst = list(mg[v][p])
+            for j, i in enumerate(idx):
+                lst[i] = sub[v][p][j]
+            out[v][p] = lst
+    return out
+
+
+def anchor_block(recs: list[Rec], mg: dict, mg_tuned: dict | None = None) -> dict:
+    """mobgap as shipped (both pipelines, as worn, measured sensor height) and tuned with the same LOGO (pipeline x
+    frame x offset, then its stride-length factor) on ``mg_tuned`` (the runs with the pendulum length StrideLab
+    uses, ``with_leg_length``; ``mg`` when None)."""
+    out = {"tool": f"mobgap {mg.get('_version')}", "errors": (mg_tuned or mg).get("_errors", [])}
     for v in ("as_worn", "aligned"):
         for p in ("healthy", "impaired"):
             out[f"{p}_{v}"] = blocks(recs, mg[v][p])
+    shipped_mg = mg
+    mg = mg_tuned or mg
     cands = [(v, p, o) for v in ("as_worn", "aligned") for p in ("healthy", "impaired") for o in GRID_OFFSET_S]
     cache: dict = {}
 
@@ -482,23 +704,47 @@ def anchor_block(recs: list[Rec], mg: dict) -> dict:
             cache[(g, c)] = ic_loss(score([recs[i] for i in idx], [mg[v][p][i] for i in idx], offset_s=o))
         return cache[(g, c)]
     logo = _logo([r.group for r in recs], lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(cands))
-    dets, offs = [], []
+    groups = sorted({r.group for r in recs})
+
+    def sl_scale_on(train: list[str], v: str, p: str) -> float:
+        """mobgap's stride-length factor (as a multiple of its shipped 4.587/4; its stride length and speed are
+        linear in it) chosen like ours: mean over the training groups of their per-bout stride-length MAE."""
+        def loss(k):
+            x = [sl_mae([r for r in recs if r.group == g], [mg[v][p][i] for i, r in enumerate(recs) if r.group == g],
+                        k) for g in train]
+            x = [y for y in x if np.isfinite(y)]
+            return float(np.mean(x)) if x else float("inf")
+        losses = [loss(k) for k in GRID_MOBGAP_SL]
+        return float(GRID_MOBGAP_SL[int(np.argmin(losses))]) if np.isfinite(min(losses)) else 1.0
+    held_scale = {}
+    for g in groups:
+        v, p, _o = cands[logo["held_out_choice"][g]]
+        held_scale[g] = sl_scale_on([x for x in groups if x != g] or [g], v, p)
+    dets, offs, scales = [], [], []
     for i, r in enumerate(recs):
         v, p, o = cands[logo["held_out_choice"][r.group]]
         dets.append(mg[v][p][i])
         offs.append(o)
-    out["cross_validated"] = {**blocks(recs, dets, offsets=offs),
+        scales.append(held_scale[r.group])
+    out["cross_validated"] = {**blocks(recs, dets, offsets=offs, sl_scales=scales),
                               "scheme": "same leave-one-group-out and loss as StrideLab's IC constants over "
-                                        "pipeline (healthy/impaired) x input frame (as_worn/aligned) x IC offset",
-                              "held_out_choice_by_group": {g: dict(zip(("frame", "pipeline", "ic_offset_s"),
-                                                                        cands[c]))
+                                        "pipeline (healthy/impaired) x input frame (as_worn/aligned) x IC offset; "
+                                        "then mobgap's stride-length factor (x 0.80..1.40 of its shipped value) "
+                                        "by the same leave-one-group-out and loss as StrideLab's sl_correction, "
+                                        "with the pendulum length StrideLab uses (0.53 x height) everywhere",
+                              "held_out_choice_by_group": {g: {**dict(zip(("frame", "pipeline", "ic_offset_s"),
+                                                                          cands[c])),
+                                                               "stride_length_factor": held_scale[g]}
                                                            for g, c in logo["held_out_choice"].items()}}
     v, p, o = cands[logo["in_sample_choice"]]
-    out["in_sample"] = {**blocks(recs, mg[v][p], offsets=[o] * len(recs)),
-                        "marked": "in-sample", "choice": {"frame": v, "pipeline": p, "ic_offset_s": o}}
-    out["shipped_defaults"] = {**out["healthy_as_worn"],
+    k_in = sl_scale_on(groups, v, p)
+    out["in_sample"] = {**blocks(recs, mg[v][p], offsets=[o] * len(recs), sl_scales=[k_in] * len(recs)),
+                        "marked": "in-sample", "choice": {"frame": v, "pipeline": p, "ic_offset_s": o,
+                                                          "stride_length_factor": k_in}}
+    out["shipped_defaults"] = {**blocks(recs, shipped_mg["as_worn"]["healthy"]),
                                "note": "MobilisedPipelineHealthy as shipped (the pipeline mobgap recommends for "
-                                       "healthy adults, as both data sets are), input as worn"}
+                                       "healthy adults, as both data sets are), input as worn, pendulum length = "
+                                       "the measured sensor height where known (Mobilise-D), else 0.53 x height"}
     return out
 
 
@@ -516,6 +762,22 @@ def gaps(res: dict) -> dict:
                 out[blk][ds] = {k: (None if res[blk][ds][k] is None or a[blk][ds][k] is None
                                     else round(res[blk][ds][k] - a[blk][ds][k], 4)) for k in KEYS}
     return out
+
+
+def foot_reference_summary(recs: list[Rec]) -> dict:
+    """How well the two feet of one Voisard trial agree on the mean stride length (a floor for the foot-INS
+    reference's own error), and the reference's range."""
+    rows = [r.foot_reference for r in recs if r.dataset == "voisard" and r.foot_reference]
+    if not rows:
+        return {"trials": 0}
+    lr = np.array([abs(x["left"] - x["right"]) for x in rows if np.isfinite(x["left"]) and np.isfinite(x["right"])])
+    mean_lr = np.array([(x["left"] + x["right"]) / 2 for x in rows
+                        if np.isfinite(x["left"]) and np.isfinite(x["right"])])
+    sl = np.array([r.ref_bouts["stride_length_m"][0] for r in recs if r.dataset == "voisard"], float)
+    return {"trials": len(rows), "strides": int(sum(x["n_strides"] for x in rows)),
+            "left_right_abs_diff_m_median": round(float(np.median(lr)), 4) if len(lr) else None,
+            "left_right_abs_diff_pct_median": round(float(np.median(100 * lr / mean_lr)), 2) if len(lr) else None,
+            "stride_length_m_range": [round(float(np.nanmin(sl)), 3), round(float(np.nanmax(sl)), 3)]}
 
 
 # ------------------------------------------------------------------------------------------------------- speed
@@ -585,7 +847,8 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
     res.pop("_ship_dets")
     if anchor:
         mg, reason = run_mobgap(recs, mobgap_python, show)
-        res["anchor"] = anchor_block(recs, mg) if mg is not None else None
+        res["anchor"] = (anchor_block(recs, mg, with_leg_length(recs, mg, mobgap_python, show))
+                         if mg is not None else None)
         if mg is None:
             res["anchor_reason"] = reason
         else:
@@ -601,8 +864,15 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
         {"name": "TrunkGaitParams.ic_offset_s / ic_smooth_s / ic_prominence / ic_local_window_s / "
                  "ic_fill_prominence / ic_fill_edge_steps",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
-        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average",
-         "chosen_on": "Mobilise-D HA-001 INDIP stride length (leave-one-trial-out; single participant)"}]
+        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average / sl_turn_per_rad",
+         "chosen_on": "Voisard subjects (foot-INS stride length) + Mobilise-D HA-001 (INDIP stride length), "
+                      "leave-one-group-out for the cross-validated figure"}]
+    res["spatial_references"] = {
+        "voisard": "derived: mean stride length / speed of both foot MTws by StrideLab's foot INS (estimators.gait."
+                   "foot_kinematics, stride length MAE 1.6-1.9 cm vs optical markers on the gaitmap walk, docs/gait.md)"
+                   "; strides heel strike to heel strike inside TrialBoundaries, U-turn included",
+        "mobilised": "INDIP MicroWB AverageStrideLength / WalkingSpeed"}
+    res["voisard_foot_reference"] = foot_reference_summary(recs)
     res["failed_files"] = failed
     res["recordings"] = {"voisard": sum(r.dataset == "voisard" for r in recs),
                          "mobilised": sum(r.dataset == "mobilised" for r in recs)}

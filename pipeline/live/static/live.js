@@ -3,7 +3,7 @@
 const JOINTS = ["hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right"];
 const COLORS = {left: "#1f6fd1", right: "#d1401f"};
 const L = {
-  config: {}, frames: [], events: [], seen: new Set(), metrics: {}, summary: {},
+  config: {}, frames: [], events: [], seen: new Set(), pendingIC: [], speed: null, speedOverride: 0, bandInfo: null, metrics: {}, summary: {},
   strideCurves: {left: [], right: []}, current: {left: null, right: null},
   stats: {frames: 0, events: 0, drawn: 0, fps: 0, cueOn: false, cueCount: 0, connected: false},
 };
@@ -29,18 +29,28 @@ function connect(onUpdate) {
   ws.onmessage = (msg) => {
     const m = JSON.parse(msg.data);
     if (m.type === "config") { L.config = m; if (window.onLiveConfig) window.onLiveConfig(m); return; }
-    for (const f of m.frames) ingestFrame(f);
+    // events come on their own as soon as they are detected, usually before the frames that hold them
     for (const e of m.events) {
       const key = `${e.side}${e.type}${e.k}`;
       if (L.seen.has(key)) continue;
       L.seen.add(key); L.events.push(e); L.stats.events += 1;
-      if (e.type === "IC") closeStride(e.side, e.k);
+      if (e.type === "IC") L.pendingIC.push(e);
     }
     if (L.events.length > 400) L.events.splice(0, L.events.length - 400);
-    L.metrics = m.metrics || {}; L.summary = m.summary || {};
+    if (m.type === "frames") {
+      for (const f of m.frames) ingestFrame(f);
+      L.metrics = m.metrics || {}; L.summary = m.summary || {};
+      if (m.speed) L.speed = m.speed;
+    }
+    closePending();
     evaluateCue();
     if (onUpdate) onUpdate();
   };
+}
+
+function closePending() {          // an IC closes its stride once the frames up to it are in
+  const last = L.frames.length ? L.frames[L.frames.length - 1][0] : -1;
+  L.pendingIC = L.pendingIC.filter((e) => { if (e.k > last) return true; closeStride(e.side, e.k); return false; });
 }
 
 function ingestFrame(f) {           // f = [k, t_ms, [6 sagittal angles], offset_ready]
@@ -147,10 +157,47 @@ function drawStick(cv) {
   ctx.fillStyle = "#555"; ctx.fillText(`frame ${f[0]}` + (f[3] ? "" : " (standing offset pending)"), 10, 20);
 }
 
+// The normative band at the participant's walking speed (Schwartz et al. 2008: five speeds; linear in
+// dimensionless speed v/sqrt(g L) between the two categories around it, the nearest beyond the outer ones:
+// reports/normative.py speed_matched_band). Speed: the page's field, else --walking-speed, else the live estimate.
+function currentSpeed() {
+  const b = L.config.bands || {};
+  if (L.speedOverride > 0) return {v: L.speedOverride, src: "entered on this page"};
+  if (b.walking_speed_m_s > 0) return {v: b.walking_speed_m_s, src: "given (--walking-speed)"};
+  if (L.speed && L.speed.speed_m_s > 0) return {v: L.speed.speed_m_s, src: `live estimate, ${L.speed.n_strides} strides`};
+  return null;
+}
+
+function speedBand(joint) {
+  const b = L.config.bands || {};
+  if (!b.curves || !b.curves[joint]) return null;
+  const cats = b.categories, c = cats.map(k => b.centres[k]);
+  const sp = currentSpeed();
+  let vh = sp ? sp.v / Math.sqrt(9.80665 * b.leg_length_m) : b.centres.free, clamped = false;
+  if (vh < c[0] || vh > c[c.length - 1]) clamped = true;
+  const v = Math.min(Math.max(vh, c[0]), c[c.length - 1]);
+  let i = 0; while (i < c.length - 2 && v >= c[i + 1]) i++;
+  const w = (v - c[i]) / (c[i + 1] - c[i]), A = b.curves[joint][cats[i]], B = b.curves[joint][cats[i + 1]];
+  const mix = (a, bb) => a.map((x, k) => (1 - w) * x + w * bb[k]);
+  L.bandInfo = {vh, lower: cats[i], upper: cats[i + 1], w, clamped, speed: sp};
+  return {pct: b.pct, mean: mix(A.mean, B.mean), sd: mix(A.sd, B.sd)};
+}
+
+function bandNote() {
+  const i = L.bandInfo, b = L.config.bands || {};
+  if (!i) return "";
+  const leg = `leg ${b.leg_length_m} m${b.leg_length_assumed ? " assumed" : ""}`;
+  const where = i.clamped ? `held at ${i.w < 0.5 ? i.lower : i.upper}` :
+    `${Math.round(100 * (1 - i.w))} % ${i.lower} + ${Math.round(100 * i.w)} % ${i.upper}`;
+  return i.speed ? `grey: normative band at ${i.speed.v.toFixed(2)} m/s (${i.speed.src}; ${leg}; v̂ ${i.vh.toFixed(3)}: ${where}; ` +
+    `Schwartz et al. 2008, interpolated between its five speeds)` :
+    "grey: normative band at free speed (walking speed not known yet; Schwartz et al. 2008)";
+}
+
 function drawCurves(cv, joint) {
   const ctx = cv.getContext("2d"), W = cv.width, H = cv.height, pad = 30;
   ctx.clearRect(0, 0, W, H);
-  const band = (L.config.bands || {})[joint];
+  const band = speedBand(joint);
   const lo = joint === "knee" ? -10 : -25, hi = joint === "knee" ? 75 : 50;
   const X = p => pad + (W - pad - 5) * p / 100, Y = v => H - pad - (H - pad - 10) * (v - lo) / (hi - lo);
   ctx.strokeStyle = "#ddd"; ctx.lineWidth = 1; ctx.font = "11px sans-serif"; ctx.fillStyle = "#666";
