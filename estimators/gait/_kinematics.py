@@ -4,7 +4,8 @@ Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.traject
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
 → IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → events completed on the swings
-of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → TCs refined from the pitch
+of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/forefoot contact) → lifts that put the foot
+down where it was dropped (R6, ``drop_in_place_steps``; ``FootParams.min_step_m``) → TCs refined from the pitch
 minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → heel-strike ICs moved
 from the pitch maximum into the loading rotation (H1, ``refine_heel_strike``; ``FootParams.heel_strike_fraction``)
 → strides.
@@ -72,18 +73,25 @@ class FootParams:
     heel_strike_window_s: W of (H1), 0.15 s as T1 (a priori).
     weak_push_off_steps: (R5) on heel-striking feet, a step whose push-off never passes T (the first step out of
         standing) is found after the fact: ``_weak_push_off_steps``. False = Algorithm 1 (+ R4) only.
+    min_step_m: (R6, issue 43) a lift that puts the foot down where it was is no step: a TC → IC pair is dropped
+        when the foot's horizontal displacement from the last stance sample at or before the TC to the first
+        stance sample at or after the IC is below ``min_step_m`` (heel raise, weight shift or toe tap in place
+        before the first step; on Voisard they moved the foot 4–13 mm, the shortest annotated step 5.5 cm).
+        None = off. Chosen by leave-one-subject-out over the Voisard subjects and the gaitmap walk
+        (``stridelab bench gait --voisard``; validation/provenance.toml).
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams(threshold=-0.1)
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
     toe_off_refine: bool = True
-    toe_off_onset_fraction: float = 0.6
+    toe_off_onset_fraction: float = 0.7
     toe_off_window_s: float = 0.15
     swing_events: bool = True
     heel_strike_fraction: float | None = 0.4
     heel_strike_window_s: float = 0.15
     weak_push_off_steps: bool = True
+    min_step_m: float | None = 0.02
 
 
 @dataclass(frozen=True)
@@ -236,8 +244,43 @@ def _refine_ics(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: flo
     return replace(ev, ic_idx=np.where(falls, ref, ic), ic_pitch_max_idx=ic.copy())
 
 
+def drop_in_place_steps(ev: GaitEvents, pos: np.ndarray, stance: np.ndarray, min_step_m: float) -> GaitEvents:
+    """(R6) ``ev`` without the TC → IC pairs whose step moves the foot less than ``min_step_m`` horizontally.
+
+    The pair of an IC is the last TC before it with no IC in between; the step's displacement is
+    |p_xy(first stance sample ≥ IC) − p_xy(last stance sample ≤ TC)| (``pos`` (N, 3) m, ``stance`` (N,) bool, the
+    trajectory's zero-velocity samples). An IC without such a TC, or without a stance sample on either side, or
+    with non-finite positions there, stays."""
+    ic, tc = np.asarray(ev.ic_idx, np.int64), np.asarray(ev.tc_idx, np.int64)
+    if not len(ic) or not len(tc):
+        return ev
+    still = np.flatnonzero(stance)
+    if not len(still):
+        return ev
+    drop_ic, drop_tc = np.zeros(len(ic), bool), np.zeros(len(tc), bool)
+    for i, x in enumerate(ic):
+        j = int(np.searchsorted(tc, x, side="left")) - 1          # last TC before the IC
+        if j < 0 or (i > 0 and ic[i - 1] > tc[j]):
+            continue
+        a = int(np.searchsorted(still, tc[j], side="right")) - 1
+        b = int(np.searchsorted(still, x, side="left"))
+        if a < 0 or b >= len(still):
+            continue
+        d = pos[still[b], :2] - pos[still[a], :2]
+        if np.all(np.isfinite(d)) and float(np.hypot(d[0], d[1])) < min_step_m:
+            drop_ic[i] = drop_tc[j] = True
+    if not drop_ic.any():
+        return ev
+    kt, ki = ~drop_tc, ~drop_ic
+    return replace(ev, ic_idx=ic[ki], ic_detect_idx=np.asarray(ev.ic_detect_idx)[ki], tc_idx=tc[kt],
+                   tc_detect_idx=np.asarray(ev.tc_detect_idx)[kt])
+
+
 def _refine(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams) -> GaitEvents:
-    """The batch refinements of the events: T1 (toe-off) then H1 (heel strike), as ``params`` asks."""
+    """The batch refinements of the events: R6 (in-place lifts dropped), T1 (toe-off) then H1 (heel strike), as
+    ``params`` asks."""
+    if params.min_step_m is not None and params.min_step_m > 0:
+        ev = drop_in_place_steps(ev, traj.pos, traj.zupt, params.min_step_m)
     if params.toe_off_refine and len(ev.tc_idx):
         ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
     if params.heel_strike_fraction is not None and len(ev.ic_idx):
@@ -247,8 +290,8 @@ def _refine(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, 
 
 def refine_events(fk: "FootKinematics", gyr: np.ndarray, params: FootParams) -> GaitEvents:
     """The events ``foot_kinematics(gyr, …, params=params)`` returns, from a result ``fk`` computed with the same
-    parameters but both refinements off (``toe_off_refine=False, heel_strike_fraction=None``): T1 and H1 are the
-    last steps and touch nothing else, so a bench can score several refinement settings from one ESKF run."""
+    parameters but the refinements off (``toe_off_refine=False, heel_strike_fraction=None, min_step_m=None``): R6,
+    T1 and H1 are the last steps and touch nothing else, so a bench can score several settings from one ESKF run."""
     if fk.events.tc_pitch_min_idx is not None or fk.events.ic_pitch_max_idx is not None:
         raise ValueError("refine_events needs a FootKinematics computed with both refinements off")
     if fk.status == "no_stance":

@@ -250,8 +250,9 @@ class EskfParams:
         rate). Issue 43: c_g 0.01 → 0.03, chosen by leave-one-trial-out over ``PYSHOE_GRID``. With c_g = 0.01 the
         smoother blamed a running stride's velocity error on the 60–100 m/s² impacts and large swing
         accelerations (c_a term) and put the correction there, hardly moving the position; the rate term lets it
-        blame the attitude during fast rotation, where running errs. c_a = 0.3 stays (issue 15; 0.15 scored
-        better on PyShoe but broke the gaitmap walk's stride-length target: validation/bench/trajectory.py).
+        blame the attitude during fast rotation, where running errs. c_a 0.3 → 0.15 (issue 43, second grid:
+        leave-one-trial-out over ``PYSHOE_GRID``; 0.15 had been held back because it broke the gaitmap walk's
+        stride-length target, which the midpoint attitude rule (E1c) removed: 1.7 cm there with 0.15).
     impact_window_s: the c_a term uses the largest ``| |f| − g |`` within ±impact_window_s/2 of each sample (E4c):
         a heel-strike transient lasts about 20–30 ms (Whittle, *Gait Analysis*, heel-strike transient) and is
         under-sampled at 100–200 Hz, so the sampled peak says *that* an impact happened, not on which of its
@@ -284,11 +285,20 @@ class EskfParams:
         term c_a·| |f| − g | out at stance samples (the foot is still by the detector) and adds σ += L_j on samples
         of an accelerometer axis on a plateau near full scale (saturation). Not chosen: leave-one-trial-out kept
         "global" in 28/28 folds (grid mean 2-D ARMSE 0.0916 vs 0.0925 m; PyShoe's accelerometer never clips).
+    attitude_rule: "midpoint" (default, issue 43) or "euler" (before). (E1) with ω_k over [t_k, t_k+1] (forward
+        Euler) leaves the attitude half a sample behind the accelerometer sample it rotates in (E2): the sum
+        Σ T ω(t_k) telescopes to the integral up to t_K − T/2. "midpoint" propagates with ω(t_k + T/2) = ½(ω_k +
+        ω_k+1) (E1c), so R(q_k) and f_k belong to the same instant. During swing |ω| ≈ 5–10 rad/s and |f| ≈
+        20–40 m/s², so half a sample at 200 Hz turns f by 1–3 % of its size: PyShoe's walking strides came out
+        2–4 % short and rose 10–15 mm each (issue 43). A numerical-analysis choice (a priori), not tuned.
+    gyro_delay_s: d of (E1c): the accelerometer sample k is paired with the gyro at t_k + d (d > 0: the gyro's
+        digital filter delays it by d more than the accelerometer's). Sensor-specific (filter group delays);
+        the default is chosen by leave-one-trial-out over ``PYSHOE_GRID`` (validation/provenance.toml).
     zupt: the stance detector parameters.
     """
     acc_noise_m_s2: float = 0.5
     gyr_noise_rad_s: float = 0.02
-    acc_noise_rel: float = 0.3
+    acc_noise_rel: float = 0.15
     gyr_noise_rel: float = 0.03
     impact_window_s: float = 0.03
     pos_noise_m: float = 1e-5
@@ -307,6 +317,8 @@ class EskfParams:
     zupt: ZuptParams = ZuptParams()
     noise_model: str = "global"
     stance_height_var: float = 0.0
+    attitude_rule: str = "midpoint"
+    gyro_delay_s: float = 0.0025
 
 
 def _acc_clip_noise(acc: np.ndarray) -> np.ndarray:
@@ -403,6 +415,21 @@ def _level_quat(f: np.ndarray) -> np.ndarray:
     return np.concatenate([[np.cos(ang / 2)], np.sin(ang / 2) * axis])
 
 
+def _attitude_gyro(gyr: np.ndarray, params: EskfParams, fs: float) -> np.ndarray:
+    """(E1c) the angular rate that propagates the attitude from t_k to t_k+1: ω(t_k + s T) with s = ½ ("midpoint")
+    or 0 ("euler") plus d·fs (``gyro_delay_s``), linearly interpolated between samples (held at the ends)."""
+    if params.attitude_rule not in ("midpoint", "euler"):
+        raise ValueError(f"attitude_rule must be 'midpoint' or 'euler', got {params.attitude_rule!r}")
+    if not np.isfinite(params.gyro_delay_s):
+        raise ValueError(f"gyro_delay_s must be finite, got {params.gyro_delay_s}")
+    shift = (0.5 if params.attitude_rule == "midpoint" else 0.0) + params.gyro_delay_s * fs
+    n = gyr.shape[0]
+    if shift == 0.0 or n < 2:
+        return gyr
+    t = np.arange(n, dtype=float)
+    return np.ascontiguousarray(np.column_stack([np.interp(t + shift, t, gyr[:, j]) for j in range(3)]))
+
+
 def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
                     params: EskfParams = EskfParams(), zupt: np.ndarray | None = None) -> TrajectoryResult:
     """Foot position, velocity and attitude by ESKF + ZUPT + RTS (module ``_eskf`` equations E1–E7).
@@ -474,6 +501,7 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     else:
         sig_a = params.acc_noise_m_s2 + c_a * dev
     sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1) + extra_g      # (S4)
-    eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
+    gyr_att = _attitude_gyro(gyr, params, sampling_rate_hz)                              # (E1c)
+    eskf_rts_kernel(gyr_att, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
                     pos, vel, quat, bias, float(params.stance_height_var))
     return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params, g_s, clipped)

@@ -3,6 +3,8 @@
 Model (error = truth − estimate, world-frame attitude error ``R_true = (I + [δθ×]) R̂``):
 
     nominal   q_{k+1} = q_k ⊗ exp((ω_k − b_g) T / 2)                                   (E1)
+              ω_k here is the caller's rate for [t_k, t_k+1]: ω(t_k + T/2) (midpoint rule, issue 43; the
+              wrapper interpolates, ``_api._attitude_gyro``) so q_k and f_k in (E2) are one instant    (E1c)
               a_k = R(q_k)(f_k − b_a) − g e_z ;  p_{k+1} = p_k + T v_k + ½T² a_k ;  v_{k+1} = v_k + T a_k   (E2)
     error     δp' = δv ;  δv' = −[(R(f − b_a))×] δθ − R δb_a ;  δθ' = −R δb_g ;  δb' = w_b    (E3)
               Φ_k = I + F_k T ;  Q_k = diag(σ_p², (σ_a,k T)², (σ_g,k T)², σ_ba,rw² T, σ_bg,rw² T)  (E4)

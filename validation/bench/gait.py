@@ -237,22 +237,27 @@ VOISARD_TOL_S = 0.1
 #: Algorithm-1 threshold T (one ESKF run per foot and T), toe-off refinement T1 onset fraction (None = the thesis'
 #: pitch-minimum TC) and heel-strike refinement H1 onset fraction (None = the pitch-maximum IC). T1 and H1 are the
 #: last steps of foot_kinematics (``estimators.gait.refine_events``), scored from one run per threshold.
-EVENT_GRID_KEYS = ("threshold", "toe_off_onset_fraction", "heel_strike_fraction")
+EVENT_GRID_KEYS = ("threshold", "toe_off_onset_fraction", "heel_strike_fraction", "min_step_m")
 THRESHOLDS = (-0.2, -0.1)
 TOE_OFF_FRACTIONS = (None, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 HEEL_STRIKE_FRACTIONS = (None, 0.1, 0.2, 0.3, 0.4, 0.5, 0.75)
-EVENT_GRID = tuple((t, f1, h) for t in THRESHOLDS for f1 in TOE_OFF_FRACTIONS for h in HEEL_STRIKE_FRACTIONS)
+#: R6 (issue 43): the smallest horizontal displacement of a step (None = off, the former behaviour, first)
+MIN_STEPS_M = (None, 0.02, 0.03, 0.05)
+EVENT_GRID = tuple((t, f1, h, ms) for t in THRESHOLDS for f1 in TOE_OFF_FRACTIONS for h in HEEL_STRIKE_FRACTIONS
+                   for ms in MIN_STEPS_M)
 
 
-def _event_params(thr: float, toe_off: float | None, heel: float | None):
+def _event_params(thr: float, toe_off: float | None, heel: float | None, min_step: float | None = None):
     from estimators.gait import FootParams, IcTcParams
     return FootParams(events=IcTcParams(threshold=thr), toe_off_refine=toe_off is not None,
-                      toe_off_onset_fraction=0.2 if toe_off is None else toe_off, heel_strike_fraction=heel)
+                      toe_off_onset_fraction=0.2 if toe_off is None else toe_off, heel_strike_fraction=heel,
+                      min_step_m=min_step)
 
 
 def _unrefined(thr: float):
     from estimators.gait import FootParams, IcTcParams
-    return FootParams(events=IcTcParams(threshold=thr), toe_off_refine=False, heel_strike_fraction=None)
+    return FootParams(events=IcTcParams(threshold=thr), toe_off_refine=False, heel_strike_fraction=None,
+                      min_step_m=None)
 
 
 def _grid_events(gyr, acc, fs) -> list:
@@ -393,14 +398,14 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
                                "config": dict(zip(EVENT_GRID_KEYS, EVENT_GRID[c]))}
     ins = int(cv["in_sample_choice"])
     shipped_key = (shipped.events.threshold, shipped.toe_off_onset_fraction if shipped.toe_off_refine else None,
-                   shipped.heel_strike_fraction)
-    pitch_max = EVENT_GRID.index((shipped.events.threshold, shipped_key[1], None))
+                   shipped.heel_strike_fraction, shipped.min_step_m)
+    pitch_max = EVENT_GRID.index((shipped.events.threshold, shipped_key[1], None, shipped.min_step_m))
     l1 = np.array([r["leg1_m"] for r in legs if r["leg1_m"] is not None])
     l2 = np.array([r["leg2_m"] for r in legs if r["leg2_m"] is not None])
     out = {"dataset": str(directory), "tolerance_s": VOISARD_TOL_S,
            "shipped_defaults": _voisard_summary(shipped_dets),
            "shipped_defaults_note": "FootParams() as it ships, run by foot_kinematics, no tuning on the given data "
-                                    f"(threshold, T1, H1 = {shipped_key}; provenance.toml says what they were "
+                                    f"(threshold, T1, H1, R6 = {shipped_key}; provenance.toml says what they were "
                                     "chosen on: on the development subjects these figures are in-sample)",
            "cross_validated": _voisard_summary(held),
            "cross_validated_note": "leave-one-subject-out over EVENT_GRID (groups: Voisard subjects and the gaitmap "

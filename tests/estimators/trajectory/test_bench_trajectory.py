@@ -49,7 +49,12 @@ def test_bench_trajectory_cli(tmp_path):
     assert [r["file"] for r in out["files"]] == [str(paths[1]), str(paths[0])]
     for r in out["files"]:
         assert abs(r["distance_m"] - 36.0) < 0.5
-        assert r["final_position_error_m"] < 0.3
+        # horizontal: this simulator (validation.simulator.foot_walk_yun) holds each angular rate constant over the
+        # sample interval that follows it (θ piecewise linear, rate steps at the sample instants), for which the
+        # forward-Euler attitude is exact; the shipped midpoint rule with PyShoe's 2.5 ms gyro delay (issue 43,
+        # chosen on real recordings, where rates are continuous) lifts its foot ~17 mm per stride. The height
+        # rule is tested on continuously sampled motion in test_issue43_failure_modes.py.
+        assert r["final_position_error_xy_m"] < 0.3
 
 
 def test_bench_trajectory_bad_file(tmp_path):
@@ -74,7 +79,10 @@ def test_bench_loop_lists_an_unreadable_file_and_goes_on(tmp_path):
     assert [r["file"] for r in out["files"]] == [str(good)]
     assert out["unreadable"][0]["file"] == str(bad) and "missing column" in out["unreadable"][0]["reason"]
     sd = out["shipped_defaults"]
-    assert sd["final_position_error_xy_m"][0] <= sd["final_position_error_3d_m"][0] < 0.3
+    # 3-D not bounded here: the simulator's held rates (see test_bench_trajectory_cli) lift its foot under the
+    # shipped midpoint rule; the horizontal error is the one the simulator can judge
+    assert sd["final_position_error_xy_m"][0] <= sd["final_position_error_3d_m"][0]
+    assert sd["final_position_error_xy_m"][0] < 0.3
     assert out["cross_validated"] == "needs >= 2 readable walks"
 
 
