@@ -44,13 +44,29 @@ def study_manifest(study: str) -> dict:
 
 
 def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
-    """Stage defaults overridden by the study manifest's ``[stages.<stage_name>]`` table."""
+    """Stage defaults overridden by the study manifest's ``[stages.<stage_name>]`` table (key by key). An unknown
+    key is refused here, nested tables included: the overrides must map onto the stage's frozen parameter class
+    (``Stage.params_cls``, :func:`pipeline.stages._shape.params_from_dict`)."""
     over = study_manifest(study).get("stages", {}).get(stage_name, {})
     unknown = set(over) - set(defaults)
     if unknown:
         raise ValueError(f"study {study}: unknown parameter(s) {sorted(unknown)} for stage {stage_name}; "
                          f"known: {sorted(defaults)}")
-    return {**defaults, **over}
+    merged = {**defaults, **over}
+    cls = _params_cls(stage_name) if over else None
+    if cls is not None:
+        from pipeline.stages._shape import params_from_dict
+        try:
+            params_from_dict(cls, merged)
+        except ValueError as e:
+            raise ValueError(f"study {study}: [stages.{stage_name}] {e}") from None
+    return merged
+
+
+def _params_cls(stage_name: str):
+    """The frozen parameter class of the registered stage ``stage_name`` (None when it has none)."""
+    from pipeline import stages
+    return next((s.params_cls for s in stages.registry() if s.name == stage_name), None)
 
 
 def compute_requests(study: str) -> dict[str, dict[str, bool]]:

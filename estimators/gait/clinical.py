@@ -48,7 +48,7 @@ import numpy as np
 __all__ = ["ClinicalParams", "FootEvents", "FootStrides", "StepPhases", "Measure", "ClinicalSummary",
            "step_phases", "clinical_summary", "common_walking_frame", "walking_direction", "equal_stride_scale",
            "mdc95", "change_mdc95", "ChangeMdc", "PublishedMdc", "PUBLISHED_MDC95", "repeated_baseline_sem",
-           "SIDE_MEASURES", "SESSION_MEASURES"]
+           "SIDE_MEASURES", "SESSION_MEASURES", "positions_at", "walking_frame_xy", "straight_stride_lengths"]
 
 #: per-side measures: name -> unit
 SIDE_MEASURES = {"step_length_m": "m", "step_time_s": "s", "swing_time_s": "s", "stance_time_s": "s",
@@ -444,3 +444,62 @@ def change_mdc95(measure: str, quantity: str = "value", *, baseline: float = flo
         if np.isfinite(v):
             return ChangeMdc(v, pub.source)
     return ChangeMdc(float("nan"), "")
+
+
+def positions_at(t_ns: np.ndarray, xy: np.ndarray, q_ns) -> np.ndarray:
+    """(n, 2) positions ``xy`` (sampled at ``t_ns``) at the stamps ``q_ns``: the sample at or after each stamp
+    (events fall on samples, so this is the exact sample; the last sample after the end); NaN without samples."""
+    q = np.asarray(q_ns, np.int64)
+    if not len(t_ns) or not len(q):
+        return np.full((len(q), 2), np.nan)
+    i = np.clip(np.searchsorted(t_ns, q), 0, len(t_ns) - 1)
+    return xy[i]
+
+
+def walking_frame_xy(t_ns: np.ndarray, xy: np.ndarray, stance: np.ndarray, start_ns: np.ndarray, end_ns: np.ndarray,
+                     turning_deg: np.ndarray, *, max_turn_deg: float, min_stance_s: float = 0.3
+                     ) -> tuple[np.ndarray, list[str]]:
+    """One foot's trajectory in the walking frame of C6: (N, 2) positions, per contiguous stretch of samples,
+    turned by :func:`common_walking_frame` (from the stretch's strides ``start_ns``/``end_ns``/``turning_deg``) and
+    starting at 0, up to the stride that first turns more than ``max_turn_deg``; NaN elsewhere and in stretches
+    that do not start standing (``stance`` over the first ``min_stance_s``: the side-by-side start anchor) or have
+    no straight stride. Returns the positions and a note per stretch left out."""
+    from estimators.timebase import contiguous_segments
+    out = np.full_like(xy, np.nan)
+    notes = []
+    fs = 1e9 / float(np.median(np.diff(t_ns))) if len(t_ns) > 1 else 100.0
+    start_ns, end_ns = np.asarray(start_ns, np.int64), np.asarray(end_ns, np.int64)
+    turning_deg = np.asarray(turning_deg, float)
+    for a, b in contiguous_segments(t_ns):
+        sel = np.flatnonzero((start_ns >= t_ns[a]) & (start_ns <= t_ns[b - 1]))
+        sel = sel[np.argsort(start_ns[sel], kind="stable")]
+        if not len(sel):
+            continue
+        if not stance[a:a + max(1, int(min_stance_s * fs))].all():
+            notes.append("trajectory does not start standing: no step lengths for that stretch")
+            continue
+        turn = turning_deg[sel]
+        M = common_walking_frame(positions_at(t_ns, xy, start_ns[sel]), positions_at(t_ns, xy, end_ns[sel]), turn,
+                                 max_turn_deg=max_turn_deg)
+        if M is None:
+            notes.append("no straight stride to find the walking direction: no step lengths for that stretch")
+            continue
+        turns = np.flatnonzero(np.abs(turn) > max_turn_deg)
+        stop = b if not len(turns) else int(np.searchsorted(t_ns, start_ns[sel][turns[0]], side="right"))
+        out[a:stop] = (xy[a:stop] - xy[a]) @ M.T
+    return out, notes
+
+
+def straight_stride_lengths(ic_s: np.ndarray, stride_length_m: np.ndarray, turning_deg: np.ndarray,
+                            has_previous_ic: np.ndarray, *, max_turn_deg: float) -> np.ndarray:
+    """Lengths (m) of one foot's steady straight strides, the input of :func:`equal_stride_scale` (C6): in IC
+    order, the strides before the first turning one (|turning| > ``max_turn_deg``, where the step lengths stop),
+    without the first stride (gait initiation), with a previous IC and a finite length."""
+    order = np.argsort(np.asarray(ic_s), kind="stable")
+    L, turn = np.asarray(stride_length_m, float)[order], np.asarray(turning_deg, float)[order]
+    prev = np.asarray(has_previous_ic, bool)[order]
+    turns = np.flatnonzero(np.abs(turn) > max_turn_deg)
+    stop = int(turns[0]) if len(turns) else len(L)
+    keep = np.zeros(len(L), bool)
+    keep[1:stop] = True
+    return L[keep & prev & np.isfinite(L)]

@@ -39,3 +39,22 @@ def angle_errors(ref_deg: np.ndarray, est_deg: np.ndarray, *, standing: tuple[in
                       rmse_deg=np.sqrt(np.nanmean(em ** 2, axis=0)),
                       rom_ref_deg=np.nanmax(rm, axis=0) - np.nanmin(rm, axis=0),
                       rom_est_deg=np.nanmax(xm, axis=0) - np.nanmin(xm, axis=0))
+
+
+def reference_angles_deg(q_prox: np.ndarray, q_dist: np.ndarray, *, joint: str, side: str,
+                         standing: tuple[int, int] | None = None) -> np.ndarray:
+    """(N, 3) reference joint angles from optical segment orientations (the IMU pipeline's joint coordinate
+    system, :func:`estimators.joints.joint_angles_deg`), with the same standing-offset removal as the IMU angles
+    (thesis ch. 8: the mean over the quiet-standing window ``standing`` [start, stop) subtracted)."""
+    from estimators.joints._jcs import joint_angles_deg
+    ref = joint_angles_deg(q_prox, q_dist, joint=joint, side=side)
+    if standing is not None:
+        ref = ref - np.nanmean(ref[standing[0]:standing[1]], axis=0)
+    return ref
+
+
+def pooled_rmse_deg(errors: list[np.ndarray]) -> np.ndarray:
+    """(K,) RMS of (ref − est) per angle component pooled over trials: ``errors`` is a list of (n_i, K) arrays of
+    finite sample errors (every sample weighs the same, as one trial of all samples would)."""
+    err = np.concatenate(errors)
+    return np.array([np.sqrt(np.mean(err[:, k] ** 2)) for k in range(err.shape[1])])

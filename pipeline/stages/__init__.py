@@ -70,6 +70,8 @@ class Stage:
     applies: Callable | None = None
     #: catalog tables written by the ingest (not by a stage) whose rows of the session the stage reads (upstream)
     reads: tuple[str, ...] = ()
+    #: the frozen parameter class of a stage in the shape of :mod:`pipeline.stages._shape` (None for a bare Stage)
+    params_cls: type | None = None
 
 
 def canonical_json(obj) -> str:

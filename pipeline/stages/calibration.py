@@ -1,10 +1,12 @@
 """Sensor-to-segment calibration per lab session: warehouse -> estimators.calibration -> warehouse.
 
-The session's calibration trial (recording whose trial is ``calibration``) is read with the sensor
-orientations of the orientation stage; :func:`estimators.calibration.calibrate_session` finds the
-windows (or takes them from the study manifest, ``[stages.calibration.windows]``) and returns one
-calibration and QC status per IMU. A session without a calibration trial gets a ``fail`` row per
-lower-limb IMU ("calibration trial missing"), never an exception: joint angles then carry that status.
+``compute``: the session's calibration trial (recording whose trial is ``calibration``) is read with the sensor
+orientations of the orientation stage (:func:`pipeline.stages._lab_read.read_recording`);
+:func:`estimators.calibration.calibrate_session` finds the windows (or takes them from the study manifest,
+``[stages.calibration.windows]``) and returns one calibration and QC status per IMU. A session without a
+calibration trial gets a ``fail`` row per lower-limb IMU ("calibration trial missing"), never an exception:
+joint angles then carry that status. ``score`` (separate step): the calibration error against the optical
+reference (:func:`estimators.calibration.evaluation.helical_angle_deg`).
 
 Manifest form (seconds from the start of the calibration trial; a table keyed by a session id
 applies to that session only)::
@@ -20,145 +22,37 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json
-from warehouse.read import read_imu_files, reference_orientation_on
-from warehouse.store import read_table
+from estimators.calibration import CalibrationParams
+from estimators.sync import common_grid  # noqa: F401  (pipeline.live.calibration reads it from here)
+from pipeline.stages import canonical_json
+from pipeline.stages._lab_read import CALIBRATION_TRIAL, find_calibration_recording, read_recording  # noqa: F401
+from pipeline.stages._shape import StageContext, shaped_stage
 
-CALIBRATION_TRIAL = "calibration"
+TABLES = ("calibration", "accuracy_metrics")
 WINDOW_KEYS = ("standing", "hip_fe", "walking")
 
 
-def default_params() -> dict:
-    from estimators.calibration import CalibrationParams
-    return {**dataclasses.asdict(CalibrationParams()), "windows": {}}
+@dataclass(frozen=True)
+class CalibrationStageParams(CalibrationParams):
+    """The estimator's :class:`estimators.calibration.CalibrationParams` (units in their names) and ``windows``:
+    the calibration windows in seconds from the start of the calibration trial ({} = detected), or per session id
+    a table of them (see the module docstring)."""
+    windows: dict = field(default_factory=dict)
 
 
-def calibration_params(params: dict):
+def calibration_params(p: CalibrationStageParams) -> CalibrationParams:
     """The estimator's frozen params from the stage params (manifest overrides included)."""
-    from estimators.calibration import CalibrationParams
-    names = {f.name for f in dataclasses.fields(CalibrationParams)}
-    return CalibrationParams(**{k: v for k, v in params.items() if k in names})
+    return CalibrationParams(**{f.name: getattr(p, f.name) for f in dataclasses.fields(CalibrationParams)})
 
 
-def find_calibration_recording(recordings: list[dict]) -> dict | None:
-    """The session's calibration trial (the last one if it was repeated), or None."""
-    cands = [r for r in recordings if (r.get("trial") or "").lower() == CALIBRATION_TRIAL]
-    return cands[-1] if cands else None
-
-
-def common_grid(t_by_placement: dict[str, np.ndarray]) -> np.ndarray:
-    """Timestamps (int64 ns) present in every sensor of a recording: one time grid for the estimators."""
-    grid = None
-    for t in t_by_placement.values():
-        grid = t if grid is None else np.intersect1d(grid, t, assume_unique=True)
-    return np.asarray(grid if grid is not None else [], np.int64)
-
-
-#: when the stamps shared by every sensor are fewer than this share of the shortest sensor's, the
-#: sensors run on independent clocks and are resampled onto one grid (see :func:`read_recording`)
-EXACT_GRID_SHARE = 0.9
-
-
-def read_recording(inp: SessionInput, rec: dict, orientation_rows: list[dict], placements) -> dict:
-    """acc, gyr, quat (placement -> (N, ·) on the common grid), t_ns and sampling_rate_hz of one recording.
-
-    Placements without an IMU are left out; ``quat`` only holds placements with orientation rows.
-    Sensors sharing one clock meet on the stamps they all have (no interpolation). Sensors on
-    independent clocks (offsets up to seconds, jitter, slightly different rates: the shared stamps are
-    fewer than :data:`EXACT_GRID_SHARE` of the shortest sensor's) are aligned through the host clock:
-    each sensor's ``log_time - header.stamp`` is fitted by a straight line (offset and rate), which maps
-    every stamp into the clock of the first placement, and the others are interpolated (linearly; the
-    orientation by normalised linear interpolation) onto that sensor's stamps where all overlap.
-    ``resampled`` tells which case applied; the grid is empty when the sensors do not overlap.
-    """
-    series, quat_t = {}, {}
-    ori = {r["placement"]: r for r in orientation_rows if r["content_hash"] == rec["content_hash"]}
-    rate = None
-    for p in placements:
-        imu = rec["sensors"].get(p, {}).get("imu")
-        if imu is None:
-            continue
-        series[p] = read_imu_files(inp.root, imu["series_path"], None, imu["sampling_rate_hz"])
-        rate = rate or float(imu["sampling_rate_hz"])
-        if p in ori:
-            t = read_table(inp.root, ori[p]["series_path"])
-            quat_t[p] = (t.column("t_ns").to_numpy(),
-                         np.column_stack([t.column(c).to_numpy() for c in ("qw", "qx", "qy", "qz")]))
-    grid = common_grid({p: s.t_ns for p, s in series.items()})
-    shortest = min((len(s.t_ns) for s in series.values()), default=0)
-    if len(series) > 1 and len(grid) < EXACT_GRID_SHARE * shortest:
-        return _resampled(inp, rec, series, quat_t, rate)
-
-    def on_grid(t, x):
-        return x[np.searchsorted(t, grid)]
-
-    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}, "resampled": False}
-    for p, s in series.items():
-        out["acc"][p], out["gyr"][p] = on_grid(s.t_ns, s.acc), on_grid(s.t_ns, s.gyr)
-        if p in quat_t and np.isin(grid, quat_t[p][0]).all():
-            out["quat"][p] = on_grid(*quat_t[p])
-    return out
-
-
-def _clock_fit(t: np.ndarray, log: np.ndarray) -> tuple[float, float, float]:
-    """(t0, offset at t0, rate) of the straight line log - t = offset + rate * (t - t0), in ns and ns/ns."""
-    k = max(1, len(t) // 20000)
-    tt, off = t[::k].astype(np.float64), (log[::k] - t[::k]).astype(np.float64)
-    t0 = float(tt[0])
-    if len(tt) < 3 or np.ptp(tt) == 0:
-        return t0, float(np.median(off)), 0.0
-    b, a = np.polyfit(tt - t0, off, 1)
-    return t0, float(a), float(b)
-
-
-def _nlerp(t_src: np.ndarray, q: np.ndarray, t_dst: np.ndarray) -> np.ndarray:
-    q = q.copy()
-    flip = np.cumsum(np.r_[False, (q[1:] * q[:-1]).sum(axis=1) < 0]) % 2 == 1
-    q[flip] *= -1                                   # sign continuity before interpolating
-    out = np.column_stack([np.interp(t_dst, t_src, q[:, k]) for k in range(4)])
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
-
-
-def _resampled(inp: SessionInput, rec: dict, series: dict, quat_t: dict, rate: float) -> dict:
-    """The independent-clock case of :func:`read_recording`."""
-    fits = {}
-    for p in series:
-        tab = read_table(inp.root, rec["sensors"][p]["imu"]["series_path"], columns=["t_ns", "log_ns"])
-        fits[p] = _clock_fit(tab.column("t_ns").to_numpy(), tab.column("log_ns").to_numpy())
-    ref = next(iter(series))
-    r0, ra, rb = fits[ref]
-
-    def to_ref(p, t):
-        t0, a, b = fits[p]
-        host = t.astype(np.float64) + a + b * (t.astype(np.float64) - t0)
-        return (host - ra + rb * r0) / (1.0 + rb)     # solve host = t_r + ra + rb (t_r - r0)
-
-    mapped = {p: to_ref(p, s.t_ns) for p, s in series.items()}
-    lo = max(m[0] for m in mapped.values())
-    hi = min(m[-1] for m in mapped.values())
-    t_ref = series[ref].t_ns
-    keep = (t_ref >= lo) & (t_ref <= hi)
-    grid = t_ref[keep]
-    out = {"t_ns": grid, "sampling_rate_hz": rate, "acc": {}, "gyr": {}, "quat": {}, "resampled": True}
-    g = grid.astype(np.float64)
-    for p, s in series.items():
-        if p == ref:
-            out["acc"][p], out["gyr"][p] = s.acc[keep], s.gyr[keep]
-        else:
-            out["acc"][p] = np.column_stack([np.interp(g, mapped[p], s.acc[:, k]) for k in range(3)])
-            out["gyr"][p] = np.column_stack([np.interp(g, mapped[p], s.gyr[:, k]) for k in range(3)])
-        if p in quat_t and len(quat_t[p][0]) >= 2 and len(grid):
-            out["quat"][p] = _nlerp(to_ref(p, quat_t[p][0]), quat_t[p][1], g)
-    return out
-
-
-def manual_windows(params: dict, session_id: str, sampling_rate_hz: float):
+def manual_windows(p: CalibrationStageParams, session_id: str, sampling_rate_hz: float):
     """CalibrationWindows from the manifest (``None`` = detect automatically)."""
     from estimators.calibration import CalibrationWindows
-    w = params.get("windows") or {}
+    w = p.windows or {}
     if session_id in w:
         w = w[session_id]
     w = {k: v for k, v in w.items() if k in WINDOW_KEYS}
@@ -179,56 +73,53 @@ def _windows_s(win, fs: float) -> dict:
             "walking": s(win.walking), "source": win.source}
 
 
-def calibration_rows(session_id: str, content_hash: str | None, cal, fs: float | None, params: dict) -> list[dict]:
+def calibration_rows(ctx: StageContext, content_hash: str | None, cal, fs: float | None) -> list[dict]:
     """Catalog rows of a :class:`SessionCalibration` (one per IMU)."""
     rows = []
     for p, c in sorted(cal.imus.items()):
-        q = c.quat_sensor_af
         d = c.as_dict()
         quality = {k: _num(d[k]) for k in ("planarity", "gamma_deg", "standing_s", "gravity_m_s2",
                                            "gravity_spread_deg", "axis_tilt_deg", "x_vertical_deg")}
-        rows.append({"session_id": session_id, "placement": p, "content_hash": content_hash, "status": c.status,
+        rows.append({"session_id": ctx.session_id, "placement": p, "content_hash": content_hash, "status": c.status,
                      "reasons": json.dumps(list(c.reasons)), "method": c.method, "quality": canonical_json(quality),
-                     "n_reps": int(c.n_cycles), **{f"q{k}": _num(v) for k, v in zip("wxyz", q)},
+                     "n_reps": int(c.n_cycles), **{f"q{k}": _num(v) for k, v in zip("wxyz", c.quat_sensor_af)},
                      "session_status": cal.status, "session_reasons": json.dumps(list(cal.reasons)),
                      "windows": canonical_json(_windows_s(cal.windows, fs) if fs else {"source": "none"}),
-                     "params": canonical_json(params), "stage_version": STAGE.version})
+                     "params": ctx.params_json, "stage_version": STAGE.version})
     return rows
 
 
-def compute(inp: SessionInput, params: dict) -> StageOutput:
+def compute(ctx: StageContext, p: CalibrationStageParams) -> None:
     from estimators.calibration import calibrate_session, missing_calibration
     from estimators.calibration._session import DEFAULT_PLACEMENTS
-    cp = calibration_params(params)
-    sid = inp.session["session_id"]
-    have = {p for r in inp.recordings for p, kinds in r["sensors"].items() if "imu" in kinds}
+    cp = calibration_params(p)
+    have = {pl for r in ctx.recordings for pl, kinds in r["sensors"].items() if "imu" in kinds}
     if not have & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
         # sessions as they come (feet only, chest or lower back only, a hand-held sensor): nothing to calibrate
-        return StageOutput.skipped(f"calibration skipped: no pelvis/thigh/shank sensors (session has "
-                                   f"{', '.join(sorted(have)) or 'no IMU'})")
-    rec = find_calibration_recording(inp.recordings)
+        return ctx.skip(f"calibration skipped: no pelvis/thigh/shank sensors (session has "
+                        f"{', '.join(sorted(have)) or 'no IMU'})")
+    rec = find_calibration_recording(ctx.recordings)
     if rec is None:       # QC rows for the sensors the session has, not for placements it never had
-        cal = missing_calibration(tuple(p for p in DEFAULT_PLACEMENTS if p in have), params=cp)
-        return StageOutput(rows={"calibration": calibration_rows(sid, None, cal, None, params)},
-                           note="calibration trial missing")
-    data = read_recording(inp, rec, inp.upstream.get("orientation", []), DEFAULT_PLACEMENTS)
+        cal = missing_calibration(tuple(pl for pl in DEFAULT_PLACEMENTS if pl in have), params=cp)
+        ctx.emit("calibration", calibration_rows(ctx, None, cal, None))
+        return ctx.set_note("calibration trial missing")
+    data = read_recording(ctx, rec, ctx.upstream.get("orientation", []), DEFAULT_PLACEMENTS)
     fs = data["sampling_rate_hz"]
     if fs is None or len(data["t_ns"]) < 2:
         why = ("calibration trial has no lower-limb IMU" if fs is None else
                "the IMUs of the calibration trial do not overlap in time")
         cal = missing_calibration(DEFAULT_PLACEMENTS, reason=why, params=cp)
-        return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, None, params)},
-                           note=why)
-    cal = calibrate_session(data["acc"], data["gyr"], sampling_rate_hz=fs,
-                            windows=manual_windows(params, sid, fs), params=cp,
-                            quats=data["quat"] or None, placements=DEFAULT_PLACEMENTS)
-    bad = sorted(p for p, c in cal.imus.items() if c.status != "pass")
-    note = f"calibration {cal.status}" + (f" ({', '.join(bad)})" if bad else "")
-    return StageOutput(rows={"calibration": calibration_rows(sid, rec["content_hash"], cal, fs, params),
-                             "accuracy_metrics": accuracy_rows(inp, rec, data, cal)}, note=note)
+        ctx.emit("calibration", calibration_rows(ctx, rec["content_hash"], cal, None))
+        return ctx.set_note(why)
+    cal = calibrate_session(data["acc"], data["gyr"], sampling_rate_hz=fs, windows=manual_windows(p, ctx.session_id, fs),
+                            params=cp, quats=data["quat"] or None, placements=DEFAULT_PLACEMENTS)
+    ctx.emit("calibration", calibration_rows(ctx, rec["content_hash"], cal, fs))
+    ctx.found.append((rec, data, cal))
+    bad = sorted(pl for pl, c in cal.imus.items() if c.status != "pass")
+    ctx.set_note(f"calibration {cal.status}" + (f" ({', '.join(bad)})" if bad else ""))
 
 
-def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
+def score(ctx: StageContext, p: CalibrationStageParams) -> None:
     """Calibration error (thesis Eq. 19, helical angle) against the optical reference, per IMU with a segment
     pose in the calibration trial: the reference sensor-to-segment rotation is the constant rotation between
     the IMU orientation and the optical segment orientation over the trial
@@ -236,25 +127,26 @@ def accuracy_rows(inp: SessionInput, rec: dict, data: dict, cal) -> list[dict]:
     from estimators.calibration.evaluation import helical_angle_deg
     from estimators.orientation.evaluation import segment_alignment
     from estimators.quaternion import quat_to_matrix
-    rows = []
-    ori = inp.upstream.get("orientation", [])
+    ori = ctx.upstream.get("orientation", [])
     estimator = ori[0]["estimator"] if ori else None
-    for p, c in sorted(cal.imus.items()):
-        ref = rec["sensors"].get(p, {}).get("reference_pose")
-        q = data["quat"].get(p)
-        if ref is None or q is None or c.status == "fail" or not np.all(np.isfinite(c.quat_sensor_af)):
-            continue
-        q_ref = reference_orientation_on(inp.root, ref["series_path"], data["t_ns"])
-        ok = np.all(np.isfinite(q_ref), axis=1) & np.all(np.isfinite(q), axis=1)
-        if ok.sum() < (data["sampling_rate_hz"] or 0):
-            continue
-        _, mount = segment_alignment(q[ok], q_ref[ok])
-        # mount: sensor→segment; quat_sensor_af: anatomical frame→sensor (q_AF = q_sensor ⊗ quat_sensor_af)
-        err = float(np.ravel(helical_angle_deg(quat_to_matrix(mount).T, quat_to_matrix(c.quat_sensor_af)))[0])
-        rows.append({"session_id": inp.session["session_id"], "stage": "calibration", "estimator": estimator,
-                     "placement": p, "metric": "calibration_error_deg", "value": err, "unit": "deg"})
-    return rows
+    for rec, data, cal in ctx.found:
+        for pl, c in sorted(cal.imus.items()):
+            q = data["quat"].get(pl)
+            if q is None or c.status == "fail" or not np.all(np.isfinite(c.quat_sensor_af)):
+                continue
+            q_ref = ctx.reference_orientation(rec, pl, data["t_ns"])
+            if q_ref is None:
+                continue
+            ok = np.all(np.isfinite(q_ref), axis=1) & np.all(np.isfinite(q), axis=1)
+            if ok.sum() < (data["sampling_rate_hz"] or 0):
+                continue
+            _, mount = segment_alignment(q[ok], q_ref[ok])
+            # mount: sensor→segment; quat_sensor_af: anatomical frame→sensor (q_AF = q_sensor ⊗ quat_sensor_af)
+            err = float(np.ravel(helical_angle_deg(quat_to_matrix(mount).T, quat_to_matrix(c.quat_sensor_af)))[0])
+            ctx.emit("accuracy_metrics", [{"session_id": ctx.session_id, "stage": "calibration",
+                                           "estimator": estimator, "placement": pl,
+                                           "metric": "calibration_error_deg", "value": err, "unit": "deg"}])
 
 
-STAGE = Stage(name="calibration", version="4", needs=("orientation",), tables=("calibration", "accuracy_metrics"),
-              session_kinds=("lab", "calibration"), compute=compute, default_params=default_params)
+STAGE = shaped_stage("calibration", "4", CalibrationStageParams, compute, score=score, tables=TABLES,
+                     needs=("orientation",), session_kinds=("lab", "calibration"))

@@ -20,41 +20,36 @@ Per stride (live IC to the next, per side) and joint plane: max |live − each|,
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.stages import SessionInput, Stage, StageOutput
+from pipeline.stages._lab_read import read_recording, session_calibration
+from pipeline.stages._shape import StageContext, shaped_stage
 
 PLANES = ("sagittal", "frontal", "transverse")
 TABLES = ("live_agreement", "live_agreement_strides", "live_agreement_events")
 
 
-def default_params() -> dict:
-    return {"event_tolerance_s": 0.5}
+@dataclass(frozen=True)
+class LiveAgreementParams:
+    """event_tolerance_s: a live event and an offline one further apart than this (s) do not match."""
+    event_tolerance_s: float = 0.5
 
 
 def _applies(con, session_id: str) -> bool:
     return con.execute("SELECT count(*) FROM live_outputs WHERE session_id = ?", [session_id]).fetchone()[0] > 0
 
 
-def _read(root, rel):
-    from warehouse.store import read_table
-    return read_table(root, rel)
-
-
-def _sensor_data(inp: SessionInput, rec: dict, ori_rows: list[dict]) -> dict:
+def _sensor_data(ctx: StageContext, rec: dict, ori_rows: list[dict]) -> dict:
     """Raw acc/gyr/mag and offline orientation of the leg IMUs on the recording's common grid."""
     from estimators.calibration._session import DEFAULT_PLACEMENTS
-    from pipeline.stages.calibration import read_recording
-    from warehouse.read import read_imu_files
-    data = read_recording(inp, rec, ori_rows, DEFAULT_PLACEMENTS)
+    data = read_recording(ctx, rec, ori_rows, DEFAULT_PLACEMENTS)
     data["mag"] = {}
     for p in data["acc"]:
-        kinds = rec["sensors"][p]
-        if "mag" not in kinds:
+        if "mag" not in rec["sensors"][p]:
             continue
-        s = read_imu_files(inp.root, kinds["imu"]["series_path"], kinds["mag"]["series_path"],
-                           kinds["imu"]["sampling_rate_hz"])
+        s = ctx.read_imu_files(rec, p, with_mag=True)
         data["mag"][p] = s.mag[np.searchsorted(s.t_ns, data["t_ns"])]
     return data
 
@@ -69,21 +64,20 @@ def _num(x) -> float | None:
     return float(x) if x is not None and np.isfinite(x) else None
 
 
-def compare_recording(inp: SessionInput, rec: dict, live_rows: list[dict], params: dict) -> dict:
+def compare_recording(ctx: StageContext, rec: dict, live_rows: list[dict], params: LiveAgreementParams) -> dict:
     """The three tables' rows for one live recording."""
     from estimators.calibration import first_quiet_standing
     from estimators.gait import IcTcParams, detect_ic_tc, pitch_signal
     from estimators.gait.evaluation import match_events
     from estimators.joints import JOINTS, angle_errors, calibrated_joint_angles_deg, compute_joint_angles
     from pipeline.live.engine import ONLINE_FILTERS
-    from pipeline.stages.joint_angles import session_calibration
-    sid, h = inp.session["session_id"], rec["content_hash"]
+    sid, h = ctx.session_id, rec["content_hash"]
     by_kind = {r["kind"]: r for r in live_rows}
     meta = json.loads(by_kind["angles"]["meta"]) if "angles" in by_kind and by_kind["angles"]["meta"] else {}
     calmsg = meta.get("calibration") or {}
     cal = session_calibration(calmsg.get("rows") or [])
     standing_live = meta.get("standing")
-    data = _sensor_data(inp, rec, inp.upstream.get("orientation", []))
+    data = _sensor_data(ctx, rec, ctx.upstream.get("orientation", []))
     t, fs = data["t_ns"], data["sampling_rate_hz"]
     if fs is None or len(t) < 2:
         return {"note": f"{rec['trial']}: the IMUs share no time grid"}
@@ -100,9 +94,9 @@ def compare_recording(inp: SessionInput, rec: dict, live_rows: list[dict], param
                         "key": key, "metric": metric, "value": _num(value), "unit": unit})
 
     # ---- events --------------------------------------------------------------------------------------
-    ev = _read(inp.root, by_kind["events"]["series_path"]).to_pylist() if "events" in by_kind else []
-    tol = int(round(params["event_tolerance_s"] * fs))
-    offline_ev = [r for r in inp.upstream.get("gait_events", []) if r["content_hash"] == h]
+    ev = ctx.read_table(by_kind["events"]["series_path"]).to_pylist() if "events" in by_kind else []
+    tol = int(round(params.event_tolerance_s * fs))
+    offline_ev = [r for r in ctx.upstream.get("gait_events", []) if r["content_hash"] == h]
     ic_live = {}
     for side in ("left", "right"):
         p = f"foot_{side}"
@@ -143,7 +137,7 @@ def compare_recording(inp: SessionInput, rec: dict, live_rows: list[dict], param
     # ---- joint angles --------------------------------------------------------------------------------
     if "angles" not in by_kind or cal is None:
         return out
-    la = _read(inp.root, by_kind["angles"]["series_path"])
+    la = ctx.read_table(by_kind["angles"]["series_path"])
     lt = la.column("t_ns").to_numpy()
     idx = np.searchsorted(t, lt)
     ok = (idx < len(t)) & (t[np.minimum(idx, len(t) - 1)] == lt)       # live frames with a sample on the grid
@@ -195,26 +189,23 @@ def compare_recording(inp: SessionInput, rec: dict, live_rows: list[dict], param
     return out
 
 
-def compute(inp: SessionInput, params: dict) -> StageOutput:
-    live = inp.upstream.get("live_outputs", [])
+def compute(ctx: StageContext, p: LiveAgreementParams) -> None:
     by_rec: dict[str, list] = {}
-    for r in live:
+    for r in ctx.upstream.get("live_outputs", []):
         by_rec.setdefault(r["content_hash"], []).append(r)
-    rows = {t: [] for t in TABLES}
     notes = []
-    for rec in inp.recordings:
+    for rec in ctx.recordings:
         if rec["content_hash"] not in by_rec:
             continue
-        res = compare_recording(inp, rec, by_rec[rec["content_hash"]], params)
+        res = compare_recording(ctx, rec, by_rec[rec["content_hash"]], p)
         if "note" in res:
             notes.append(res.pop("note"))
         for t_, v in res.items():
-            rows[t_] += v
-    if not any(rows.values()):
-        return StageOutput.skipped("no live outputs to compare" + (f" ({'; '.join(notes)})" if notes else ""))
-    return StageOutput(rows=rows, note="; ".join(notes))
+            ctx.emit(t_, v)
+    if not any(ctx.rows.values()):
+        return ctx.skip("no live outputs to compare" + (f" ({'; '.join(notes)})" if notes else ""))
+    ctx.set_note("; ".join(notes))
 
 
-STAGE = Stage(name="live_agreement", version="1", needs=("orientation", "gait"), tables=TABLES,
-              session_kinds=("lab",), compute=compute, default_params=default_params, applies=_applies,
-              reads=("live_outputs",))
+STAGE = shaped_stage("live_agreement", "1", LiveAgreementParams, compute, tables=TABLES, needs=("orientation", "gait"),
+                     session_kinds=("lab",), applies=_applies, reads=("live_outputs",))

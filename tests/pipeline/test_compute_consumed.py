@@ -61,7 +61,7 @@ def test_free_living_orientation_only_when_the_study_asks(tmp_path, free_living_
 def test_lab_orientation_is_needed_by_the_later_stages():
     stages = registry()
     ori = {s.name: s for s in stages}["orientation"]
-    assert runner.why_wanted(ori, "lab", "demo", stages) == "needed by calibration, joint_angles"
+    assert runner.why_wanted(ori, "lab", "demo", stages) == "needed by calibration, joint_angles, live_agreement"
     assert runner.why_wanted(ori, "free_living", "demo", stages) is None
 
 

@@ -44,7 +44,7 @@ def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch,
     res = import_paths("uci", [d], tmp_path / "inbox", study="public")
     # the rules (the bench's 'rules' method): the shipped window model was fitted on UCI, so its figure there is
     # in-sample and the bench reports it by nested LOPO instead
-    rules = dataclasses.replace(activity.STAGE, default_params=lambda: {**activity.default_params(),
+    rules = dataclasses.replace(activity.STAGE, default_params=lambda: {**activity.STAGE.default_params(),
                                                                         "window_model": None})
     run_with(monkeypatch, tmp_path / "wh", res.written, [rules])
     stage = df(tmp_path / "wh", "SELECT s.participant_id, a.metric, a.value FROM accuracy_metrics a "
@@ -91,7 +91,7 @@ def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch
     for f in src.glob("3-1*"):
         (d / f.name).symlink_to(f)
     res = import_paths("voisard", [d], tmp_path / "inbox", study="public")
-    params = {**gait.default_params(), "event_tolerance_s": VOISARD_TOL_S}
+    params = {**gait.STAGE.default_params(), "event_tolerance_s": VOISARD_TOL_S}
     run_with(monkeypatch, tmp_path / "wh", res.written, [dataclasses.replace(gait.STAGE, default_params=lambda: params)])
     stage = _gait_metrics(tmp_path / "wh", "gait_events")
     bench = voisard_benchmark(d, show_progress=False)["shipped_defaults"]

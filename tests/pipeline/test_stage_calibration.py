@@ -79,7 +79,7 @@ def test_calibration_rows_equal_the_estimator_on_the_same_arrays(warehouse):
         quats[p] = read_orientation(con, warehouse, h, p)[1]
     con.close()
     cal = calibrate_session(acc, gyr, sampling_rate_hz=100.0, quats=quats,
-                            params=cal_stage.calibration_params(cal_stage.default_params()))
+                            params=cal_stage.calibration_params(cal_stage.CalibrationStageParams()))
     for _, r in rows.iterrows():
         c = cal.imus[r["placement"]]
         assert r["status"] == c.status and json.loads(r["reasons"]) == list(c.reasons)
@@ -173,12 +173,12 @@ def test_manual_windows_from_the_manifest_override_detection(warehouse, lab_file
     truth = lab_files[1][0]
     w = {lab: (a, b) for lab, a, b, side in truth.windows if side is None}
     fe = {side: [a, b] for lab, a, b, side in truth.windows if side is not None}
-    params = dict(cal_stage.default_params(), windows={"standing": list(w["quiet_standing"]), "hip_fe": fe,
+    params = dict(cal_stage.STAGE.default_params(), windows={"standing": list(w["quiet_standing"]), "hip_fe": fe,
                                                          "walking": list(w["straight_walking"])})
     with Warehouse.open(warehouse) as wh:
         sid = first(wh.con.execute("SELECT session_id FROM sessions"))[0]
         inp = runner._session_inputs(wh, sid, cal_stage.STAGE)
-    out = cal_stage.compute(inp, params)
+    out = cal_stage.STAGE.compute(inp, params)
     rows = out.rows["calibration"]
     win = json.loads(rows[0]["windows"])
     assert win["source"] == "manual" and win["standing"] == [0.0, 4.0]

@@ -48,7 +48,7 @@ def warehouse(lab_files, tmp_path_factory):
 
 def test_rows_equal_the_estimator_on_the_same_arrays(warehouse):
     from estimators.gait import foot_kinematics, foot_params_from_dict
-    params = gait_stage.default_params()
+    params = gait_stage.STAGE.default_params()
     traj = _df(warehouse, "SELECT * FROM foot_trajectories ORDER BY placement")
     assert list(traj["placement"]) == ["foot_left", "foot_right"] and set(traj["trial"]) == {"walk-1"}
     con = connect_snapshot(warehouse)
@@ -139,15 +139,15 @@ def test_no_stance_and_no_walking_trial_give_a_clear_status(tmp_path):
     imu, t = _write_imu(tmp_path, gyr, acc)
     rec = {"content_hash": "a" * 64, "trial": "walk-1", "start_ns": int(t[0]), "end_ns": int(t[-1]),
            "sensors": {"foot_left": {"imu": imu}}}
-    out = gait_stage.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=[rec]),
-                             gait_stage.default_params())
+    out = gait_stage.STAGE.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=[rec]),
+                             gait_stage.STAGE.default_params())
     assert out.rows["strides"] == [] and out.rows["gait_events"] == []
     summ = {r["side"]: r for r in out.rows["gait_summary"]}
     assert summ["both"]["status"] == "no_stance" and summ["both"]["n_strides"] == 0
     assert "no stance" in summ["both"]["note"] and "no foot_right IMU" in summ["both"]["note"]
     assert out.rows["foot_trajectories"][0]["status"] == "no_stance"
-    out = gait_stage.compute(SessionInput(root=str(tmp_path), session=_session(),
-                                          recordings=[dict(rec, trial="calibration")]), gait_stage.default_params())
+    out = gait_stage.STAGE.compute(SessionInput(root=str(tmp_path), session=_session(),
+                                          recordings=[dict(rec, trial="calibration")]), gait_stage.STAGE.default_params())
     assert {r["status"] for r in out.rows["gait_summary"]} == {"no_walking_trial"}
     assert all(out.rows[t] == [] for t in ("strides", "gait_events", "foot_trajectories"))
 
@@ -163,8 +163,8 @@ def test_standing_still_gives_no_strides(tmp_path):
     for p in ("foot_left", "foot_right"):
         sensors[p] = {"imu": _write_imu(tmp_path, gyr, acc, placement=p)[0]}
     recs.append({"content_hash": "b" * 64, "trial": "walk-1", "start_ns": 0, "end_ns": int(20e9), "sensors": sensors})
-    out = gait_stage.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=recs),
-                             gait_stage.default_params())
+    out = gait_stage.STAGE.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=recs),
+                             gait_stage.STAGE.default_params())
     assert out.rows["strides"] == []
     assert {r["status"] for r in out.rows["gait_summary"]} == {"no_strides"}
 
@@ -214,11 +214,12 @@ def test_distance_sensors_feed_the_duong_suh_height(warehouse):
     finally:
         con.close()
     rec = {"content_hash": r["content_hash"], "trial": "walk-1", "sensors": sensors}
-    inp = SessionInput(root=str(warehouse), session={}, recordings=[rec])
-    ranges = gait_stage.read_ranges(inp, rec, r["placement"], s.t_ns)
+    from pipeline.stages._shape import StageContext
+    ctx = StageContext(SessionInput(root=str(warehouse), session={}, recordings=[rec]), gait_stage.TABLES, ())
+    ranges = gait_stage.read_ranges(ctx, rec, r["placement"], s.t_ns)
     assert ranges.shape == (len(s.t_ns), 2) and 0.3 < np.isfinite(ranges).mean() < 0.34     # 33.3 of 100 Hz
     res, src = gait_stage.range_trajectory(s.gyr, s.acc, ranges, s.sampling_rate_hz, r["placement"],
-                                           gait_stage.default_params()["distance_sensors"])
+                                           gait_stage.GaitParams().distance_sensors)
     t = read_table(warehouse, r["series_path"])
     np.testing.assert_array_equal(t.column("pz_floor").to_numpy(), res.pos[:, 2])
     assert src == "guessed" and res.status == "ok"
@@ -238,8 +239,8 @@ def test_saturated_distance_sensors_give_a_clear_status(tmp_path):
         sensors[f"range:{rel}"] = {"series_path": rel, "sampling_rate_hz": 33.3, "n_samples": len(t[::3])}
     rec = {"content_hash": "c" * 64, "trial": "walk-1", "start_ns": int(t[0]), "end_ns": int(t[-1]),
            "sensors": {"foot_left": sensors}}
-    out = gait_stage.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=[rec]),
-                             gait_stage.default_params())
+    out = gait_stage.STAGE.compute(SessionInput(root=str(tmp_path), session=_session(), recordings=[rec]),
+                             gait_stage.STAGE.default_params())
     row = out.rows["foot_trajectories"][0]
     assert row["range_status"] == "no_valid_range" and row["range_used_fraction"] == 0.0
     assert "distance sensors" in out.rows["gait_summary"][0]["note"]
