@@ -65,6 +65,10 @@ class Prepared:
     n_samples: int = 0
     ignored_topics: list[str] = field(default_factory=list)
     skipped_topics: list[dict] = field(default_factory=list)   # every topic not ingested: {topic, reason}
+    #: every topic of the file for the ingest ledger (``ingest_topics``, migration 015): {topic, outcome, placement,
+    #: n_samples, reason}, topic names as the catalog keeps them; the outcome as if the file is ingested (commit()
+    #: turns every row into the file's outcome when it is refused or a re-export)
+    topics: list[dict] = field(default_factory=list)
     crc_verified: bool | None = None         # every message covered by a checked CRC (False: "unverified")
     settings_hash: str = ""                  # with content_hash, the idempotency key (:func:`settings_hash`)
     settings: dict = field(default_factory=dict)
@@ -467,6 +471,7 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
             if "t_ns" not in e or "type" not in e:
                 raise IngestRejected("/reference/events: an annotation lacks 't_ns' or 'type'")
         out.events = _unique_events(out.events, out.issues)
+        out.topics = _topic_rows(out, res)
     except (IngestRejected, McapFormatError, SeriesRejected, SessionSourceError, ValueError) as e:
         for s in states.values():
             s.abort()
@@ -474,6 +479,8 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
         out.console_reason = str(e).splitlines()[0] if str(e) else type(e).__name__
         out.reason = _redacted(out.console_reason, path, list(states) + list(res.found_topics()))
         out.sensors, out.events = [], []
+        out.topics = [{"topic": privacy.shown_topic(t), "outcome": "quarantined"} for t in sorted(
+            set(states) | {t.topic for t in res.topics.values()} | {d["topic"] for d in out.skipped_topics})]
         if not out.content_hash:
             out.content_hash = _content_hash(path)
     except BaseException:
@@ -481,6 +488,41 @@ def _prepare(path, root, options, series_root=None) -> Prepared:
             s.abort()
         raise
     return out
+
+
+#: the ledger's topic for a file of which no topic could be read (refused before its channels were known)
+WHOLE_FILE = "(whole file)"
+
+
+def _topic_rows(out: Prepared, res: ReadResult) -> list[dict]:
+    """Every topic of an ingested file for the ledger: each ingested series, the reference events, each skipped
+    topic with its reason, and any other channel of the file (none is left out without a row)."""
+    rows = [{"topic": d["topic"], "outcome": "ingested", "placement": d["placement"], "n_samples": d["n_samples"]}
+            for d in out.sensors]
+    if out.events:
+        rows.append({"topic": "/reference/events", "outcome": "ingested", "n_samples": len(out.events)})
+    rows += [{"topic": privacy.shown_topic(d["topic"]), "outcome": "skipped", "reason": d["reason"]}
+             for d in out.skipped_topics]
+    listed = {d["topic"] for d in out.skipped_topics} | {r["topic"] for r in rows}
+    for ti in res.topics.values():
+        if ti.topic not in listed and privacy.shown_topic(ti.topic) not in listed:
+            rows.append({"topic": privacy.shown_topic(ti.topic), "outcome": "skipped", "reason": "no messages"})
+    return sorted(rows, key=lambda r: (r["outcome"] != "ingested", r["topic"]))
+
+
+def _record_topics(wh: Warehouse, p: Prepared, run_id: str | None, status: str, reason: str = "") -> None:
+    """The file's rows of the ingest ledger (migration 015), in the commit's transaction: as prepared when the file
+    is ingested, else every topic with the file's outcome and reason."""
+    if run_id is None or not wh.has_column("ingest_topics", "outcome"):
+        return
+    if status == "ingested":
+        rows = p.topics
+    else:
+        rows = [{"topic": r["topic"], "outcome": status, "reason": reason} for r in p.topics] or \
+               [{"topic": WHOLE_FILE, "outcome": status, "reason": reason}]
+    wh.insert("ingest_topics", [{"run_id": run_id, "content_hash": p.content_hash, "file_name": p.file_name,
+                                 "topic": r["topic"], "outcome": r["outcome"], "placement": r.get("placement"),
+                                 "n_samples": r.get("n_samples"), "reason": r.get("reason")} for r in rows])
 
 
 def _stored_topic(topic: str, placement: str, prefix: str) -> str:
@@ -664,8 +706,9 @@ def known_hash(wh: Warehouse, path: Path) -> str | None:
     return r[0] if r else None
 
 
-def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
-    """Write one prepared file's catalog rows in a single transaction (idempotent by content hash).
+def commit(wh: Warehouse, p: Prepared, replace: bool = False, run_id: str | None = None) -> CommitResult:
+    """Write one prepared file's catalog rows in a single transaction (idempotent by content hash); with
+    ``run_id``, also the file's topics in the run's ingest ledger (``ingest_topics``).
 
     A file with the samples of an ingested recording is a re-export: recorded, not ingested again. With
     ``replace`` the file supersedes the recordings with its samples or its file name (pipeline/supersede.py)."""
@@ -682,11 +725,13 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
         if prev is not None and wh.has_column("recordings", "settings_hash"):
             if replace or stored_settings_hash(con, p.content_hash) != (p.settings_hash or DEFAULT_SETTINGS_HASH):
                 if p.status != "ingested":
+                    _record_topics(wh, p, run_id, "quarantined", p.reason)
                     return CommitResult("quarantined", f"{_console(p)}: ingesting it again failed, the earlier "
                                                        f"ingest ({prev[0]}) stays: {p.reason}")
                 again = _supersede_same_file(con, p, "--replace" if replace else "other ingest settings", now)
                 prev = None
         if prev is not None:
+            _record_topics(wh, p, run_id, "duplicate", f"already {prev[0]} (same content and ingest settings)")
             return CommitResult("duplicate", f"{_console(p)}: already {prev[0]} (same content), nothing changed")
         if not wh.has_column("recordings", "sample_hash"):
             p.sample_hash = p.legacy_sample_hash = ""   # a catalog before migration 009 (only tests open one
@@ -703,6 +748,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
                                           "source_path": p.source_path, "size_bytes": p.size_bytes,
                                           "status": "reexport", "reason": reason, "sample_hash": p.sample_hash,
                                           "ingested_at": now}])
+                _record_topics(wh, p, run_id, "reexport", reason)
                 return CommitResult("reexport", f"{_console(p)}: {reason}")
         emptied = supersede.sessions_emptied(con, old)
         shown = p.console_reason if p.status == "quarantined" and p.console_reason else None   # refused by prepare
@@ -731,6 +777,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             wh.insert("recordings", [{"content_hash": p.content_hash, "file_name": p.file_name,
                                       "source_path": p.source_path, "size_bytes": p.size_bytes,
                                       "status": "quarantined", "reason": p.reason, "ingested_at": now, **extra}])
+            _record_topics(wh, p, run_id, "quarantined", p.reason)
             return CommitResult("quarantined", f"{_console(p)}: quarantined: {shown or p.reason}")
         superseded = supersede.supersede(con, old, p, emptied)
         s = p.metadata
@@ -757,6 +804,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
             "end_ns": int(e["end_ns"]) if e.get("end_ns") is not None else None, "type": str(e["type"]),
             "side": e.get("side"), "placement": e.get("placement"), "label": e.get("label"),
             "payload": json.dumps(e, sort_keys=True)} for e in p.events])
+        _record_topics(wh, p, run_id, "ingested")
         if superseded or again:
             supersede.refresh_session_span(con, s["session"])
     msg = f"{_console(p)}: ingested {p.n_samples:,} IMU samples into session {s['session']}"
@@ -766,7 +814,7 @@ def commit(wh: Warehouse, p: Prepared, replace: bool = False) -> CommitResult:
         msg += f", superseding {', '.join(superseded)}"
     if p.skipped_topics:
         msg += (f"; {len(p.skipped_topics)} topic{'s' if len(p.skipped_topics) > 1 else ''} skipped: "
-                + "; ".join(f"{d['topic']}: {d['reason']}" for d in p.skipped_topics[:4]))
+                + "; ".join(f"{d['topic']}: {d['reason']}" for d in p.skipped_topics))   # every one (issue #47)
     if p.issues:
         msg += f" ({len(p.issues)} warning{'s' if len(p.issues) > 1 else ''}: {p.issues[0]['message']})"
     return CommitResult("ingested", msg)
