@@ -227,6 +227,17 @@ def _check_plausible(session: dict) -> None:
                                      f"[{lo:g}, {hi:g}]; fix it at export")
 
 
+#: the deg/s check that does not depend on the rate's size (:attr:`TopicSeries.gyro_to_gravity_turn`), set a priori: at least this
+#: many quasi-static window pairs, the gyroscope's predicted turn of gravity correlated with the measured one at
+#: least this well (in absolute value: the correlation guards against a turn that is only noise), and at least this
+#: many times as large (1 in rad/s, 57.3 in deg/s; 7.6 is their geometric mean). Checked, not tuned, on the public recordings
+#: (../shared/data: BROAD, gaitmap, PyShoe, Voisard, all in rad/s): ratio 0.17-1.69 (docs/integrity.md "Units"),
+#: and on the simulated lab recordings of tests/corpus.py: 1.00 in rad/s, 57.2 in deg/s
+GYRO_CHECK_PAIRS = 20
+GYRO_CHECK_CORRELATION = 0.5
+GYRO_DEG_RATIO = 7.6
+
+
 def _check_units(st: TopicSeries) -> None:
     acc_med = st.acc_norm_median
     if 0.5 < acc_med < 2.0:
@@ -239,6 +250,11 @@ def _check_units(st: TopicSeries) -> None:
     if gyr > 35.0:
         raise IngestRejected(f"{st.topic}: angular rate 99th percentile is {gyr:.0f}, which looks like deg/s; "
                              f"the recording format needs rad/s (multiply by pi/180 = 0.0174533 at export)")
+    ratio, corr, pairs = st.gyro_to_gravity_turn
+    if pairs >= GYRO_CHECK_PAIRS and abs(corr) >= GYRO_CHECK_CORRELATION and ratio >= GYRO_DEG_RATIO:
+        raise IngestRejected(f"{st.topic}: the gyroscope turns {ratio:.0f} times as far as the gravity direction seen "
+                             f"by the accelerometer (57.3 when the rate is in deg/s): the angular rate looks like "
+                             f"deg/s; the recording format needs rad/s (multiply by pi/180 = 0.0174533 at export)")
 
 
 def _stat_signature(path: Path) -> tuple[int, int]:

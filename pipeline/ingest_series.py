@@ -116,6 +116,87 @@ def _all_finite(v: np.ndarray) -> bool:
     return bool(np.isfinite(v).all())
 
 
+G0 = 9.80665
+#: windows whose mean specific force is within this of 1 g are quasi-static (gravity dominates the accelerometer)
+STILL_TOLERANCE = 1.0      # m/s²
+WINDOW_S = 0.1             # window of the rotation check (s); at least 4 samples
+
+
+@njit(cache=True, nogil=True)
+def _rotation_sums(t, v, w):
+    """Agreement of the gyroscope with the accelerometer's gravity direction over consecutive quasi-static
+    windows of ``w`` samples: the unit specific force ``f`` of a sensor turning at body rate ``omega`` changes as
+    ``df/dt = -omega x f`` (gravity is fixed in the world). Per pair of windows, ``c`` = -(integral of omega
+    between the window centres) x f (predicted) and ``d`` = the change of f (measured). Returns
+    (sum |c|², sum |d|², sum c.d, pairs). With rad/s both agree (|c|/|d| ~ 1); a gyroscope in deg/s predicts
+    57.3 times the measured turn, whatever the rate's size (the magnitude check misses a slow turn)."""
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    cnt = 0
+    prev_ok = False
+    px = 0.0
+    py = 0.0
+    pz = 0.0
+    h = w // 2
+    for k in range(t.shape[0] // w):
+        a = k * w
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for j in range(a, a + w):
+            mx += v[j, 3]
+            my += v[j, 4]
+            mz += v[j, 5]
+        mx /= w
+        my /= w
+        mz /= w
+        nrm = np.sqrt(mx * mx + my * my + mz * mz)
+        ok = abs(nrm - G0) < STILL_TOLERANCE
+        if ok:
+            mx /= nrm
+            my /= nrm
+            mz /= nrm
+        if ok and prev_ok:
+            gx = 0.0
+            gy = 0.0
+            gz = 0.0
+            good = True
+            for j in range(a - w + h, a + h):
+                dt = (t[j + 1] - t[j]) * 1e-9
+                if dt <= 0.0 or dt > 0.2:
+                    good = False
+                    break
+                gx += v[j, 0] * dt
+                gy += v[j, 1] * dt
+                gz += v[j, 2] * dt
+            if good:
+                cx = -(gy * pz - gz * py)
+                cy = -(gz * px - gx * pz)
+                cz = -(gx * py - gy * px)
+                dx = mx - px
+                dy = my - py
+                dz = mz - pz
+                sxx += cx * cx + cy * cy + cz * cz
+                syy += dx * dx + dy * dy + dz * dz
+                sxy += cx * dx + cy * dy + cz * dz
+                cnt += 1
+        prev_ok = ok
+        px = mx
+        py = my
+        pz = mz
+    return sxx, syy, sxy, cnt
+
+
+def rotation_window(t: np.ndarray) -> int:
+    """Samples per window of :func:`_rotation_sums`: about :data:`WINDOW_S` at the block's rate, at least 4."""
+    d = np.diff(t[:64])
+    d = d[d > 0]
+    if not len(d):
+        return 0
+    return max(4, int(round(WINDOW_S * 1e9 / float(np.median(d)))))
+
+
 @dataclass
 class BlockChecks:
     """What :func:`check_block` found in one block (``t``: the stamps with unset ones replaced)."""
@@ -131,6 +212,7 @@ class BlockChecks:
     n_pose: int = 0                # reference poses in the block
     sub: np.ndarray | None = None  # every SUBSAMPLE-th IMU sample (unit checks)
     off: np.ndarray | None = None  # ... and its log_time - stamp (clock checks)
+    rot: tuple = (0.0, 0.0, 0.0, 0)  # gyroscope vs gravity direction (:func:`_rotation_sums`; unit check)
 
 
 def check_block(b: Block) -> Block:
@@ -156,6 +238,10 @@ def check_block(b: Block) -> Block:
     if b.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
         c.sub = v[::SUBSAMPLE].copy()        # a copy: a view would keep the block alive
         c.off = log[::SUBSAMPLE] - t[::SUBSAMPLE]
+        if not c.back:
+            w = rotation_window(t)
+            if w and len(t) >= 2 * w:
+                c.rot = _rotation_sums(t, v, w)
     b.checks = c
     return b
 
@@ -224,6 +310,8 @@ class TopicSeries:
         self.n_in = 0                       # samples received
         self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
         self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
+        self._rot = np.zeros(3)                # gyroscope vs gravity direction: sums of |c|², |d|², c.d
+        self._rot_pairs = 0
         self.n_nan = 0              # reference poses without a position
         self.n_no_quat = 0          # ... with a position but no orientation
         self.n_pose = 0
@@ -272,6 +360,8 @@ class TopicSeries:
         if c.sub is not None:
             self._sub.append(c.sub)
             self._off.append(c.off)
+            self._rot += np.asarray(c.rot[:3])
+            self._rot_pairs += int(c.rot[3])
         t, log, v, back, rep = c.t, b.log_ns, b.values, c.back, c.rep
         if not c.n_none:                    # (samples without any time base refuse the topic in _write)
             t, log, v, back, rep = self._clock_sanity(t, log, v, back, rep)
@@ -500,6 +590,16 @@ class TopicSeries:
     def gyr_p99(self) -> float:
         v = np.concatenate(self._sub)
         return float(np.percentile(np.abs(v[:, :3]), 99))
+
+    @property
+    def gyro_to_gravity_turn(self) -> tuple[float, float, int]:
+        """(ratio, correlation, window pairs) of the turn the gyroscope predicts for the gravity direction to the
+        turn the accelerometer measures, over quasi-static windows (:func:`_rotation_sums`): ratio ~1 in rad/s,
+        ~57 in deg/s; NaN without pairs or rotation."""
+        sxx, syy, sxy = self._rot
+        if self._rot_pairs == 0 or sxx <= 0 or syy <= 0:
+            return float("nan"), float("nan"), self._rot_pairs
+        return float(np.sqrt(sxx / syy)), float(sxy / np.sqrt(sxx * syy)), self._rot_pairs
 
     def warnings(self) -> list[str]:
         out = []
