@@ -24,6 +24,7 @@ MOST = 0.5                                     # "most" stamps: more than half o
 
 
 def latest_ns() -> int:
+    """The latest plausible stamp: the ingesting host's clock (not the file's) + 1 day (docs/clocks.md)."""
     return time.time_ns() + FUTURE_MARGIN_NS
 
 
