@@ -194,8 +194,8 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             raise StorageError(f"cannot write the warehouse while ingesting {Path(item[0]).name}: {res}")
         if isinstance(res, Exception):
             res = ingest_mod.Prepared(source_path=stored_path(item[0]), file_name=stored_name(item[0]), size_bytes=0,
-                                      mtime_ns=0, content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
-                                      reason=ingest_mod._redacted(f"internal error while reading: {res}", Path(item[0]), ()),
+                                      mtime_ns=0, content_hash=ingest_mod.sha256(Path(item[0])), status="quarantined",
+                                      reason=ingest_mod.redacted(f"internal error while reading: {res}", Path(item[0]), ()),
                                       display_name=Path(item[0]).name)
         r = ingest_mod.commit(wh, res, replace=str(Path(item[0]).resolve()) in replacing, run_id=summary.run_id)
         if r.status == "ingested":
