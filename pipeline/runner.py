@@ -59,6 +59,7 @@ class RunSummary:
     skipped_fresh: int = 0
     failed: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)          # inbox entries that cannot be recordings, with why
+    skipped_topics: list[str] = field(default_factory=list)   # ``file: topic: reason`` of every topic not ingested
     messages: list[str] = field(default_factory=list)
     reports: list[str] = field(default_factory=list)
     seconds: float = 0.0
@@ -66,7 +67,8 @@ class RunSummary:
     def as_dict(self) -> dict:
         return {"run_id": self.run_id, "ingested": len(self.ingested), "duplicates": len(self.duplicates),
                 "reexports": self.reexports, "quarantined": self.quarantined, "stage_runs": self.stage_runs, "fresh": self.skipped_fresh,
-                "failed": self.failed, "skipped": self.skipped, "reports": self.reports,
+                "failed": self.failed, "skipped": self.skipped, "skipped_topics": self.skipped_topics,
+                "reports": self.reports,
                 "seconds": round(self.seconds, 2)}
 
 
@@ -192,10 +194,13 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             raise StorageError(f"cannot write the warehouse while ingesting {Path(item[0]).name}: {res}")
         if isinstance(res, Exception):
             res = ingest_mod.Prepared(source_path=stored_path(item[0]), file_name=stored_name(item[0]), size_bytes=0,
-                                      mtime_ns=0, content_hash=ingest_mod._sha256(Path(item[0])), status="quarantined",
-                                      reason=ingest_mod._redacted(f"internal error while reading: {res}", Path(item[0]), ()),
+                                      mtime_ns=0, content_hash=ingest_mod.sha256(Path(item[0])), status="quarantined",
+                                      reason=ingest_mod.redacted(f"internal error while reading: {res}", Path(item[0]), ()),
                                       display_name=Path(item[0]).name)
-        r = ingest_mod.commit(wh, res, replace=str(Path(item[0]).resolve()) in replacing)
+        r = ingest_mod.commit(wh, res, replace=str(Path(item[0]).resolve()) in replacing, run_id=summary.run_id)
+        if r.status == "ingested":
+            summary.skipped_topics += [f"{res.display_name or res.file_name}: {d['topic']}: {d['reason']}"
+                                       for d in res.skipped_topics]
         {"ingested": summary.ingested, "duplicate": summary.duplicates, "reexport": summary.reexports,
          "quarantined": summary.quarantined}[r.status].append(
             r.message if r.status in ("quarantined", "reexport") else (res.display_name or res.file_name))

@@ -214,10 +214,10 @@ def find_recording(wh, content_hash: str, search: list[Path]) -> Path | None:
     source, size = (r or (None, None))
     cands = list(dict.fromkeys(_candidates(search)))
     for p in cands:
-        if stored_path(p) == source and ingest._content_hash(p) == content_hash:
+        if stored_path(p) == source and ingest.content_hash(p) == content_hash:
             return p
     for p in cands:
-        if (p.is_dir() or size is None or p.stat().st_size == size) and ingest._content_hash(p) == content_hash:
+        if (p.is_dir() or size is None or p.stat().st_size == size) and ingest.content_hash(p) == content_hash:
             return p
     return None
 

@@ -62,6 +62,25 @@ def _session_options(f):
                              "trial, timezone, ...); repeatable. Must agree with the recording's own metadata.")(f)
 
 
+def _topic_crc_options(f):
+    """``--skip-topic`` and ``--require-crc`` of ``ingest`` and ``run`` (issue #47, docs/integrity.md)."""
+    f = click.option("--require-crc", is_flag=True,
+                     help="Refuse files not covered by CRCs (MCAP allows writing none; such files are marked "
+                          "unverified).")(f)
+    return click.option("--skip-topic", "skip_topics", multiple=True, metavar="TOPIC",
+                        help="Leave out a topic that looks like IMU/magnetometer data but has no placement (otherwise "
+                             "the file is refused); repeatable. The skip is listed with the recording and in the "
+                             "run's ingest ledger.")(f)
+
+
+def _with_topic_crc(options: dict | None, skip_topics, require_crc) -> dict | None:
+    """The ingest options with ``--skip-topic``/``--require-crc`` (unchanged when neither is given, so that the
+    settings hash of a plain ingest stays the default)."""
+    if skip_topics or require_crc:
+        return {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
+    return options
+
+
 def _ingest_options(session_fields, topic_map) -> dict | None:
     from pipeline.console import UserError
     from pipeline.session_sources import parse_assignments
@@ -104,6 +123,8 @@ def _print_summary(summary, as_json: bool) -> None:
         err_console.print(f"  failed: {f}", markup=False)
     for f in d.get("skipped", []):
         err_console.print(f"  skipped: {safe_text(f)}", markup=False, highlight=False)
+    for t in d.get("skipped_topics", []):
+        err_console.print(f"  skipped topic: {safe_text(t)}", markup=False, highlight=False)
 
 
 def safe_text(text: str) -> str:
@@ -203,11 +224,7 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
 @click.option("--replace", is_flag=True,
               help="The files are corrections: each supersedes the ingested recording with the same samples or the "
                    "same file name (the next `run` recomputes what depended on it).")
-@click.option("--skip-topic", "skip_topics", multiple=True, metavar="TOPIC",
-              help="Leave out a topic that looks like IMU/magnetometer data but has no placement (otherwise the file "
-                   "is refused); repeatable. The skip is listed with the recording.")
-@click.option("--require-crc", is_flag=True,
-              help="Refuse files not covered by CRCs (MCAP allows writing none; such files are marked unverified).")
+@_topic_crc_options
 @click.option("--recover", is_flag=True,
               help="A truncated or damaged MCAP: keep every complete, CRC-valid chunk (a copy under "
                    "WAREHOUSE/recovered/) and ingest that, with what was lost as a warning.")
@@ -238,9 +255,7 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_
             skipped += [f"{q}: {why}" for q, why in skip]
         else:
             files.append(p)
-    options = _ingest_options(session_fields, topic_map)
-    if skip_topics or require_crc:           # issue #47 (docs/integrity.md)
-        options = {**(options or {}), "skip_topics": list(skip_topics), "require_crc": require_crc}
+    options = _with_topic_crc(_ingest_options(session_fields, topic_map), skip_topics, require_crc)   # issue #47
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=None, files=files, jobs=jobs, stages=False,
                                  command="ingest", ingest_options=options, replace=files if replace else None,
                                  skipped=skipped)
@@ -489,9 +504,10 @@ def _import_c3d(paths, recording, segments, offset_s, up, inbox, as_json) -> Non
 @click.option("--replace", "replace", multiple=True, type=click.Path(exists=True, path_type=Path),
               help="A corrected export (repeatable): it supersedes the ingested recording with the same samples or "
                    "the same file name, and what depended on it is recomputed in this run.")
+@_topic_crc_options
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary as JSON.")
 def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, session_fields, topic_map,
-        replace, as_json) -> None:
+        replace, skip_topics, require_crc, as_json) -> None:
     """Nightly run: ingest what is new, recompute what is stale, record a ledger.
 
     A second run started while one is active refuses with a clear message (exit code 2). Failures of
@@ -504,6 +520,7 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
       stridelab run --inbox /data/inbox --warehouse /data/wh --jobs 2 --json
       stridelab run --engine dask --scheduler tcp://10.0.0.5:8786
       stridelab run --replace inbox/P001_walk-1_fixed.mcap   # a corrected export supersedes the old one
+      stridelab run --require-crc --skip-topic /spare/imu    # strict study; a spare IMU left out on purpose
     """
     import os
     from pipeline.config import default_inbox
@@ -513,7 +530,9 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
     from pipeline.config import default_reports
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
-                                 scheduler=scheduler, ingest_options=_ingest_options(session_fields, topic_map),
+                                 scheduler=scheduler,
+                                 ingest_options=_with_topic_crc(_ingest_options(session_fields, topic_map),
+                                                                skip_topics, require_crc),
                                  reports_dir=reports_dir or default_reports(),
                                  build_report=None if no_reports else _report_builder(_wh(warehouse_dir)),
                                  replace=list(replace))

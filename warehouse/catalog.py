@@ -216,7 +216,7 @@ def _series_paths(con: duckdb.DuckDBPyConnection) -> list[str]:
 
 
 #: ledger tables and wall-clock columns excluded from the content fingerprint
-LEDGER_TABLES = {"pipeline_runs", "stage_runs", "schema_migrations", "reports"}
+LEDGER_TABLES = {"pipeline_runs", "stage_runs", "schema_migrations", "reports", "ingest_topics"}
 VOLATILE_COLUMNS = {"ingested_at", "source_path"}
 
 

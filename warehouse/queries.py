@@ -813,14 +813,42 @@ def stage_durations(con) -> pd.DataFrame:
 
 
 def skipped_topics(con, limit: int = 500) -> pd.DataFrame:
-    """Topics of ingested or refused files that were not ingested, each with its reason (migration 013)."""
-    if not _has_column(con, "recordings", "skipped_topics"):
-        return pd.DataFrame(columns=["file_name", "status", "topic", "reason", "ingested_at"])
-    return _df(con, """
-        SELECT r.file_name, r.status, s.value ->> 'topic' AS topic, s.value ->> 'reason' AS reason, r.ingested_at
+    """Topics of ingested or refused files that were not ingested, each with its reason: from the ingest ledger
+    (``ingest_topics``, migration 015: every run, the file's outcome when the whole file was refused), and for
+    recordings ingested before it, from ``recordings.skipped_topics`` (migration 013)."""
+    cols = ["run_id", "file_name", "status", "topic", "reason", "ingested_at"]
+    parts, params = [], []
+    ledger = _has_table(con, "ingest_topics")
+    if ledger:
+        parts.append("""
+        SELECT t.run_id, t.file_name, t.outcome AS status, t.topic, t.reason, p.started_at AS ingested_at
+        FROM ingest_topics t LEFT JOIN pipeline_runs p USING (run_id) WHERE t.outcome <> 'ingested'""")
+    if _has_column(con, "recordings", "skipped_topics"):
+        parts.append(f"""
+        SELECT NULL AS run_id, r.file_name, r.status, s.value ->> 'topic' AS topic, s.value ->> 'reason' AS reason,
+               r.ingested_at
         FROM recordings r, json_each(r.skipped_topics) s
         WHERE r.skipped_topics IS NOT NULL
-        ORDER BY r.ingested_at DESC NULLS LAST, r.file_name, topic LIMIT ?""", [limit])
+          {"AND r.content_hash NOT IN (SELECT content_hash FROM ingest_topics)" if ledger else ""}""")
+    if not parts:
+        return pd.DataFrame(columns=cols)
+    return _df(con, f"""
+        SELECT * FROM ({" UNION ALL ".join(parts)})
+        ORDER BY ingested_at DESC NULLS LAST, file_name, topic LIMIT ?""", params + [limit])
+
+
+def ingest_topics(con, run_id: str | None = None, limit: int = 2000) -> pd.DataFrame:
+    """The ingest ledger (migration 015): every topic of every file a run read, with its outcome (ingested,
+    skipped, quarantined, reexport, duplicate), placement, samples and reason."""
+    cols = ["run_id", "file_name", "topic", "outcome", "placement", "n_samples", "reason"]
+    if not _has_table(con, "ingest_topics"):
+        return pd.DataFrame(columns=cols)
+    return _df(con, f"""
+        SELECT {", ".join("t." + c for c in cols)}
+        FROM ingest_topics t LEFT JOIN pipeline_runs p USING (run_id)
+        WHERE (? IS NULL OR t.run_id = ?)
+        ORDER BY p.started_at DESC NULLS LAST, t.file_name, t.outcome <> 'ingested', t.topic LIMIT ?""",
+               [run_id, run_id, int(limit)])
 
 
 def live_agreement(con) -> pd.DataFrame:

@@ -68,4 +68,10 @@ if snap is not None:
                    "without a placement, a schema StrideLab does not read); a topic that looks like IMU data is never "
                    "skipped without being asked to.")
         st.dataframe(skipped, hide_index=True)
+    ledger = snap.q(Q.ingest_topics)
+    if not ledger.empty:
+        st.subheader("Ingest ledger: every topic of every file")
+        st.caption("Each topic of each file a run read: ingested (placement, samples), skipped or refused with the "
+                   "reason (docs/integrity.md).")
+        st.dataframe(ledger, hide_index=True)
 footer(snap)

@@ -8,8 +8,8 @@ the copy to the reader can run (``perf`` over a 20-participant night: ``_copy_to
 0.02-0.03 instead of 1.2-1.5 CPU-s per 674 MB chest day, 0.45 s of disk time (docs/operations.md, "Page
 cache").
 
-How: :class:`SequentialReader` asks the kernel which fraction of the file is in the page cache (``cachestat``,
-Linux 6.5+; :func:`warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
+How: :class:`SequentialReader` asks the kernel which fraction of the file is in the page cache (``mincore`` over
+a mapping of the file; :func:`warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
 A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as before;
 otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two blocks
 ahead of the consumer, so the disk works while the decoder does. Files under two blocks are always

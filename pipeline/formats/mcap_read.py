@@ -332,11 +332,16 @@ class _Registry:
         self.topics[c.id] = _topic_info(c, self.schemas.get(c.schema_id))
         self._snap = None
 
-    def snapshot(self) -> tuple[dict[int, Schema], dict[int, TopicInfo]]:
+    def snapshot(self) -> "_Snapshot":
         """Copies of the definitions so far (shared read-only by the chunk tasks until the next change)."""
         if self._snap is None:
-            self._snap = (dict(self.schemas), dict(self.topics))
+            self._snap = _Snapshot((dict(self.schemas), dict(self.topics)))
         return self._snap
+
+
+class _Snapshot(tuple):
+    """(schemas, topics) of a registry at one moment; carries the fast path's plan for them once made
+    (:func:`_fast_plan`)."""
 
 
 # ---- decoding --------------------------------------------------------------------------------
@@ -509,29 +514,22 @@ def _merge_blocks(blocks: list[Block]) -> Block:
     return Block(b0.topic, b0.kind, t, log, vals)
 
 
-_PLANS: dict = {}
-
-
-def _fast_plan(snap) -> tuple[dict, mcap_fast.Plan | None]:
-    """(topics, the fast path's plan) of a registry snapshot; the plan is None when no channel suits it. Kept
-    for the last few snapshots (a file has one or a few), keyed by identity with the snapshot held alive."""
-    hit = _PLANS.get(id(snap))
-    if hit is not None and hit[0] is snap:
-        return hit[1], hit[2]
-    _, topics = snap
-    channels = {}
-    for cid, ti in topics.items():
-        if ti.kind is None:
-            channels[cid] = None
-        elif ti.kind in _FIELDS:
-            channels[cid] = (_N_DOUBLES[ti.kind], _FIELDS[ti.kind])
-        else:
-            channels[cid] = "locate"
-    plan = mcap_fast.make_plan(channels) if channels else None
-    if len(_PLANS) > 8:
-        _PLANS.clear()
-    _PLANS[id(snap)] = (snap, topics, plan)
-    return topics, plan
+def _fast_plan(snap: "_Snapshot") -> tuple[dict, mcap_fast.Plan | None]:
+    """(topics, the fast path's plan) of a registry snapshot; the plan is None when no channel suits it. Made
+    once per snapshot and kept with it (a file has one or a few snapshots; no cache outlives the file's read)."""
+    plan = getattr(snap, "plan", False)
+    if plan is False:
+        _, topics = snap
+        channels = {}
+        for cid, ti in topics.items():
+            if ti.kind is None:
+                channels[cid] = None
+            elif ti.kind in _FIELDS:
+                channels[cid] = (_N_DOUBLES[ti.kind], _FIELDS[ti.kind])
+            else:
+                channels[cid] = "locate"
+        plan = snap.plan = mcap_fast.make_plan(channels) if channels else None   # two threads: the same plan
+    return snap[1], plan
 
 
 def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:

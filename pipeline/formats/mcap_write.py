@@ -189,7 +189,7 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
     """
     path = Path(path)
     channels = [_log_time_sorted(c) for c in channels]
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp = temporary_name(path)
     comp = zstandard.ZstdCompressor(level=zstd_level)
     schemas: dict[str, int] = {}
     schema_recs, channel_recs = [], []
@@ -211,6 +211,33 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
     span = t_max + 1 - t_min
     edges = [t_min + span * w // n_windows for w in range(n_windows)] + [t_max + 1]
 
+    try:
+        _write_file(tmp, channels, metadata, comp, schema_recs, channel_recs, edges, n_windows, t_min, t_max,
+                    chunk_bytes)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)          # no partial file left beside the output
+        raise
+    return path
+
+
+#: longest file name most file systems take (ext4, xfs, btrfs: 255 bytes)
+NAME_MAX = 255
+
+
+def temporary_name(path: Path) -> Path:
+    """The temporary file :func:`write_mcap` writes before renaming it to ``path``: ``.NAME.tmp-PID`` beside it, or,
+    when that would pass :data:`NAME_MAX` bytes (an output name of more than ~240 bytes), ``.HASH.tmp-PID`` with a
+    hash of the name."""
+    name = f".{path.name}.tmp-{os.getpid()}"
+    if len(os.fsencode(name)) > NAME_MAX:
+        import hashlib
+        name = f".{hashlib.sha256(os.fsencode(path.name)).hexdigest()[:32]}.tmp-{os.getpid()}"
+    return path.with_name(name)
+
+
+def _write_file(tmp, channels, metadata, comp, schema_recs, channel_recs, edges, n_windows, t_min, t_max,
+                chunk_bytes) -> None:
     crc = 0
     pos = 0
     chunk_indexes: list[ChunkIndex] = []
@@ -297,8 +324,6 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
         f.write(MAGIC)
         f.flush()
         os.fsync(f.fileno())
-    os.replace(tmp, path)
-    return path
 
 
 def write_recording(rec: Recording, path: str | os.PathLike, **kw) -> Path:

@@ -9,6 +9,7 @@ them), so a bag copied elsewhere is still the same recording.
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 from typing import Iterator
@@ -240,7 +241,8 @@ def iter_message_compressed_blocks(path: Path, result: ReadResult, fmt: str) -> 
     result.n_bytes = path.stat().st_size
 
 
-_PART = None
+#: rosbag2's names of the parts of a split bag
+_PART = re.compile(r"^(?P<base>.+)_(?P<k>\d+)\.mcap$")
 
 
 def split_bag_parts(path: Path) -> str | None:
@@ -250,10 +252,6 @@ def split_bag_parts(path: Path) -> str | None:
     and by their time continuity (each part starts within :data:`SPLIT_GAP_S` of the previous one's end, by the
     files' Statistics records). Ingested one by one, the parts would become unrelated recordings (strides cut at
     every split); files merely named alike but apart in time are left alone."""
-    import re
-    global _PART
-    if _PART is None:
-        _PART = re.compile(r"^(?P<base>.+)_(?P<k>\d+)\.mcap$")
     m = _PART.match(path.name)
     if m is None or (path.parent / "metadata.yaml").exists():
         return None

@@ -79,7 +79,7 @@ def test_open_for_read_chooses_direct_only_for_large_uncached_files(tmp_path):
     with open(p, "rb") as fh:
         frac = cached_fraction(fh.fileno(), p.stat().st_size)
     if frac is None:
-        pytest.skip("no cachestat(2) on this kernel: the cached fraction is unknown")
+        pytest.skip("no mincore(2) here: the cached fraction is unknown")
     fh = open(p, "rb")
     fh.read()                                                # now cached
     fh.close()
@@ -124,7 +124,7 @@ def test_a_series_read_direct_equals_the_buffered_read(tmp_path, monkeypatch):
     np.testing.assert_array_equal(read.read_column_range(tmp_path, "s.parquet", ("t_ns",), 5, 9, dtype=np.int64),
                                   t[5:9])
     if not any(isinstance(s, DirectFile) for s in opened):
-        pytest.skip("O_DIRECT or cachestat(2) unavailable here: only the buffered path ran")
+        pytest.skip("O_DIRECT or mincore(2) unavailable here: only the buffered path ran")
     assert all(s.closed for s in opened if isinstance(s, DirectFile))
 
 
@@ -182,7 +182,7 @@ def test_a_direct_write_leaves_the_file_out_of_the_page_cache(tmp_path):
     finally:
         os.close(fd)
     if frac is None:
-        pytest.skip("cachestat(2) unavailable here")
+        pytest.skip("mincore(2) unavailable here")
     assert frac <= 1 / 8                                 # the tail block at most (64 blocks went direct)
     assert (tmp_path / "out.bin").read_bytes() == data
 

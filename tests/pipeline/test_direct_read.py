@@ -134,7 +134,7 @@ def test_the_path_follows_what_the_page_cache_holds(tmp_path, small_blocks):
     finally:
         os.close(fd)
     if frac is None:
-        pytest.skip("cachestat(2) is not available on this kernel")
+        pytest.skip("mincore(2) is not available here")
     assert frac > 0.9                               # just written: cached
     with SequentialReader(p, 4 * SMALL_BLOCK) as r:
         assert not r.direct
@@ -179,7 +179,7 @@ def test_an_uncached_mcap_decodes_and_hashes_as_a_cached_one(tmp_path, small_blo
 
 def test_large_committed_series_leave_the_page_cache(tmp_path, monkeypatch):
     if cached_fraction(os.open(__file__, os.O_RDONLY), 1) is None:
-        pytest.skip("cachestat(2) is not available on this kernel")
+        pytest.skip("mincore(2) is not available here")
     monkeypatch.setattr(store, "UNCACHE_BYTES", 1 << 20)
     n = 400_000
     table = pa.table({"t_ns": pa.array(np.arange(n, dtype=np.int64)),

@@ -87,6 +87,7 @@ def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_pa
     con = connect_snapshot(wh)
     page = Q.skipped_topics(con)
     con.close()
+    page = page[page["status"] == "skipped"]           # (the first, refused try lists the file's topics too)
     assert page[["file_name", "topic"]].values.tolist() == [[N("walk.mcap"), shown_topic("/spare/imu")]]
 
 
@@ -188,3 +189,93 @@ def test_message_compressed_mcap_by_rosbags_is_read_as_a_bag_and_as_a_file(tmp_p
     assert r.returncode == 0, r.stderr
     t = stored(tmp_path / "wh2", "foot_left")
     assert np.array_equal(t.column("gyr_z").to_numpy(), x.gyr[:, 2])
+
+
+def _with_string_topic(path, rec, topics):
+    """Like :func:`write_ros2`, plus a ``std_msgs/msg/String`` topic (a schema StrideLab does not read)."""
+    from mcap_ros2.writer import Writer
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=64 * 1024)
+        s_imu = w.register_msgdef("sensor_msgs/msg/Imu", IMU_DEF)
+        s_str = w.register_msgdef("std_msgs/msg/String", "string data")
+        for topic, (pl, _kind) in topics.items():
+            x = rec.imu[pl]
+            for i, t in enumerate(x.t_ns.tolist()):
+                w.write_message(topic, s_imu, imu_dict(t, x.acc[i], x.gyr[i], pl), log_time=t, publish_time=t)
+        t0 = int(rec.imu[next(iter(topics.values()))[0]].t_ns[0])
+        w.write_message("/operator/notes", s_str, {"data": "start"}, log_time=t0, publish_time=t0)
+        w.add_metadata("session", dict(rec.metadata))
+        w.finish()
+    return path
+
+
+def test_every_topic_of_every_file_is_in_the_ingest_ledger_with_its_outcome(tmp_path):
+    """Issue #47 point 3: each topic ingested or listed as skipped with the reason in the report (the command's
+    summary), the ledger (``ingest_topics`` of the run) and the runs page; a refused file's topics too."""
+    rec = _rec()
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    _with_string_topic(inbox / "walk.mcap", rec, {"/imu/foot_left": ("foot_left", "imu"),
+                                                   "/spare/imu": ("shank_left", "imu")})
+    other = small_recording(seconds=5.0, seed=3, session="S02", trial="walk-2")
+    write_ros2(inbox / "nocrc.mcap", other, {"/imu/foot_left": ("foot_left", "imu")}, crcs=False)
+    wh = tmp_path / "wh"
+    r = cli("ingest", inbox, "--warehouse", wh, "--skip-topic", "/spare/imu", "--require-crc", "--json")
+    assert r.returncode == 1, r.stderr                                   # nocrc.mcap refused (--require-crc)
+    summary = json.loads(r.stdout)
+    assert summary["skipped_topics"] == ["walk.mcap: /operator/notes: std_msgs/msg/String in cdr encoding is not "
+                                         "read by StrideLab", "walk.mcap: /spare/imu: skipped on request (--skip-topic)"]
+    (run_id,) = _rows(wh, "SELECT run_id FROM pipeline_runs WHERE command = 'ingest'")[0]
+    ledger = _rows(wh, "SELECT file_name, topic, outcome, placement, n_samples, reason FROM ingest_topics "
+                       f"WHERE run_id = '{run_id}' ORDER BY file_name, topic")
+    n = len(rec.imu["foot_left"].t_ns)
+    walk = [x[1:] for x in ledger if x[0] == N("walk.mcap")]
+    assert walk == sorted([("/imu/foot_left", "ingested", "foot_left", n, None),
+                           (shown_topic("/operator/notes"), "skipped", None, None,
+                            "std_msgs/msg/String in cdr encoding is not read by StrideLab"),
+                           (shown_topic("/spare/imu"), "skipped", None, None, "skipped on request (--skip-topic)")])
+    nocrc = [x[1:] for x in ledger if x[0] == N("nocrc.mcap")]
+    assert [x[:2] for x in nocrc] == [("/imu/foot_left", "quarantined")] and "--require-crc" in nocrc[0][4]
+    from warehouse import queries as Q                  # what the dashboard's runs page lists
+    con = connect_snapshot(wh)
+    try:
+        page = Q.skipped_topics(con)
+        full = Q.ingest_topics(con, run_id)
+    finally:
+        con.close()
+    assert sorted(map(tuple, page[["run_id", "file_name", "topic", "status"]].values.tolist())) == sorted([
+        (run_id, N("walk.mcap"), shown_topic("/operator/notes"), "skipped"),
+        (run_id, N("walk.mcap"), shown_topic("/spare/imu"), "skipped"),
+        (run_id, N("nocrc.mcap"), "/imu/foot_left", "quarantined")])
+    assert len(full) == 4 and set(full["outcome"]) == {"ingested", "skipped", "quarantined"}
+
+
+def test_run_takes_skip_topic_and_require_crc_like_ingest(tmp_path):
+    """``stridelab run`` ingests the inbox with the same --skip-topic / --require-crc semantics as ``ingest``."""
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    write_ros2(inbox / "walk.mcap", _rec(), {"/imu/foot_left": ("foot_left", "imu"),
+                                             "/spare/imu": ("shank_left", "imu")})
+    wh = tmp_path / "wh"
+    r = cli("run", "--inbox", inbox, "--warehouse", wh, "--no-reports", "--jobs", "1", "--json")
+    assert r.returncode == 1 and "--skip-topic /spare/imu" in r.stderr + r.stdout     # refused, naming the fix
+    r = cli("run", "--inbox", inbox, "--warehouse", wh, "--no-reports", "--jobs", "1", "--skip-topic", "/spare/imu",
+            "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["skipped_topics"] == ["walk.mcap: /spare/imu: skipped on request (--skip-topic)"]
+    assert _rows(wh, "SELECT status, json_extract_string(ingest_settings, '$.skip_topics[0]') FROM recordings") == [
+        ("ingested", "/spare/imu")]
+    other = small_recording(seconds=5.0, seed=3, session="S02", trial="walk-2")
+    write_ros2(inbox / "nocrc.mcap", other, {"/imu/foot_left": ("foot_left", "imu")}, crcs=False)
+    r = cli("run", "--inbox", inbox, "--warehouse", wh, "--no-reports", "--jobs", "1", "--skip-topic", "/spare/imu",
+            "--require-crc", "--json")
+    assert r.returncode == 1
+    (q,) = json.loads(r.stdout)["quarantined"]
+    assert q.startswith("nocrc.mcap: ") and "--require-crc" in q
+    assert _rows(wh, "SELECT status FROM recordings WHERE status = 'ingested'") == [("ingested",)]   # walk.mcap kept
+    # a refused file is not read again by the next run (same content, same settings) unless named with --replace
+    r = cli("run", "--inbox", inbox, "--warehouse", wh, "--no-reports", "--jobs", "1", "--skip-topic", "/spare/imu",
+            "--replace", inbox / "nocrc.mcap", "--json")
+    assert r.returncode == 0, r.stderr                                   # without --require-crc: stored, unverified
+    assert _rows(wh, "SELECT crc_verified FROM recordings WHERE status = 'ingested' ORDER BY crc_verified") == [
+        (False,), (True,)]

@@ -50,3 +50,16 @@ def test_odd_inbox_entries_are_listed_with_the_reason_and_odd_names_forge_nothin
     assert stored == sorted([stored_name(long_name), stored_name(f"{FORGED}.mcap")])   # keyed hashes of the
     assert all(n.isascii() and n.isprintable() and len(n) < 64 for n in stored)       # whole names (privacy)
     con.close()
+
+
+def test_our_writer_takes_output_names_up_to_255_bytes(tmp_path):
+    """``write_mcap`` writes a temporary file beside the output first: its name must not pass 255 bytes when the
+    output's does not (issue #47: names above ~240 bytes failed with 'File name too long')."""
+    from pipeline.formats.mcap_read import ReadResult, iter_blocks
+    for name in ("Ł" * 120 + ".mcap", "L" * 250 + ".mcap"):          # 245 and 255 bytes
+        assert len(os.fsencode(name)) <= 255
+        out = write_recording(small_recording(seconds=2.0), tmp_path / name)
+        assert out.name == name and [p.name for p in tmp_path.iterdir()] == [name]       # no temporary left
+        res = ReadResult()
+        assert sum(len(b.t_ns) for b in iter_blocks(out, res) if b.kind == "imu") == 400   # 2 IMUs, 2 s at 100 Hz
+        out.unlink()

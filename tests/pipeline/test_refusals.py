@@ -75,6 +75,30 @@ def test_gyro_in_deg_s_is_refused_with_the_factor(tmp_path):
     assert "looks like deg/s" in reason and "pi/180" in reason
 
 
+@pytest.mark.parametrize("writer", ["mcap_ros2", "rosbags"])
+def test_a_slow_rotation_in_deg_s_is_refused_although_its_size_looks_like_rad_s(tmp_path, writer):
+    """The magnitude check misses a slow turn exported in deg/s (here peak 30 deg/s, below its 35 threshold): the
+    gyroscope then predicts 57 times the turn of gravity the accelerometer measures, and the file is refused."""
+    rec = small_recording(seconds=8.0, placements=("foot_left",))
+    for x in rec.imu.values():
+        x.gyr[:] = np.rad2deg(x.gyr)               # the same turn (about 36 deg/s about a tilted axis) in deg/s
+    assert max(float(np.abs(x.gyr).max()) for x in rec.imu.values()) < 35.0
+    name = "slow_degs.mcap" if writer == "mcap_ros2" else "slow_degs"
+    f = (write_mcap_ros2(tmp_path / name, rec, mag=False) if writer == "mcap_ros2"
+         else rosbags_write(tmp_path / name, rec, custom_data={f"session.{k}": v for k, v in rec.metadata.items()}))
+    r = cli("ingest", f, "--warehouse", tmp_path / "wh", "--json")
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    (line,) = json.loads(r.stdout)["quarantined"]
+    assert line.startswith(f"{name}: quarantined: /imu/") and "\n" not in line, line    # names the file
+    assert "looks like deg/s" in line and "pi/180" in line and "57" in line
+    # the same recording in rad/s is ingested (the check refuses the unit, not the motion)
+    ok = small_recording(seconds=8.0, placements=("foot_left",))
+    g = (write_mcap_ros2(tmp_path / f"rad_{name}", ok, mag=False) if writer == "mcap_ros2"
+         else rosbags_write(tmp_path / f"rad_{name}", ok, custom_data={f"session.{k}": v for k, v in ok.metadata.items()}))
+    r = cli("ingest", g, "--warehouse", tmp_path / "wh2", "--json")
+    assert r.returncode == 0 and json.loads(r.stdout)["ingested"] == 1, r.stderr
+
+
 def test_a_split_bag_without_metadata_is_recognised_and_refused_with_the_fix(tmp_path):
     rec = small_recording(seconds=12.0)
     bag = rosbags_write(tmp_path / "walk", rec, parts=3)

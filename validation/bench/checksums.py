@@ -20,7 +20,7 @@ def _measure(rows: int, repeat: int, workdir: Path) -> dict:
     import pyarrow.parquet as pq
 
     import warehouse.store as store
-    from pipeline.ingest_series import SCHEMAS
+    from pipeline.ingest.series import SCHEMAS
     rng = np.random.default_rng(0)
     t = (1_772_438_400_000_000_000 + np.arange(rows) * 10_000_000).astype(np.int64)
     cols = [pa.array(t), pa.array(t + 1_000_000)] + [pa.array(np.round(rng.normal(0, 1, rows), 4)) for _ in range(6)]

@@ -5,13 +5,14 @@ Blocks arrive in file order (any order of messages, overlapping chunks); they ar
 :data:`HOLD_ROWS` so messages up to that many samples out of order still land in order. Memory per
 topic is therefore bounded whatever the recording's length.
 
-Where the work runs: :func:`check_block` (finite values, unset stamps, order and repeats inside the
+Where the work runs: :func:`pipeline.ingest.block_checks.check_block` (finite values, unset stamps, order and repeats inside the
 block, the subsample for the unit and clock statistics) is one pass of a numba kernel that the MCAP
 reader calls on its chunk threads (``iter_blocks(on_block=...)``); :meth:`TopicSeries.add` then only
 compares block edges, and each slice (policy, hashes, Parquet encoding) is written on a thread of its
 own, in order, while the reader decodes the next chunks.
 
-Clock policy (docs/clocks.md), each case reported as a warning of the recording, never silently:
+Clock policy (docs/clocks.md; the time-base decisions in :mod:`pipeline.clock_policy`, order and repeats here),
+each case reported as a warning of the recording, never silently:
 
 - unset (zero) ``header.stamp``: the sample takes its ``log_time``;
 - exact duplicate samples (same stamp, same values): dropped;
@@ -33,18 +34,15 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import xxhash
-from numba import njit
 
 from pipeline import clock_policy
 from pipeline.formats.mcap_read import Block
+from pipeline.ingest.block_checks import _stamp_flags, check_block  # noqa: F401 - check_block: a block not checked yet
 from warehouse.store import SeriesWriter
 
 GAP_WARN_S = 1.0            # gaps longer than this are recorded as warnings (the data are kept)
 FLUSH_ROWS = 1 << 19
 HOLD_ROWS = FLUSH_ROWS // 4
-BATCH_TINY = 0.2            # a step below this fraction of the 90th-percentile step is inside a batch
-BATCH_FRACTION = 0.3        # batched stamping when more steps than this are inside batches
-SUBSAMPLE = 61              # statistics on every 61st sample (prime: no aliasing with batches or chunks)
 
 def _schema(*value_columns: str) -> pa.Schema:
     """Stamps and float64 values, all required (never null: a missing reading is NaN, never a null), so
@@ -63,101 +61,6 @@ SCHEMAS = {
 
 class SeriesRejected(ValueError):
     """The topic (hence the recording) cannot be stored; ``str(err)`` is the one-line reason."""
-
-
-# ---- per-block checks (run on the reader's chunk threads) ---------------------------------------
-
-@njit(cache=True, nogil=True)
-def _stamp_flags(t, log):
-    """One pass over a block's stamps: (unset stamps, of them also without log_time, a step back, a
-    repeated stamp), with unset (zero) stamps counted as their log_time."""
-    n_zero = 0
-    n_none = 0
-    back = False
-    rep = False
-    prev = np.int64(0)
-    for i in range(t.shape[0]):
-        x = t[i]
-        if x == 0:
-            x = log[i]
-            n_zero += 1
-            if x == 0:
-                n_none += 1
-        if i > 0:
-            if x < prev:
-                back = True
-            elif x == prev:
-                rep = True
-        prev = x
-    return n_zero, n_none, back, rep
-
-
-_EXP = np.uint64(0x7FF0_0000_0000_0000)
-
-
-@njit(cache=True, nogil=True)
-def _max_exponent(bits):
-    """Largest exponent field of float64 bit patterns: all ones (``_EXP``) iff some value is NaN or inf
-    (an integer max, which vectorises; ``np.isfinite`` with an early exit does not)."""
-    m = np.uint64(0)
-    for i in range(bits.shape[0]):
-        e = bits[i] & _EXP
-        if e > m:
-            m = e
-    return m
-
-
-def _all_finite(v: np.ndarray) -> bool:
-    flat = v.T if v.flags.f_contiguous else v
-    if flat.dtype == np.float64 and flat.flags.c_contiguous:
-        return bool(_max_exponent(flat.reshape(-1).view(np.uint64)) != _EXP)
-    if v.dtype == np.float64 and v.ndim == 2 and v.strides[0] == 8:      # columns contiguous, apart (the reader's
-        return all(_max_exponent(v[:, k].view(np.uint64)) != _EXP for k in range(v.shape[1]))   # fast path)
-    return bool(np.isfinite(v).all())
-
-
-@dataclass
-class BlockChecks:
-    """What :func:`check_block` found in one block (``t``: the stamps with unset ones replaced)."""
-    t: np.ndarray
-    n_zero: int = 0                # unset stamps (replaced by log_time)
-    n_none: int = 0                # ... whose log_time is unset too
-    back: bool = False             # a stamp below its predecessor inside the block
-    rep: bool = False              # a stamp equal to its predecessor inside the block
-    n_bad: int = 0                 # samples with NaN/inf values (refused)
-    first_bad: int = -1
-    n_nan: int = 0                 # reference poses without a position (kept as NaN)
-    n_no_quat: int = 0             # ... with a position but no orientation (kept as NaN)
-    n_pose: int = 0                # reference poses in the block
-    sub: np.ndarray | None = None  # every SUBSAMPLE-th IMU sample (unit checks)
-    off: np.ndarray | None = None  # ... and its log_time - stamp (clock checks)
-
-
-def check_block(b: Block) -> Block:
-    """Attach :class:`BlockChecks` to ``b`` (GIL-free kernels; safe to call on any thread)."""
-    t, log, v = b.t_ns, b.log_ns, b.values
-    c = BlockChecks(t)
-    if b.kind == "events" or len(t) == 0:
-        b.checks = c
-        return b
-    if b.kind == "range":
-        pass        # REP-117: +inf beyond max range, -inf below min, NaN invalid: legitimate readings
-    elif b.kind == "reference_pose" and not np.isinf(v).any():
-        pos_nan = np.isnan(v[:, :3]).any(axis=1)               # occluded markers: kept as NaN
-        c.n_nan = int(pos_nan.sum())
-        c.n_no_quat = int((np.isnan(v[:, 3:7]).any(axis=1) & ~pos_nan).sum())
-        c.n_pose = len(v)
-    elif b.kind == "reference_pose" or not _all_finite(v):
-        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
-        c.n_bad, c.first_bad = len(bad), int(bad[0])
-    c.n_zero, c.n_none, c.back, c.rep = _stamp_flags(t, log)
-    if c.n_zero:
-        c.t = t = np.where(t == 0, log, t)
-    if b.kind == "imu":                      # every 61st sample feeds the unit and clock statistics
-        c.sub = v[::SUBSAMPLE].copy()        # a copy: a view would keep the block alive
-        c.off = log[::SUBSAMPLE] - t[::SUBSAMPLE]
-    b.checks = c
-    return b
 
 
 @dataclass
@@ -224,14 +127,14 @@ class TopicSeries:
         self.n_in = 0                       # samples received
         self._sub: list[np.ndarray] = []       # subsampled IMU values (unit checks)
         self._off: list[np.ndarray] = []       # subsampled log_time - stamp (clock checks)
+        self._rot = np.zeros(3)                # gyroscope vs gravity direction: sums of |c|², |d|², c.d
+        self._rot_pairs = 0
         self.n_nan = 0              # reference poses without a position
         self.n_no_quat = 0          # ... with a position but no orientation
         self.n_pose = 0
         self.n_zero = 0
         self.unsorted = False
-        self.clock: clock_policy.ClockDecision | None = None     # decided on the first block (pipeline/clock_policy.py)
-        self.n_clock_dropped = 0            # samples whose stamp is not wall-clock time, dropped as outliers
-        self._latest = clock_policy.latest_ns()
+        self.clock = clock_policy.TopicClock()   # decided on the first block, applied to every block
         # writing side (the topic's writing thread)
         self._held: list[_Piece] = []       # newest rows held back from the last slice (sorted)
         self.writer: SeriesWriter | None = None
@@ -244,10 +147,7 @@ class TopicSeries:
         self.gaps: list[tuple[int, float]] = []
         self.n_exact = 0
         self.n_conflict = 0
-        self.batched: bool | None = None
-        self.period_ns = 0.0
-        self.batch_size = 1.0
-        self.batch_thresh = 0
+        self.batches = clock_policy.Batching()   # batched stamping: detected once, re-spaced slice by slice
         # the stored samples (not the file bytes) identify a recording (ingest.sample_hash); stamps and
         # values hashed apart, so that where the writes cut the stream does not matter. XXH3-128 (~25 GB/s
         # here against SHA-256's 1.8 with the CPU's SHA extensions: 0.27 CPU-s per 24 h day); the SHA-256
@@ -272,9 +172,16 @@ class TopicSeries:
         if c.sub is not None:
             self._sub.append(c.sub)
             self._off.append(c.off)
+            self._rot += np.asarray(c.rot[:3])
+            self._rot_pairs += int(c.rot[3])
         t, log, v, back, rep = c.t, b.log_ns, b.values, c.back, c.rep
         if not c.n_none:                    # (samples without any time base refuse the topic in _write)
-            t, log, v, back, rep = self._clock_sanity(t, log, v, back, rep)
+            try:
+                t, log, v, changed = self.clock.apply(t, log, v)       # pipeline/clock_policy.py
+            except clock_policy.NoTimeBase as e:
+                raise SeriesRejected(f"{self.topic}: {e}") from None
+            if changed and len(t):
+                _, _, back, rep = _stamp_flags(np.ascontiguousarray(t), np.ascontiguousarray(log))
         self.n_in += len(c.t)
         if len(t) == 0:
             return
@@ -284,25 +191,6 @@ class TopicSeries:
         self.buf_rows += len(t)
         if self.buf_rows >= FLUSH_ROWS:
             self._submit(final=False)
-
-    def _clock_sanity(self, t, log, v, back, rep):
-        """Apply the topic's clock decision (pipeline/clock_policy.py) to one block."""
-        if self.clock is None:
-            d = clock_policy.decide(t, log, self._latest)
-            if isinstance(d, str):
-                raise SeriesRejected(f"{self.topic}: {d}")
-            self.clock = d
-        changed = False
-        if self.clock.mode == "log_time":
-            t, changed = log, True
-        bad = clock_policy.implausible(t, self._latest)
-        if bad.any():
-            keep = ~bad
-            self.n_clock_dropped += int(bad.sum())
-            t, log, v, changed = t[keep], log[keep], v[keep], True
-        if changed and len(t):
-            _, _, back, rep = _stamp_flags(np.ascontiguousarray(t), np.ascontiguousarray(log))
-        return t, log, v, back, rep
 
     def _submit(self, final: bool) -> None:
         pieces, self.buf, self.buf_rows = self.buf, [], 0
@@ -332,9 +220,9 @@ class TopicSeries:
     def finish(self) -> None:
         self._submit(final=True)
         self._wait()
-        if self.n_clock_dropped > 0.5 * self.n_in:
-            raise SeriesRejected(f"{self.topic}: {self.n_clock_dropped} of {self.n_in} samples have a header.stamp "
-                                 f"before 2000 or in the future: no wall-clock time base; export wall-clock stamps")
+        why = self.clock.refusal(self.n_in)
+        if why:
+            raise SeriesRejected(f"{self.topic}: {why}")
         if self.n_conflict > 0.5 * self.n_in:
             raise SeriesRejected(f"{self.topic}: {self.n_conflict} of {self.n_in} samples repeat a header.stamp "
                                  f"with different values: no usable time base; export sensor time stamps "
@@ -368,13 +256,13 @@ class TopicSeries:
         if self.last_orig is not None and t[0] < self.last_orig:
             raise SeriesRejected(f"{self.topic}: messages arrive more than {HOLD_ROWS:,} samples out of "
                                  f"header.stamp order; sort the file first (`mcap sort`)")
-        if self.batched is None and (final or len(t) > 2 * HOLD_ROWS):
-            self._detect_batches(t)
+        if self.batches.batched is None and (final or len(t) > 2 * HOLD_ROWS):
+            self.batches.detect(t)
         cut = len(t)
         if not final:
             cut = len(t) - HOLD_ROWS
-            if self.batched:
-                starts = self._batch_starts(t)
+            if self.batches.batched:
+                starts = self.batches.starts(t)
                 cut = int(starts[np.searchsorted(starts, cut, side="right") - 1])
             if cut <= 0:
                 self._held = _hold(t, log, vs, 0, rep)
@@ -388,9 +276,9 @@ class TopicSeries:
         if len(t) == 0:
             return
         orig_last = int(t[-1])
-        if self.batched:
+        if self.batches.batched:
             nxt = None if final else int(self._held[0].t[0])
-            t = self._respace(t, nxt)
+            t = self.batches.respace(t, nxt)
         self._stats(t)
         self.last_orig, self.last_t, self.last_vals = orig_last, int(t[-1]), vs[-1][-1].copy()
         if self.t0 is None:
@@ -438,41 +326,6 @@ class TopicSeries:
         keep = ~dup
         return t[keep], log[keep], v[keep]
 
-    def _detect_batches(self, t: np.ndarray) -> None:
-        d = np.diff(np.unique(t))
-        self.batched = False
-        if len(d) < 16:
-            return
-        p90 = float(np.percentile(d, 90))
-        thresh = BATCH_TINY * p90
-        tiny = d < thresh
-        if tiny.mean() <= BATCH_FRACTION:
-            return
-        self.batch_thresh = int(max(thresh, 1))
-        starts = self._batch_starts(np.unique(t))
-        sizes = np.diff(starts)
-        steps = np.diff(np.unique(t)[starts])
-        ok = sizes > 0
-        self.period_ns = float(np.median(steps[ok] / sizes[ok])) if ok.any() else p90
-        self.batch_size = float(np.median(sizes)) if len(sizes) else 1.0
-        self.batched = True
-
-    def _batch_starts(self, t: np.ndarray) -> np.ndarray:
-        s = np.ones(len(t), dtype=bool)
-        s[1:] = np.diff(t) >= self.batch_thresh
-        return np.flatnonzero(s)
-
-    def _respace(self, t: np.ndarray, next_start: int | None) -> np.ndarray:
-        starts = self._batch_starts(t)
-        sizes = np.diff(np.append(starts, len(t)))
-        t_start = t[starts].astype(np.float64)
-        t_next = np.append(t_start[1:], np.nan if next_start is None else float(next_start))
-        room = (t_next - t_start) / sizes
-        step = np.where(np.isfinite(room), np.minimum(self.period_ns, room), self.period_ns)
-        batch = np.repeat(np.arange(len(starts)), sizes)
-        k = np.arange(len(t)) - starts[batch]
-        return t[starts][batch] + np.round(k * step[batch]).astype(np.int64)   # int64 + int64: no float rounding
-
     def _stats(self, t: np.ndarray) -> None:
         full = t if self.last_t is None else np.concatenate([[self.last_t], t])
         d = np.diff(full)
@@ -501,23 +354,24 @@ class TopicSeries:
         v = np.concatenate(self._sub)
         return float(np.percentile(np.abs(v[:, :3]), 99))
 
+    @property
+    def gyro_to_gravity_turn(self) -> tuple[float, float, int]:
+        """(ratio, correlation, window pairs) of the turn the gyroscope predicts for the gravity direction to the
+        turn the accelerometer measures, over quasi-static windows (:func:`_rotation_sums`): ratio ~1 in rad/s,
+        ~57 in deg/s; NaN without pairs or rotation."""
+        sxx, syy, sxy = self._rot
+        if self._rot_pairs == 0 or sxx <= 0 or syy <= 0:
+            return float("nan"), float("nan"), self._rot_pairs
+        return float(np.sqrt(sxx / syy)), float(sxy / np.sqrt(sxx * syy)), self._rot_pairs
+
     def warnings(self) -> list[str]:
-        out = []
-        if self.clock is not None and self.clock.mode == "log_time":
-            out.append(self.clock.reason)
-        elif self.n_zero:
-            out.append(f"{self.n_zero} samples with an unset (zero) header.stamp: their log_time is used")
-        if self.n_clock_dropped:
-            out.append(f"{self.n_clock_dropped} samples with a {'log_time' if self.clock.mode == 'log_time' else 'time'}"
-                       f" before 2000 or in the future (not wall-clock time) dropped as outliers")
+        out = self.clock.warnings(self.n_zero)
         if self.n_exact:
             out.append(f"{self.n_exact} exact duplicate samples dropped")
         if self.n_conflict:
             out.append(f"{self.n_conflict} samples repeat an earlier header.stamp with different values: "
                        f"the first kept, the others dropped")
-        if self.batched:
-            out.append(f"header.stamp comes in batches of about {self.batch_size:.0f} samples: re-spaced at the "
-                       f"nominal rate {1e9 / self.period_ns:.2f} Hz from each batch's first stamp")
+        out += self.batches.warnings()
         if self.unsorted:
             out.append("messages were not in header.stamp order: sorted")
         if self.n_nan:
