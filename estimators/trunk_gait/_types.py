@@ -97,7 +97,7 @@ class TrunkGaitParams:
     cadence_method: str = "count"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
-    sl_correction: float = 1.23
+    sl_correction: float = 1.27
     sl_highpass_hz: float = 0.1
     sl_hampel_half_width: int = 1
     sl_turn_per_rad: float = 0.2

@@ -3,7 +3,10 @@
 
 Initial contacts are matched one-to-one: a detected and a reference contact match when each is the other's
 nearest and they are at most ``tolerance_s`` apart (0.25 s, the tolerance of the Mobilise-D validation, Micó-Amigo
-et al. 2023, doi:10.1186/s12984-023-01198-5). Walking bouts are matched one-to-one by overlap: pairs in decreasing
+et al. 2023, doi:10.1186/s12984-023-01198-5). With ``windows_s`` (the reference's walking: Mobilise-D INDIP
+walking bouts, a Voisard trial) only the detections inside a window ± ``tolerance_s`` are scored, as Mobilise-D
+validated the contact detectors within the reference walking (Micó-Amigo et al. 2023); detections elsewhere count
+neither as matched nor as extra. Walking bouts are matched one-to-one by overlap: pairs in decreasing
 order of intersection-over-union, each bout used once, IoU ≥ ``min_iou``. Per matched bout: absolute and relative
 errors of cadence, stride length and walking speed.
 """
@@ -39,12 +42,22 @@ def _nearest(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return j
 
 
-def match_initial_contacts(detected_s, reference_s, *, tolerance_s: float = IC_TOLERANCE_S) -> ICMatch:
-    """Mutual-nearest one-to-one matching within ``tolerance_s`` (see module docstring)."""
+def match_initial_contacts(detected_s, reference_s, *, tolerance_s: float = IC_TOLERANCE_S,
+                           windows_s=None) -> ICMatch:
+    """Mutual-nearest one-to-one matching within ``tolerance_s`` (see module docstring). ``windows_s``: (K, 2)
+    [start, end] s where contacts are scored (each ± ``tolerance_s``); detections outside all of them are left out
+    (in no index array); None = everywhere. Indices refer to the full inputs."""
     if tolerance_s < 0:
         raise ValueError(f"tolerance_s must be >= 0, got {tolerance_s}")
     d = np.asarray(detected_s, float).ravel()
     r = np.asarray(reference_s, float).ravel()
+    if windows_s is not None:
+        w = np.asarray(windows_s, float).reshape(-1, 2)
+        keep = ((d[:, None] >= w[None, :, 0] - tolerance_s) & (d[:, None] <= w[None, :, 1] + tolerance_s)).any(axis=1)
+        kept = np.flatnonzero(keep)
+        m = match_initial_contacts(d[kept], r, tolerance_s=tolerance_s)
+        return ICMatch(det_idx=kept[m.det_idx], ref_idx=m.ref_idx, error_s=m.error_s, fp_idx=kept[m.fp_idx],
+                       fn_idx=m.fn_idx)
     od, orf = np.argsort(d, kind="stable"), np.argsort(r, kind="stable")
     ds, rs = d[od], r[orf]
     if len(ds) == 0 or len(rs) == 0:

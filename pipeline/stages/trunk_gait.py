@@ -13,7 +13,8 @@ every bout of that piece (:data:`FRAME_FLAGS`: ``wrong_placement`` when no stabl
 ``score`` (separate step): where the session holds reference walking bouts and initial contacts (Mobilise-D INDIP
 annotations, ``label`` = ``reference_system``), initial contacts and per-bout cadence, stride length and walking
 speed are scored by the one scorer :mod:`estimators.trunk_gait.evaluation` into ``accuracy_metrics`` /
-``accuracy_pairs`` (the dashboard's Accuracy page).
+``accuracy_pairs`` (the dashboard's Accuracy page); contacts inside the reference walking bouts ± the tolerance, as
+``stridelab bench trunk-gait`` scores them (the whole recording where the reference has contacts but no bouts).
 """
 from __future__ import annotations
 
@@ -175,13 +176,15 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
         t0 = int(t[0])
         s = lambda ns: (np.asarray(ns, np.int64) - t0) / 1e9   # noqa: E731 - warehouse ns -> s from the piece start
         ric = np.sort(s([e["t_ns"] for e in ref_ic if t[0] <= e["t_ns"] <= t[-1]]))
-        m = match_initial_contacts(res.initial_contacts_s, ric, tolerance_s=p.ic_tolerance_s)
+        rb = [e for e in ref_b if e.get("end_ns") is not None and t[0] <= e["t_ns"] <= t[-1]]
+        # contacts scored inside the reference walking bouts ± the tolerance, as the bench scores them
+        win = np.column_stack([s([e["t_ns"] for e in rb]), s([e["end_ns"] for e in rb])]) if rb else None
+        m = match_initial_contacts(res.initial_contacts_s, ric, tolerance_s=p.ic_tolerance_s, windows_s=win)
         mm = ic_metrics(m)
         tp, fp, fn = tp + mm["tp"], fp + mm["fp"], fn + mm["fn"]
         abs_err.append(np.abs(m.error_s))
         pairs += [{"quantity": "IC", "estimate": float(res.initial_contacts_s[i]), "reference": float(ric[j]),
                    "unit": "s", "placement": placement} for i, j in zip(m.det_idx, m.ref_idx)]
-        rb = [e for e in ref_b if e.get("end_ns") is not None and t[0] <= e["t_ns"] <= t[-1]]
         ref = {k: np.array([np.nan if e.get(k) is None else float(e[k]) for e in rb])
                for k in ("cadence_spm", "stride_length_m", "walking_speed_m_s")}
         det = {"cadence_spm": res.bouts.cadence_spm, "stride_length_m": res.bouts.stride_length_m,
@@ -216,5 +219,5 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                                 for r in pairs])
 
 
-STAGE = shaped_stage("trunk_gait", "3", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+STAGE = shaped_stage("trunk_gait", "4", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))

@@ -69,6 +69,17 @@ def test_real_sample_import_ingest_run(tmp_path, monkeypatch):
     for k in ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct", "walking_speed_mae_m_s"):
         assert got[k].notna().all(), k
     assert ((got["ic_sensitivity"] >= 0) & (got["ic_sensitivity"] <= 1)).all()
+    # the dashboard's figures and the bench's agree: the stage scores the contacts as `stridelab bench trunk-gait`
+    # does (inside the INDIP bouts ± 0.25 s, the one scorer), so its counts pooled over the sessions equal the bench's
+    # shipped-defaults counts on the same trials
+    from estimators.trunk_gait import TrunkGaitParams
+    from validation.bench.trunk_gait import load_mobilised, run_ours, score
+    recs = load_mobilised(root, [])
+    bench = score(recs, [run_ours(r, TrunkGaitParams()) for r in recs])
+    tp = (got["ic_sensitivity"] * got["n_reference_ic"]).round()
+    fp = (tp / got["ic_precision"] - tp).round()
+    assert (int(tp.sum()), int(fp.sum()), int((got["n_reference_ic"] - tp).sum())) == (
+        bench["ic_tp"], bench["ic_fp"], bench["ic_fn"])
 
 
 @pytest.mark.parametrize("field, value, ok", [("height_m", "1.72", True), ("height_m", "172", False),

@@ -266,14 +266,10 @@ def _with_cadence(d: Det, method: str | None) -> Det:
 def _ic_counts(rec: Rec, ic_s: np.ndarray, whole: bool = False) -> tuple[int, int, int, np.ndarray]:
     """Contacts scored inside the reference's walking (± the tolerance): the Voisard trial, the Mobilise-D
     reference walking bouts (``whole``: the whole recording, as before 2026-12-07)."""
-    from estimators.trunk_gait.evaluation import IC_TOLERANCE_S, match_initial_contacts
+    from estimators.trunk_gait.evaluation import match_initial_contacts
     win = (np.array([rec.window_s]) if whole or rec.ic_windows_s is None or not len(rec.ic_windows_s)
            else rec.ic_windows_s)
-    keep = np.zeros(len(ic_s), bool)
-    for lo, hi in win:
-        keep |= (ic_s >= lo - IC_TOLERANCE_S) & (ic_s <= hi + IC_TOLERANCE_S)
-    d = ic_s[keep]
-    m = match_initial_contacts(d, rec.ref_ic_s)
+    m = match_initial_contacts(ic_s, rec.ref_ic_s, windows_s=win)
     return len(m.det_idx), len(m.fp_idx), len(m.fn_idx), m.error_s
 
 

@@ -164,6 +164,20 @@ def test_ic_matching_one_to_one_within_tolerance():
         match_initial_contacts(det, ref, tolerance_s=-1)
 
 
+
+def test_ic_matching_inside_windows_leaves_out_detections_elsewhere():
+    ref = np.array([1.0, 2.0, 3.0])
+    det = np.array([0.5, 1.02, 2.05, 3.1, 3.6, 7.0])
+    # scored inside [1, 3] ± 0.25: 0.5 and 3.6 and 7.0 lie outside; 3.1 inside (tolerance); no extra contacts
+    m = match_initial_contacts(det, ref, tolerance_s=0.25, windows_s=[[1.0, 3.0]])
+    assert sorted(zip(m.det_idx.tolist(), m.ref_idx.tolist())) == [(1, 0), (2, 1), (3, 2)]   # full-input indices
+    assert m.fp_idx.tolist() == [] and m.fn_idx.tolist() == []
+    assert m.error_s == pytest.approx([0.02, 0.05, 0.1])
+    # two windows: 7.0 falls in the second and has no reference -> extra; everywhere (None): 0.5, 3.6, 7.0 extra
+    m2 = match_initial_contacts(det, ref, tolerance_s=0.25, windows_s=[[1.0, 3.0], [6.9, 7.5]])
+    assert m2.fp_idx.tolist() == [5]
+    assert match_initial_contacts(det, ref, tolerance_s=0.25).fp_idx.tolist() == [0, 4, 5]
+
 def test_bout_matching_by_overlap():
     m = match_bouts([0.0, 10.0, 30.0], [8.0, 20.0, 31.0], [1.0, 12.0, 50.0], [9.0, 19.0, 60.0], min_iou=0.5)
     assert m.det_idx.tolist() == [0, 1] and m.ref_idx.tolist() == [0, 1]
