@@ -93,22 +93,11 @@ def pooled_rmse(parts: list[OrientationError]) -> OrientationError:
     return OrientationError(pool("total_rmse_deg"), pool("heading_rmse_deg"), pool("inclination_rmse_deg"), n)
 
 
-try:        # the gufunc behind np.linalg.eigh for a real matrix (its default UPLO="L")
-    from numpy.linalg._umath_linalg import eigh_lo as _EIGH_LO
-except ImportError:  # pragma: no cover - a NumPy without it takes the public call
-    _EIGH_LO = None
-
-
 def _eigh(a: np.ndarray):
-    """``np.linalg.eigh(a)`` for float64 ``a`` (4, 4) or (k, 4, 4), bit for bit: the gufunc it calls, with the
-    signature it passes (``d->dd``), without its argument checks and error-state context (3.0 instead of 6.4 µs
-    a call; a lab session's alignments make ~8,000). LAPACK's failure leaves NaN eigenvalues (after the gufunc's
-    "invalid value" RuntimeWarning); such a matrix goes to ``np.linalg.eigh``, which raises ``LinAlgError`` as
-    before. The scatter matrices the alignment forms are finite sums of finite products: it never gets there."""
-    if _EIGH_LO is not None and a.dtype == np.float64:
-        w, v = _EIGH_LO(a, signature="d->dd")
-        if (w[0] == w[0]) if w.ndim == 1 else not np.isnan(w).any():
-            return w, v
+    """``np.linalg.eigh(a)`` for ``a`` (4, 4) or (k, 4, 4). (It called NumPy's private gufunc
+    ``numpy.linalg._umath_linalg.eigh_lo`` directly, 3.0 instead of 6.4 µs a call; at ~8,000 calls a lab session
+    that is ~0.03 s, below 1 % of any bench: docs/operations.md, "Speed tricks: measured". The values are the same:
+    ``np.linalg.eigh`` calls that gufunc.)"""
     return np.linalg.eigh(a)
 
 
