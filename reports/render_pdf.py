@@ -190,7 +190,8 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
     styles = _styles()
     width, height = A4
     room = width - 2 * MARGIN_PT
-    frame = Frame(MARGIN_PT, MARGIN_PT, room, height * CONTENT_TOP - MARGIN_PT, id="content",
+    frame_h = height * CONTENT_TOP - MARGIN_PT
+    frame = Frame(MARGIN_PT, MARGIN_PT, room, frame_h, id="content",
                   leftPadding=0, rightPadding=0, topPadding=0, bottomPadding=0)
     pid = d["participant_id"]
 
@@ -234,7 +235,7 @@ def render_pdf(d: dict, pages: dict, meta: dict, path: Path) -> None:
             elif b[0] == "table":
                 story += _table(b[1], b[2], room, styles)
             elif b[0] == "figure":
-                story += _figure(b[1], b[2], room, frame._aH * 0.8, styles)
+                story += _figure(b[1], b[2], room, 0.8 * frame_h, styles)
             else:
                 raise ValueError(f"unknown report block {b[0]!r}")
     doc.build(story)

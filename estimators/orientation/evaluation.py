@@ -93,19 +93,11 @@ def pooled_rmse(parts: list[OrientationError]) -> OrientationError:
     return OrientationError(pool("total_rmse_deg"), pool("heading_rmse_deg"), pool("inclination_rmse_deg"), n)
 
 
-def _eigh(a: np.ndarray):
-    """``np.linalg.eigh(a)`` for ``a`` (4, 4) or (k, 4, 4). (It called NumPy's private gufunc
-    ``numpy.linalg._umath_linalg.eigh_lo`` directly, 3.0 instead of 6.4 µs a call; at ~8,000 calls a lab session
-    that is ~0.03 s, below 1 % of any bench: docs/operations.md, "Speed tricks: measured". The values are the same:
-    ``np.linalg.eigh`` calls that gufunc.)"""
-    return np.linalg.eigh(a)
-
-
 def _top_eigvec(a: np.ndarray) -> np.ndarray:
     """The chordal L2 mean of unit quaternions q from their scatter Σ q qᵀ: its eigenvector with the largest
     eigenvalue, sign chosen with w ≥ 0. ``a`` (4, 4), or a stack (k, 4, 4): NumPy's ``eigh`` calls LAPACK once
     per matrix either way, so a stacked matrix gets the vector it gets alone, bit for bit."""
-    w, v = _eigh(a)
+    w, v = np.linalg.eigh(a)
     if a.ndim == 2:
         m = v[:, -1]
         return m if m[0] >= 0 else -m
