@@ -50,14 +50,14 @@ def joint_cycles(df: pd.DataFrame, joint: str, plane: str | None) -> go.Figure:
     palette = px.colors.qualitative.D3
     for i, ((sid, side), g) in enumerate(df.groupby(["session_id", "side"] if "side" in df else ["session_id",
                                                      df["joint"]], sort=False)):
-        g = g.sort_values("cycle_pct")
+        g = g.sort_values("pct")
         c = palette[i % len(palette)]
         if "sd_deg" in g and g["sd_deg"].notna().any():
-            fig.add_trace(go.Scatter(x=np.concatenate([g["cycle_pct"], g["cycle_pct"][::-1]]),
+            fig.add_trace(go.Scatter(x=np.concatenate([g["pct"], g["pct"][::-1]]),
                                      y=np.concatenate([g["mean_deg"] + g["sd_deg"], (g["mean_deg"] - g["sd_deg"])[::-1]]),
                                      fill="toself", opacity=0.2, line=dict(width=0), fillcolor=c, showlegend=False,
                                      hoverinfo="skip"))
-        fig.add_trace(go.Scatter(x=g["cycle_pct"], y=g["mean_deg"], mode="lines", line=dict(color=c),
+        fig.add_trace(go.Scatter(x=g["pct"], y=g["mean_deg"], mode="lines", line=dict(color=c),
                                  name=f"{sid} {side}"))
     return _layout(fig, 300, title=f"{joint} {plane or ''} (deg) over the gait cycle",
                    xaxis_title="gait cycle (%)", yaxis_title="angle (deg)")

@@ -329,7 +329,7 @@ FORMATS: dict[str, Format] = {f.name: f for f in (
     Format("uci", "UCI single chest-mounted accelerometer CSV (seq,x,y,z,label counts)", _uci, (".csv",)),
     Format("broad", "BROAD HDF5 trial (IMU + optical orientation)", _broad, (".hdf5", ".h5")),
     Format("apdm", "APDM Opal HDF5, v5 layout (Sensors/<id>/Accelerometer ...)", _apdm, (".h5", ".hdf5")),
-    Format("cwa", "Axivity AX3/AX6 .cwa (read by scikit-digital-health)", _cwa, (".cwa",)),
+    Format("cwa", "Axivity AX3/AX6 .cwa (read by scikit-digital-health: optional extra 'cwa')", _cwa, (".cwa",)),
     Format("pyshoe", "PyShoe Vicon trial .mat (one shoe IMU + Vicon foot position)", _pyshoe, (".mat",)),
     Format("xsens", "Xsens MT Manager text export (rate line, PacketCounter Acc_X ... Mag_Z)", _xsens, (".txt",)),
     Format("voisard", "Voisard et al. gait trial: N-M.json events + N-M_{lf,rf,lb}.txt Xsens exports", _voisard,

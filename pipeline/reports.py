@@ -20,7 +20,7 @@ from pipeline.stages import canonical_json
 from warehouse.catalog import Warehouse, first
 
 #: bump when the report's content or layout changes: every report is then rewritten once
-REPORT_FORMAT = 2                  # 2: clinician summary page, clinical measures, walking bouts (issue 18)
+REPORT_FORMAT = 3                  # 2: clinician summary page, clinical measures, walking bouts (issue 18); 3: PDF laid out by ReportLab, tables whole
 TMP_PREFIX = ".tmp-"
 
 #: ``build(study, participant_id, out_dir) -> {"html": Path, "pdf": Path}``

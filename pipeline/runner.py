@@ -85,21 +85,6 @@ def _version() -> str:
 
 # ---- worker-side functions (top level so they pickle) -------------------------------------
 
-def _fault_injection(var: str = "STRIDELAB_TEST_KILL_WORKER_ONCE") -> None:
-    """Test hooks for the fault-tolerance tests: when the environment variable ``var`` names a marker
-    file that does not exist yet, create it and SIGKILL the current process. Used with
-    ``STRIDELAB_TEST_KILL_WORKER_ONCE`` (a worker, inside a task) and
-    ``STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT`` (the coordinator, inside a stage's transaction)."""
-    marker = os.environ.get(var)
-    if marker:
-        try:
-            fd = os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            return
-        os.close(fd)
-        os.kill(os.getpid(), 9)
-
-
 #: least seconds between two snapshots published while a run commits (env ``STRIDELAB_PUBLISH_INTERVAL_S``;
 #: 0 publishes after every commit). Each phase and the run end with one, so readers see a run's progress at
 #: most this late. Publishing copies the whole catalog (18 MB for 20 participants, growing with the study): once
@@ -138,7 +123,6 @@ class _Publisher:
 
 def _stage_task(stage_name: str, inp: SessionInput, params: dict) -> tuple[StageOutput, float, float]:
     """Run one stage on one session in a worker: (output, wall seconds, CPU seconds of this process)."""
-    _fault_injection()
     stage = {s.name: s for s in registry()}[stage_name]
     t0, c0 = time.perf_counter(), time.process_time()
     try:
@@ -467,7 +451,6 @@ def _commit_stage_result(wh: Warehouse, run_id: str, stage: Stage, why: dict, it
                     rows = [dict(r, producer=stage.name) for r in rows]
                 else:
                     con.execute(f'DELETE FROM "{t}" WHERE session_id = ?', [sid])
-                _fault_injection("STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT")
                 wh.insert(t, rows)
             con.execute("INSERT OR REPLACE INTO stage_state VALUES (?, ?, ?)", [sid, stage.name, st])
             wh.insert("stage_runs", [{"run_id": run_id, "session_id": sid, "stage": stage.name,

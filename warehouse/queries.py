@@ -11,14 +11,16 @@ Two layers:
 Filter values reach SQL **only as parameters** (``?``). Identifiers (table and column names) come
 from ``information_schema`` of the snapshot itself, never from user input, and are quoted.
 
-The stage outputs are the tables the migrations create (``warehouse/migrations``), declared once in
-:data:`DATASETS` with their real column names (no aliases); a snapshot made before a migration may lack a
-table, and a page then shows a hint of what to run. The gait parameters shown are the gait stage's own
+The stage outputs are the tables the migrations create (``warehouse/migrations``), listed in :data:`DATASETS`
+(table and the columns the queries read); the queries name the real tables and columns directly, and return
+them under those names. A snapshot made before a migration may lack a table: its queries then return None and a
+page shows a hint of what to run. The gait parameters shown are the gait stage's own
 ``gait_summary`` rows (cadence, symmetry), never recomputed here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -33,96 +35,50 @@ RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridel
 
 @dataclass(frozen=True)
 class Dataset:
-    """A stage output the dashboard can show: candidate table names and logical -> column aliases."""
-    tables: tuple[str, ...]
-    columns: dict[str, tuple[str, ...]]
-    required: tuple[str, ...]
-    produced_by: str                          # what computes it (for the hint)
-    optional_columns: tuple[str, ...] = field(default=())
+    """A stage output the dashboard and the reports show: its table, the columns the queries read (the names
+    the migrations give them), and what computes it (for the hint)."""
+    table: str
+    columns: tuple[str, ...]
+    produced_by: str
 
 
-def _c(*names: str) -> tuple[str, ...]:
-    return names
-
-
-#: stage outputs, by the tables and columns the migrations (warehouse/migrations/*.sql) define: one table per
-#: dataset, logical column -> the real column (the same name except ``cycle_pct`` = ``joint_angle_curves.pct``)
+#: stage outputs, as the migrations (warehouse/migrations/*.sql) create them
 DATASETS: dict[str, Dataset] = {
-    "strides": Dataset(
-        tables=("strides",),
-        columns={c: _c(c) for c in ("session_id", "trial", "side", "ic_ns", "tc_ns", "stride_time_s", "stance_pct",
-                                    "swing_pct", "stride_length_m", "speed_m_s", "clearance_m", "turning_deg",
-                                    "stride_length_ref_m", "status")},
-        required=("session_id", "stride_time_s"),
-        produced_by="the gait stage (gait events and strides)"),
-    "gait_summary": Dataset(
-        tables=("gait_summary",),
-        columns={c: _c(c) for c in ("session_id", "side", "cadence_steps_min", "speed_m_s", "stride_length_m",
-                                    "stride_time_s", "stance_pct", "swing_pct", "double_support_pct", "clearance_m",
-                                    "si_stride_length_pct", "si_stride_time_pct", "si_stance_pct",
-                                    "si_swing_time_pct", "si_clearance_pct", "n_strides", "status", "note")},
-        required=("session_id", "side"),
-        produced_by="the gait stage (per-session gait summary)"),
-    "calibration": Dataset(
-        tables=("calibration",),
-        columns={c: _c(c) for c in ("session_id", "placement", "status", "reasons", "method", "n_reps")},
-        required=("session_id", "placement", "status"),
-        produced_by="the calibration stage"),
-    "joint_cycles": Dataset(
-        tables=("joint_angle_curves",),
-        columns={"session_id": _c("session_id"), "joint": _c("joint"), "side": _c("side"), "plane": _c("plane"),
-                 "cycle_pct": _c("pct"), "mean_deg": _c("mean_deg"), "sd_deg": _c("sd_deg")},
-        required=("session_id", "joint", "cycle_pct", "mean_deg"),
-        produced_by="the joint-angle stage"),
-    "activity_bouts": Dataset(
-        tables=("activity_bouts",),
-        columns={c: _c(c) for c in ("session_id", "start_ns", "end_ns", "class", "steps")},
-        required=("session_id", "start_ns", "end_ns", "class"),
-        produced_by="the daily-activity stage (chest sensor)"),
-    "accuracy": Dataset(
-        tables=("accuracy_metrics",),
-        columns={c: _c(c) for c in ("session_id", "stage", "estimator", "placement", "metric", "value", "unit")},
-        required=("stage", "metric", "value"),
-        produced_by="the accuracy stage (where a reference exists)"),
-    "accuracy_pairs": Dataset(
-        tables=("accuracy_pairs",),
-        columns={c: _c(c) for c in ("session_id", "stage", "estimator", "placement", "quantity", "estimate",
-                                    "reference", "unit")},
-        required=("quantity", "estimate", "reference"),
-        produced_by="the accuracy stage (paired estimate/reference values)"),
-    "foot_trajectory": Dataset(
-        tables=("foot_trajectories",),
-        columns={c: _c(c) for c in ("session_id", "placement", "series_path")},
-        required=("session_id", "series_path"),
-        produced_by="the foot-trajectory stage"),
+    "strides": Dataset("strides", (
+        "session_id", "trial", "side", "ic_ns", "tc_ns", "stride_time_s", "stance_pct", "swing_pct", "stride_length_m",
+        "speed_m_s", "clearance_m", "turning_deg", "stride_length_ref_m", "status"),
+        "the gait stage (gait events and strides)"),
+    "gait_summary": Dataset("gait_summary", (
+        "session_id", "side", "cadence_steps_min", "speed_m_s", "stride_length_m", "stride_time_s", "stance_pct",
+        "swing_pct", "double_support_pct", "clearance_m", "si_stride_length_pct", "si_stride_time_pct",
+        "si_stance_pct", "si_swing_time_pct", "si_clearance_pct", "n_strides", "status", "note"),
+        "the gait stage (per-session gait summary)"),
+    "calibration": Dataset("calibration", ("session_id", "placement", "status", "reasons", "method", "n_reps"),
+                           "the calibration stage"),
+    "joint_cycles": Dataset("joint_angle_curves", ("session_id", "joint", "side", "plane", "pct", "mean_deg",
+                                                   "sd_deg"), "the joint-angle stage"),
+    "activity_bouts": Dataset("activity_bouts", ("session_id", "start_ns", "end_ns", "class", "steps"),
+                              "the daily-activity stage (chest sensor)"),
+    "accuracy": Dataset("accuracy_metrics", ("session_id", "stage", "estimator", "placement", "metric", "value",
+                                             "unit"), "the accuracy stage (where a reference exists)"),
+    "accuracy_pairs": Dataset("accuracy_pairs", ("session_id", "stage", "estimator", "placement", "quantity",
+                                                 "estimate", "reference", "unit"),
+                              "the accuracy stage (paired estimate/reference values)"),
+    "foot_trajectory": Dataset("foot_trajectories", ("session_id", "placement", "series_path"),
+                               "the foot-trajectory stage"),
 }
+
+
+def _select(alias: str, name: str, skip: tuple[str, ...] = ()) -> str:
+    """``alias.col, ...`` over a dataset's columns (their real names), without ``skip``."""
+    return ", ".join(f"{alias}.{c}" for c in DATASETS[name].columns if c not in skip)
+
 
 #: activity classes in display order, with fixed colours (dashboard and reports)
 ACTIVITY_CLASSES = ("lying", "sitting", "standing", "level_walking", "stairs_up", "stairs_down", "non_wear")
 ACTIVITY_COLORS = {"lying": "#4c78a8", "sitting": "#72b7b2", "standing": "#54a24b", "level_walking": "#f58518",
                    "stairs_up": "#e45756", "stairs_down": "#b279a2", "non_wear": "#bab0ac"}
 POSTURES = ("lying", "sitting", "standing")
-
-
-@dataclass(frozen=True)
-class Resolved:
-    table: str
-    cols: dict[str, str]                     # logical -> actual column name
-
-    def has(self, *logical: str) -> bool:
-        return all(c in self.cols for c in logical)
-
-    def q(self, logical: str) -> str:
-        """Quoted actual column (identifier from information_schema, never user input)."""
-        return '"' + self.cols[logical].replace('"', '""') + '"'
-
-    def select(self, alias: str = "t", only: tuple[str, ...] | None = None) -> str:
-        names = [k for k in self.cols if only is None or k in only]
-        return ", ".join(f'{alias}.{self.q(k)} AS "{k}"' for k in names)
-
-    @property
-    def qtable(self) -> str:
-        return '"' + self.table.replace('"', '""') + '"'
 
 
 # ---- schema ---------------------------------------------------------------------------------
@@ -136,39 +92,26 @@ def table_columns(con) -> dict[str, list[str]]:
     return out
 
 
-def resolve(con, name: str, schema: dict[str, list[str]] | None = None) -> Resolved | None:
-    """The table of dataset ``name`` in this snapshot with its column mapping, or None if absent."""
-    ds = DATASETS[name]
-    schema = table_columns(con) if schema is None else schema
-    for t in ds.tables:
-        if t not in schema:
-            continue
-        have = {c.lower(): c for c in schema[t]}
-        cols = {}
-        for logical, cands in ds.columns.items():
-            for cand in cands:
-                if cand.lower() in have:
-                    cols[logical] = have[cand.lower()]
-                    break
-        if all(r in cols for r in ds.required):
-            return Resolved(t, cols)
-    return None
-
-
 def available(con) -> dict[str, bool]:
-    """Which optional datasets this snapshot holds."""
+    """Which stage outputs this snapshot holds (their table with the columns the queries read)."""
     schema = table_columns(con)
-    return {name: resolve(con, name, schema) is not None for name in DATASETS}
+    return {name: ds.table in schema and set(ds.columns) <= set(schema[ds.table]) for name, ds in DATASETS.items()}
 
 
 def missing_hint(name: str) -> str:
     ds = DATASETS[name]
     return (f"No {name.replace('_', ' ')} in this warehouse yet: they are computed by {ds.produced_by}; "
-            f"{RUN_HINT}. Expected table: {' or '.join(ds.tables[:2])}.")
+            f"{RUN_HINT}. Expected table: {ds.table}.")
 
 
 def _df(con, sql: str, params: list | None = None) -> pd.DataFrame:
-    return con.execute(sql, params or []).df()
+    """The query's rows as a DataFrame. DuckDB 2.0's own conversion of a TIMESTAMPTZ column calls
+    ``DataFrame.drop(inplace=True)``, which pandas 3.1 deprecates (Pandas4Warning, PDEP-8): not a call of ours, so
+    that one warning is silenced here, where the conversion happens, and no other."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="The inplace keyword in DataFrame.drop is deprecated",
+                                category=getattr(pd.errors, "Pandas4Warning", DeprecationWarning))
+        return con.execute(sql, params or []).df()
 
 
 def _has_table(con, table: str) -> bool:
@@ -250,15 +193,13 @@ def qc_flags(con) -> pd.DataFrame:
               FROM stage_runs) x
         LEFT JOIN sessions s USING (session_id)
         WHERE x.k = 1 AND x.status = 'failed'"""]
-    cal = resolve(con, "calibration")
-    if cal is not None and cal.has("status"):
-        reasons = f"CAST(c.{cal.q('reasons')} AS VARCHAR)" if cal.has("reasons") else "''"
+    if _has_table(con, "calibration"):
         parts.append(f"""
-        SELECT 'calibration' AS source, s.study, s.participant_id, c.{cal.q('session_id')} AS session_id,
-               'warning' AS severity, CAST(c.{cal.q('placement')} AS VARCHAR) AS what,
-               concat_ws(': ', CAST(c.{cal.q('status')} AS VARCHAR), {reasons}) AS message
-        FROM {cal.qtable} c LEFT JOIN sessions s ON s.session_id = c.{cal.q('session_id')}
-        WHERE CAST(c.{cal.q('status')} AS VARCHAR) <> 'pass'""")   # status: pass | warn | fail (migration 003)
+        SELECT 'calibration' AS source, s.study, s.participant_id, c.session_id AS session_id,
+               'warning' AS severity, CAST(c.placement AS VARCHAR) AS what,
+               concat_ws(': ', CAST(c.status AS VARCHAR), CAST(c.reasons AS VARCHAR)) AS message
+        FROM calibration c LEFT JOIN sessions s ON s.session_id = c.session_id
+        WHERE CAST(c.status AS VARCHAR) <> 'pass'""")   # status: pass | warn | fail (migration 003)
     return _df(con, " UNION ALL ".join(parts) + " ORDER BY source, study, participant_id, session_id")
 
 
@@ -336,14 +277,13 @@ def orientation_coverage(con, participant_id: str, study: str | None = None) -> 
 
 def strides(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
     """Every stride of the participant's sessions (logical column names), or None if no gait stage yet."""
-    r = resolve(con, "strides")
-    if r is None:
+    if not _has_table(con, "strides"):
         return None
     return _df(con, f"""
-        SELECT s.session_id AS session, s.kind, s.protocol, s.start_ns AS session_start_ns, {r.select('t', tuple(k for k in r.cols if k != 'session_id'))}
-        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        SELECT s.session_id, s.kind, s.protocol, s.start_ns AS session_start_ns, {_select('t', 'strides', ('session_id',))}
+        FROM strides t JOIN sessions s ON s.session_id = t.session_id
         WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
-        ORDER BY s.start_ns""", [participant_id, study, study]).rename(columns={"session": "session_id"})
+        ORDER BY s.start_ns""", [participant_id, study, study])
 
 
 GAIT_PARAMS = {"speed_m_s": "gait speed (m/s)", "cadence_steps_min": "cadence (steps/min)",
@@ -359,13 +299,12 @@ def gait_summary(con, participant_id: str, study: str | None = None) -> pd.DataF
     """Per session, the gait stage's ``gait_summary`` row for both feet (``side = 'both'``): cadence, speed, stride
     length and time, stance, clearance, symmetry indices and stride count as the stage computed them, with the
     session's start, protocol and date. None when the table is absent."""
-    r = resolve(con, "gait_summary")
-    if r is None:
+    if not _has_table(con, "gait_summary"):
         return None
     df = _df(con, f"""
-        SELECT s.session_id, s.start_ns AS session_start_ns, s.protocol, {r.select('g', tuple(k for k in r.cols if k not in ('session_id', 'side')))}
-        FROM {r.qtable} g JOIN sessions s ON s.session_id = g.{r.q('session_id')}
-        WHERE g.{r.q('side')} = 'both' AND s.participant_id = ? AND (? IS NULL OR s.study = ?)
+        SELECT s.session_id, s.start_ns AS session_start_ns, s.protocol, {_select('g', 'gait_summary', ('session_id', 'side'))}
+        FROM gait_summary g JOIN sessions s ON s.session_id = g.session_id
+        WHERE g.side = 'both' AND s.participant_id = ? AND (? IS NULL OR s.study = ?)
         ORDER BY s.start_ns""", [participant_id, study, study])
     df = df.rename(columns={"n_strides": "strides"})
     df["date"] = pd.to_datetime(df["session_start_ns"], unit="ns", utc=True)
@@ -373,22 +312,20 @@ def gait_summary(con, participant_id: str, study: str | None = None) -> pd.DataF
 
 
 def joint_cycles(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
-    r = resolve(con, "joint_cycles")
-    if r is None:
+    if not _has_table(con, "joint_angle_curves"):
         return None
     return _df(con, f"""
-        SELECT s.session_id AS session, s.start_ns AS session_start_ns, {r.select('t', tuple(k for k in r.cols if k != 'session_id'))}
-        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        SELECT s.session_id, s.start_ns AS session_start_ns, {_select('t', 'joint_cycles', ('session_id',))}
+        FROM joint_angle_curves t JOIN sessions s ON s.session_id = t.session_id
         WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
-        ORDER BY s.start_ns, 3, 4""", [participant_id, study, study]).rename(columns={"session": "session_id"})
+        ORDER BY s.start_ns, t.joint, t.side""", [participant_id, study, study])
 
 
 def calibration_qc(con, participant_id: str, study: str | None = None) -> pd.DataFrame | None:
-    r = resolve(con, "calibration")
-    if r is None:
+    if not _has_table(con, "calibration"):
         return None
     return _df(con, f"""
-        SELECT t.* FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        SELECT t.* FROM calibration t JOIN sessions s ON s.session_id = t.session_id
         WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
         ORDER BY s.start_ns""", [participant_id, study, study])
 
@@ -396,13 +333,11 @@ def calibration_qc(con, participant_id: str, study: str | None = None) -> pd.Dat
 def foot_trajectories(con, root: str | Path, participant_id: str, study: str | None = None,
                       max_points: int = 5000) -> pd.DataFrame | None:
     """Foot positions (x, y, z in m) of the participant's newest session with trajectories, or None."""
-    r = resolve(con, "foot_trajectory")
-    if r is None:
+    if not _has_table(con, "foot_trajectories"):
         return None
-    pl = f"t.{r.q('placement')}" if r.has("placement") else "'foot'"
     rows = con.execute(f"""
-        SELECT t.{r.q('session_id')}, {pl}, t.{r.q('series_path')}
-        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
+        SELECT t.session_id, t.placement, t.series_path
+        FROM foot_trajectories t JOIN sessions s ON s.session_id = t.session_id
         WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)
         ORDER BY s.start_ns DESC""", [participant_id, study, study]).fetchall()
     if not rows:
@@ -436,28 +371,24 @@ def accuracy_filters(con) -> dict[str, list[str]]:
     """Values offered by the accuracy filters (studies, estimators, placements, trial types)."""
     out = {"study": [r[0] for r in con.execute("SELECT DISTINCT study FROM sessions ORDER BY 1").fetchall()],
            "estimator": [], "placement": [], "trial": []}
-    r = resolve(con, "accuracy")
-    if r is None:
+    if not _has_table(con, "accuracy_metrics"):
         return out
     for k in ("estimator", "placement"):
-        if r.has(k):
-            out[k] = [x[0] for x in con.execute(f"SELECT DISTINCT CAST({r.q(k)} AS VARCHAR) FROM {r.qtable} "
-                                                f"WHERE {r.q(k)} IS NOT NULL ORDER BY 1").fetchall()]
-    trial = f"t.{r.q('trial')}" if r.has("trial") else "s.protocol"
-    if r.has("session_id"):
-        out["trial"] = [x[0] for x in con.execute(
-            f"SELECT DISTINCT CAST({trial} AS VARCHAR) FROM {r.qtable} t LEFT JOIN sessions s "
-            f"ON s.session_id = t.{r.q('session_id')} WHERE {trial} IS NOT NULL ORDER BY 1").fetchall()]
+        out[k] = [x[0] for x in con.execute(f"SELECT DISTINCT CAST({k} AS VARCHAR) FROM accuracy_metrics "
+                                            f"WHERE {k} IS NOT NULL ORDER BY 1").fetchall()]
+    # the trial type of an accuracy row is its session's protocol
+    out["trial"] = [x[0] for x in con.execute(
+        "SELECT DISTINCT CAST(s.protocol AS VARCHAR) FROM accuracy_metrics t LEFT JOIN sessions s "
+        "ON s.session_id = t.session_id WHERE s.protocol IS NOT NULL ORDER BY 1").fetchall()]
     return out
 
 
-def _acc_where(r: Resolved, alias: str = "t") -> tuple[str, str]:
+def _acc_where(alias: str = "t") -> tuple[str, str]:
     """Join + WHERE clause for the four accuracy filters; parameters: study, estimator, placement, trial lists."""
-    join = f"LEFT JOIN sessions s ON s.session_id = {alias}.{r.q('session_id')}" if r.has("session_id") else \
-        "LEFT JOIN (SELECT NULL::VARCHAR AS study, NULL::VARCHAR AS protocol) s ON TRUE"
-    est = f"CAST({alias}.{r.q('estimator')} AS VARCHAR)" if r.has("estimator") else "NULL"
-    pl = f"CAST({alias}.{r.q('placement')} AS VARCHAR)" if r.has("placement") else "NULL"
-    trial = f"CAST({alias}.{r.q('trial')} AS VARCHAR)" if r.has("trial") else "s.protocol"
+    join = f"LEFT JOIN sessions s ON s.session_id = {alias}.session_id"
+    est = f"CAST({alias}.estimator AS VARCHAR)"
+    pl = f"CAST({alias}.placement AS VARCHAR)"
+    trial = "s.protocol"
     where = (f"(?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], s.study)) "
              f"AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], {est})) "
              f"AND (?::VARCHAR[] IS NULL OR list_contains(?::VARCHAR[], {pl})) "
@@ -475,16 +406,13 @@ def _acc_params(study, estimator, placement, trial) -> list:
 
 def accuracy_metrics(con, study=None, estimator=None, placement=None, trial=None) -> pd.DataFrame | None:
     """Accuracy rows (stage, estimator, placement, metric, value, unit, session, study, trial) after filters."""
-    r = resolve(con, "accuracy")
-    if r is None:
+    if not _has_table(con, "accuracy_metrics"):
         return None
-    join, where = _acc_where(r)
-    trial_col = f"t.{r.q('trial')}" if r.has("trial") else "s.protocol"
-    extra = ", ".join(f"t.{r.q(k)} AS \"{k}\"" for k in ("estimator", "placement", "unit", "session_id") if r.has(k))
+    join, where = _acc_where()
     m = _df(con, f"""
-        SELECT t.{r.q('stage')} AS stage, t.{r.q('metric')} AS metric, CAST(t.{r.q('value')} AS DOUBLE) AS value,
-               s.study, {trial_col} AS trial{', ' + extra if extra else ''}
-        FROM {r.qtable} t {join} WHERE {where}
+        SELECT t.stage, t.metric, CAST(t.value AS DOUBLE) AS value, s.study, s.protocol AS trial,
+               t.estimator, t.placement, t.unit, t.session_id
+        FROM accuracy_metrics t {join} WHERE {where}
         ORDER BY 1, 2""", _acc_params(study, estimator, placement, trial))
     return with_provenance(m, accuracy_provenance(con))
 
@@ -549,28 +477,25 @@ def with_provenance(m: pd.DataFrame, prov: pd.DataFrame) -> pd.DataFrame:
 
 def accuracy_pairs(con, study=None, estimator=None, placement=None, trial=None) -> pd.DataFrame | None:
     """Paired estimate/reference values (for Bland–Altman and event timing errors) after filters."""
-    r = resolve(con, "accuracy_pairs")
-    if r is None:
+    if not _has_table(con, "accuracy_pairs"):
         return None
-    join, where = _acc_where(r)
-    extra = ", ".join(f"t.{r.q(k)} AS \"{k}\"" for k in ("stage", "estimator", "placement", "unit", "session_id")
-                      if r.has(k))
+    join, where = _acc_where()
+    extra = "t.stage, t.estimator, t.placement, t.unit, t.session_id"
     return _df(con, f"""
-        SELECT t.{r.q('quantity')} AS quantity, CAST(t.{r.q('estimate')} AS DOUBLE) AS estimate,
-               CAST(t.{r.q('reference')} AS DOUBLE) AS reference, s.study{', ' + extra if extra else ''}
-        FROM {r.qtable} t {join} WHERE {where}""", _acc_params(study, estimator, placement, trial))
+        SELECT t.quantity AS quantity, CAST(t.estimate AS DOUBLE) AS estimate,
+               CAST(t.reference AS DOUBLE) AS reference, s.study{', ' + extra if extra else ''}
+        FROM accuracy_pairs t {join} WHERE {where}""", _acc_params(study, estimator, placement, trial))
 
 
 def stride_length_pairs(con, study=None) -> pd.DataFrame | None:
     """IMU vs reference stride length from the strides table when it carries a reference column."""
-    r = resolve(con, "strides")
-    if r is None or not r.has("stride_length_m", "stride_length_ref_m"):
+    if not _has_table(con, "strides"):
         return None
     return _df(con, f"""
-        SELECT CAST(t.{r.q('stride_length_m')} AS DOUBLE) AS estimate,
-               CAST(t.{r.q('stride_length_ref_m')} AS DOUBLE) AS reference, s.study, s.participant_id
-        FROM {r.qtable} t JOIN sessions s ON s.session_id = t.{r.q('session_id')}
-        WHERE t.{r.q('stride_length_ref_m')} IS NOT NULL AND (? IS NULL OR s.study = ?)""", [study, study])
+        SELECT CAST(t.stride_length_m AS DOUBLE) AS estimate,
+               CAST(t.stride_length_ref_m AS DOUBLE) AS reference, s.study, s.participant_id
+        FROM strides t JOIN sessions s ON s.session_id = t.session_id
+        WHERE t.stride_length_ref_m IS NOT NULL AND (? IS NULL OR s.study = ?)""", [study, study])
 
 
 def posture_confusion(con, study: str | None = None, participant_id: str | None = None) -> pd.DataFrame | None:
@@ -579,16 +504,15 @@ def posture_confusion(con, study: str | None = None, participant_id: str | None 
     Reference: ``reference_events`` of type ``activity`` (t_ns..end_ns, label); classified: the
     activity stage's bouts of the same session. None when the activity stage has not run.
     """
-    r = resolve(con, "activity_bouts")
-    if r is None:
+    if not _has_table(con, "activity_bouts"):
         return None
     return _df(con, f"""
-        SELECT e.label AS reference, CAST(b.{r.q('class')} AS VARCHAR) AS predicted,
-               sum(least(e.end_ns, b.{r.q('end_ns')}) - greatest(e.t_ns, b.{r.q('start_ns')})) / 1e9 AS seconds
+        SELECT e.label AS reference, CAST(b.class AS VARCHAR) AS predicted,
+               sum(least(e.end_ns, b.end_ns) - greatest(e.t_ns, b.start_ns)) / 1e9 AS seconds
         FROM reference_events e
         JOIN sessions s ON s.session_id = e.session_id
-        JOIN {r.qtable} b ON b.{r.q('session_id')} = e.session_id
-             AND b.{r.q('start_ns')} < e.end_ns AND b.{r.q('end_ns')} > e.t_ns
+        JOIN activity_bouts b ON b.session_id = e.session_id
+             AND b.start_ns < e.end_ns AND b.end_ns > e.t_ns
         WHERE e.type = 'activity' AND e.end_ns IS NOT NULL
           AND (? IS NULL OR s.study = ?) AND (? IS NULL OR s.participant_id = ?)
         GROUP BY 1, 2 ORDER BY 1, 2""", [study, study, participant_id, participant_id])
@@ -597,34 +521,31 @@ def posture_confusion(con, study: str | None = None, participant_id: str | None 
 # ---- activity -------------------------------------------------------------------------------
 
 def activity_participants(con) -> pd.DataFrame:
-    r = resolve(con, "activity_bouts")
-    if r is None:
+    if not _has_table(con, "activity_bouts"):
         return pd.DataFrame(columns=["study", "participant_id"])
     return _df(con, f"""
-        SELECT DISTINCT s.study, s.participant_id FROM {r.qtable} b JOIN sessions s
-        ON s.session_id = b.{r.q('session_id')} ORDER BY 1, 2""")
+        SELECT DISTINCT s.study, s.participant_id FROM activity_bouts b JOIN sessions s
+        ON s.session_id = b.session_id ORDER BY 1, 2""")
 
 
-def _bouts_local(r: Resolved) -> str:
+def _bouts_local() -> str:
     """SELECT of a participant's bouts with their local start and end (the session's time zone); parameters:
     participant_id, study, study. Shared by :func:`activity_bouts` and :func:`activity_daily`."""
-    steps = f"CAST(b.{r.q('steps')} AS DOUBLE)" if r.has("steps") else "NULL::DOUBLE"   # optional in DATASETS
-    return f"""
-            SELECT s.session_id, CAST(b.{r.q('class')} AS VARCHAR) AS class,
-                   b.{r.q('start_ns')} AS start_ns, b.{r.q('end_ns')} AS end_ns, {steps} AS steps,
-                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('start_ns')} // 1000)) AS start_local,
-                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.{r.q('end_ns')} // 1000)) AS end_local
-            FROM {r.qtable} b JOIN sessions s ON s.session_id = b.{r.q('session_id')}
+    return """
+            SELECT s.session_id, CAST(b.class AS VARCHAR) AS class, b.start_ns, b.end_ns,
+                   CAST(b.steps AS DOUBLE) AS steps,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.start_ns // 1000)) AS start_local,
+                   timezone(coalesce(s.timezone, 'UTC'), make_timestamptz(b.end_ns // 1000)) AS end_local
+            FROM activity_bouts b JOIN sessions s ON s.session_id = b.session_id
             WHERE s.participant_id = ? AND (? IS NULL OR s.study = ?)"""
 
 
 def activity_bouts(con, participant_id: str, study: str | None = None, day: str | None = None) -> pd.DataFrame | None:
     """Bouts of a participant (local day and times in the session's time zone), optionally of one day."""
-    r = resolve(con, "activity_bouts")
-    if r is None:
+    if not _has_table(con, "activity_bouts"):
         return None
     return _df(con, f"""
-        WITH x AS ({_bouts_local(r)})
+        WITH x AS ({_bouts_local()})
         SELECT *, CAST(start_local AS DATE) AS day, (end_ns - start_ns) / 1e9 AS seconds FROM x
         WHERE (? IS NULL OR CAST(start_local AS DATE) = CAST(? AS DATE))
         ORDER BY start_ns""", [participant_id, study, study, day, day])
@@ -635,13 +556,12 @@ def activity_daily(con, participant_id: str, study: str | None = None) -> pd.Dat
 
     Bouts that cross local midnight are split at midnight (steps pro rata), so a day never exceeds 24 h.
     """
-    r = resolve(con, "activity_bouts")
-    if r is None:
+    if not _has_table(con, "activity_bouts"):
         return None
     return _df(con, f"""
         WITH x AS (
             SELECT session_id, class, start_ns, steps, start_local AS t0, end_local AS t1
-            FROM ({_bouts_local(r)}) WHERE end_ns > start_ns),
+            FROM ({_bouts_local()}) WHERE end_ns > start_ns),
         d AS (
             SELECT x.*, CAST(dd AS DATE) AS day,
                    epoch(least(t1, CAST(dd AS DATE) + INTERVAL 1 DAY) - greatest(t0, CAST(dd AS TIMESTAMP))) AS seconds,
@@ -885,7 +805,7 @@ def _register() -> None:
     for name, obj in list(globals().items()):
         if callable(obj) and getattr(obj, "__module__", None) == __name__ and not name.startswith("_") \
                 and name not in {"resolve", "table_columns", "missing_hint", "open_snapshot",
-                                 "Dataset", "Resolved"}:
+                                 "Dataset"}:
             _QUERIES[name] = obj
 
 

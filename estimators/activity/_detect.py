@@ -7,7 +7,6 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from estimators.activity._sosfilt import sosfilt
 from estimators.activity._signals import (chest_height_change_m, cumulative_svm_sign, runs, vertical_acc_g)
 from estimators.activity._types import (DOWN, LEVEL, LYSI, SILY, SIST, STSI, UP, ActivityParams, Bouts,
                                         Transitions)
@@ -190,12 +189,12 @@ def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
             return x
         hi = min(p.step_lowpass_hz, 0.45 * fs)
         sos = signal.butter(2, [p.step_highpass_hz, hi], btype="bandpass", fs=fs, output="sos")
-        return sosfilt(sos, x - x[0])                   # zero state = steady state of a constant start
+        return signal.sosfilt(sos, x - x[0])                   # zero state = steady state of a constant start
     if mag is None:
         mag = np.sqrt(np.einsum("ij,ij->i", acc_g, acc_g)) - 1.0
     sos = signal.butter(2, min(p.step_lowpass_hz, 0.45 * fs), fs=fs, output="sos")
     zi = signal.sosfilt_zi(sos) * (mag[0] if mag.size else 0.0)
-    return sosfilt(sos, mag, zi=zi)[0] if mag.size else mag
+    return signal.sosfilt(sos, mag, zi=zi)[0] if mag.size else mag
 
 
 def step_threshold(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray | float:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from estimators.activity._sosfilt import sosfilt, sosfiltfilt
 from estimators.activity._types import AccCalibration
 
 
@@ -26,7 +25,7 @@ def gravitational_component(acc_g: np.ndarray, sampling_rate_hz: float, *, mode:
                             order: str = "scipy") -> np.ndarray:
     """GA: the elliptic low-pass of each axis, started in steady state on the first sample (spec §4.2:
     a zero-state start reads θ ≈ 90° for the first seconds). ``mode``: "lfilter" causal, "filtfilt" zero phase.
-    ``order="C"``: the result C-ordered (the same values; see ``_sosfilt.sosfilt``)."""
+    ``order="C"``: the result C-ordered (the same values; SciPy returns the transpose of a C-ordered (3, N) array)."""
     sos = ga_filter_sos(sampling_rate_hz, cutoff_hz, ripple_db, stop_db)
     x = np.asarray(acc_g, dtype=np.float64)
     if x.shape[0] == 0:
@@ -34,9 +33,10 @@ def gravitational_component(acc_g: np.ndarray, sampling_rate_hz: float, *, mode:
     if mode == "filtfilt":
         if x.shape[0] <= 3 * 6:
             return np.repeat(x.mean(axis=0, keepdims=True), x.shape[0], axis=0)
-        return sosfiltfilt(sos, x)
+        return signal.sosfiltfilt(sos, x, axis=0)
     zi = signal.sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]   # (n_sections, 2, 3)
-    return sosfilt(sos, x, zi=zi, order=order)[0]
+    y = signal.sosfilt(sos, x, axis=0, zi=zi)[0]
+    return np.ascontiguousarray(y) if order == "C" else y
 
 
 def ga_dc_gain(sampling_rate_hz: float, cutoff_hz: float = 0.25, ripple_db: float = 0.01,

@@ -22,7 +22,6 @@ from scipy import signal
 from estimators.activity._kernels import acf_at_lag
 from estimators.activity import _window_kernels as WK
 from estimators.activity._signals import CALIBRATION_WINDOW_S, autocalibrate, calibration_from_windows
-from estimators.activity._sosfilt import sosfiltfilt
 
 __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows", "walking_reference",
            "standing_reference", "posture_clusters", "lean_deg", "add_context", "calibrated_g", "GAIT_BAND_HZ",
@@ -226,8 +225,8 @@ def window_features(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     hi_cut = min(20.0, 0.45 * fs)
     sos_hp = signal.butter(2, [0.3, hi_cut], "bandpass", fs=fs, output="sos")
     sos_lp1 = signal.butter(2, 1.0, "lowpass", fs=fs, output="sos")
-    dyn_full = sosfiltfilt(sos_hp, a)
-    lp_full = sosfiltfilt(sos_lp1, a)
+    dyn_full = signal.sosfiltfilt(sos_hp, a, axis=0)
+    lp_full = signal.sosfiltfilt(sos_lp1, a, axis=0)
 
     A = _windows(a, w)                                 # (W, w, 3)
     D = _windows(dyn_full, w)
@@ -314,7 +313,7 @@ def moving_fraction(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     k = max(1, int(round(fs)))
     a, _ = calibrated_g(acc_m_s2, fs)
     sos = signal.butter(2, [0.3, min(20.0, 0.45 * fs)], "bandpass", fs=fs, output="sos")
-    d = sosfiltfilt(sos, a)
+    d = signal.sosfiltfilt(sos, a, axis=0)
     n_win = d.shape[0] // w
     m = w // k
     chunks = d[: n_win * w].reshape(n_win, w, 3)[:, : m * k].reshape(n_win, m, k, 3)

@@ -93,30 +93,11 @@ def pooled_rmse(parts: list[OrientationError]) -> OrientationError:
     return OrientationError(pool("total_rmse_deg"), pool("heading_rmse_deg"), pool("inclination_rmse_deg"), n)
 
 
-try:        # the gufunc behind np.linalg.eigh for a real matrix (its default UPLO="L")
-    from numpy.linalg._umath_linalg import eigh_lo as _EIGH_LO
-except ImportError:  # pragma: no cover - a NumPy without it takes the public call
-    _EIGH_LO = None
-
-
-def _eigh(a: np.ndarray):
-    """``np.linalg.eigh(a)`` for float64 ``a`` (4, 4) or (k, 4, 4), bit for bit: the gufunc it calls, with the
-    signature it passes (``d->dd``), without its argument checks and error-state context (3.0 instead of 6.4 µs
-    a call; a lab session's alignments make ~8,000). LAPACK's failure leaves NaN eigenvalues (after the gufunc's
-    "invalid value" RuntimeWarning); such a matrix goes to ``np.linalg.eigh``, which raises ``LinAlgError`` as
-    before. The scatter matrices the alignment forms are finite sums of finite products: it never gets there."""
-    if _EIGH_LO is not None and a.dtype == np.float64:
-        w, v = _EIGH_LO(a, signature="d->dd")
-        if (w[0] == w[0]) if w.ndim == 1 else not np.isnan(w).any():
-            return w, v
-    return np.linalg.eigh(a)
-
-
 def _top_eigvec(a: np.ndarray) -> np.ndarray:
     """The chordal L2 mean of unit quaternions q from their scatter Σ q qᵀ: its eigenvector with the largest
     eigenvalue, sign chosen with w ≥ 0. ``a`` (4, 4), or a stack (k, 4, 4): NumPy's ``eigh`` calls LAPACK once
     per matrix either way, so a stacked matrix gets the vector it gets alone, bit for bit."""
-    w, v = _eigh(a)
+    w, v = np.linalg.eigh(a)
     if a.ndim == 2:
         m = v[:, -1]
         return m if m[0] >= 0 else -m

@@ -10,6 +10,10 @@ Before skdh sees the file, :func:`check_cwa_blocks` checks the block structure o
 checksum), a known rate code. skdh itself keeps a block that fails its checksum (it only prints a warning and
 returns altered samples) and aborts the whole process (a Fortran runtime error) on a file without data blocks, so
 a damaged file is refused here with one line instead.
+
+scikit-digital-health (with LightGBM, PyWavelets and avro) is an optional extra, not a dependency of StrideLab:
+``pip install 'stridelab[cwa]'`` (pyproject ``[project.optional-dependencies] cwa``). Without it, a CWA file that
+passes the block checks is refused with a one-line message saying so; nothing is written.
 """
 from __future__ import annotations
 
@@ -68,7 +72,11 @@ def load_cwa(path: str | Path, tz_name: str | None = None) -> CwaRecording:
     check_cwa_blocks(path, raw)
     device_id = struct.unpack_from("<H", raw, 5)[0]
     import warnings
-    from skdh.io import ReadCwa
+    try:
+        from skdh.io import ReadCwa
+    except ImportError:
+        raise ValueError(f"{path}: reading Axivity CWA files needs the optional extra 'cwa' (scikit-digital-health): "
+                         f"pip install 'stridelab[cwa]'") from None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:

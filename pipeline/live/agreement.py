@@ -18,13 +18,13 @@ import numpy as np
 def read_live_outputs(path: str | Path) -> tuple[dict, list]:
     """(frame -> {joint: [FE, AA, IE]} as arrays per joint over frames, events) stored in a live recording."""
     from mcap.reader import make_reader
-    from mcap_ros2.decoder import DecoderFactory
+
+    from pipeline.live.recorder import decode_string
     k, ang, events = [], {}, []
     with open(path, "rb") as fh:
-        r = make_reader(fh, decoder_factories=[DecoderFactory()])
-        for _s, ch, _m, d in r.iter_decoded_messages(topics=["/live/joint_angles", "/live/events"],
-                                                     log_time_order=True):
-            doc = json.loads(d.data)
+        r = make_reader(fh)
+        for _s, ch, m in r.iter_messages(topics=["/live/joint_angles", "/live/events"], log_time_order=True):
+            doc = json.loads(decode_string(m.data))
             if ch.topic == "/live/events":
                 events.append(doc)
                 continue

@@ -50,6 +50,17 @@ def encode_string(text: str) -> bytes:
     return b"\x00\x01\x00\x00" + len(b).to_bytes(4, "little") + b
 
 
+def decode_string(raw: bytes) -> str:
+    """The text of one ``std_msgs/msg/String`` in little-endian CDR (as :func:`encode_string` writes it and any
+    ROS 2 writer does); raises ValueError when the message is malformed."""
+    if len(raw) < 9 or raw[:2] != b"\x00\x01":
+        raise ValueError("not a little-endian CDR message")
+    n = int.from_bytes(raw[4:8], "little")
+    if n < 1 or 8 + n > len(raw) or raw[7 + n] != 0:
+        raise ValueError("string runs past the message")
+    return raw[8:7 + n].decode()
+
+
 class McapRecorder:
     """Append-only, crash-safe MCAP writer for one live session (thread-safe ``add_*``, ``flush``, ``close``)."""
 

@@ -64,10 +64,9 @@ def test_datasets_are_the_tables_the_migrations_create(empty_wh):
     try:
         schema = Q.table_columns(c)
         for name, ds in Q.DATASETS.items():
-            assert len(ds.tables) == 1 and ds.tables[0] in schema, name
-            for logical, cands in ds.columns.items():
-                assert len(cands) == 1 and cands[0] in schema[ds.tables[0]], (name, logical, cands)
-            assert Q.resolve(c, name) is not None
+            assert ds.table in schema, name
+            assert set(ds.columns) <= set(schema[ds.table]), (name, set(ds.columns) - set(schema[ds.table]))
+        assert all(Q.available(c).values())
     finally:
         c.close()
 
@@ -76,7 +75,18 @@ def test_tables_the_migrations_never_create_are_not_read():
     c = duckdb.connect()
     c.execute("CREATE TABLE gait_strides (session_id VARCHAR, foot VARCHAR, duration_s DOUBLE, gait_speed_m_s DOUBLE)")
     c.execute("CREATE TABLE calibration_qc (session_id VARCHAR, placement VARCHAR, status VARCHAR)")
-    assert Q.resolve(c, "strides") is None and Q.resolve(c, "calibration") is None
+    c.execute("CREATE TABLE sessions (session_id VARCHAR, participant_id VARCHAR, study VARCHAR, start_ns BIGINT, "
+              "kind VARCHAR, protocol VARCHAR)")
+    av = Q.available(c)
+    assert not av["strides"] and not av["calibration"]
+    assert Q.strides(c, "P001") is None and Q.calibration_qc(c, "P001") is None
+
+
+def test_joint_cycles_come_with_the_tables_column_names(con):
+    """No alias layer: the joint-angle curves come back under joint_angle_curves' own column names."""
+    j = Q.joint_cycles(con, "P001")
+    assert j is not None and {"session_id", "joint", "side", "plane", "pct", "mean_deg", "sd_deg"} <= set(j.columns)
+    assert "cycle_pct" not in j
 
 
 def test_gait_summary_is_the_stage_table(con):

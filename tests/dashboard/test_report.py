@@ -88,7 +88,8 @@ def test_summary_page_of_a_two_visit_participant(demo_wh, tmp_path):
     assert len(reader.pages) >= len(TITLES)
     texts = [p.extract_text() for p in reader.pages]
     start3 = next(i for i, t in enumerate(texts) if f"3. {TITLES[3]}" in t)
-    p1, p2 = texts[0], "\n".join(texts[1:start3])        # page 2 with its continuation sheets
+    # a table cell wider than its column wraps: compare with the line breaks as spaces
+    p1, p2 = " ".join(texts[0].split()), " ".join("\n".join(texts[1:start3]).split())   # page 2 and continuations
     for t in ("Summary", "Gait speed (m/s)", "Swing time symmetry ratio", "Stance time symmetry ratio",
               "Steps per day", "Upright time", "Previous visit", "MDC95", "Perry et al. 1995",
               "Patterson et al. 2010", "Where data quality limits a number", "Paretic side unknown"):
@@ -97,20 +98,29 @@ def test_summary_page_of_a_two_visit_participant(demo_wh, tmp_path):
     assert "Clinical measures per lab visit" in p2 and "Latest visit per side" in p2 and "Figure 2" in p2
 
 
-def test_table_headers_wrap_instead_of_being_cut():
-    """A header longer than its column's content takes two lines in the PDF; no header loses characters (the
-    page-1 summary cut "MDC95 of the change" to "MDC95 of the chang")."""
+def test_table_headers_wrap_instead_of_being_cut(tmp_path):
+    """A table too wide for its headers on one line: headers take two lines, no header loses characters (the
+    page-1 summary once cut "MDC95 of the change" to "MDC95 of the chang"), and every cell is printed whole."""
     import pandas as pd
+    from reportlab.pdfbase.pdfmetrics import stringWidth
 
-    from reports.participant import _col_widths, _header_lines
+    from reports.render_pdf import BOLD, column_widths, render_pdf
     cols = ["Measure", "Latest visit", "Previous visit", "Change", "MDC95 of the change", "Beyond noise?",
             "Reference band (source)"]
-    df = pd.DataFrame([["Single support symmetry ratio", "1.21", "1.30", "-0.09", "0.05", "yes", "1.00-1.05 (P)"]],
-                      columns=cols)
-    widths, _ = _col_widths(df)
-    labels = [_header_lines(c, w - 1) for c, w in zip(cols, widths)]
-    assert [" ".join(x.split("\n")) for x in labels] == cols
-    assert labels[4].count("\n") == 1 and max(len(x) for x in labels[4].split("\n")) < len(cols[4])
+    cols = cols + [f"{c} at visit 2" for c in cols[1:4]]                           # 10 columns
+    row = ["Single support symmetry ratio", "1.21", "1.30", "-0.09", "0.05", "yes", "healthy 1.00-1.05 (Patterson)"]
+    df = pd.DataFrame([row + row[1:4]], columns=cols)
+    pages = {n: [] for n in TITLES}
+    pages[1] = [("table", "Summary table", df)]
+    render_pdf({"participant_id": "P042", "study": "s"}, pages, {"generated": "now", "snapshot": "x", "version": "0"},
+               tmp_path / "r.pdf")
+    words = pypdf.PdfReader(tmp_path / "r.pdf").pages[0].extract_text().split()
+    for c in cols + row:                                     # every header and cell word whole
+        assert all(w in words for w in c.split()), c
+    assert not any(w.startswith("chang") and w != "change" for w in words)
+    widths, size = column_widths(df, [[str(v) for v in df.iloc[0]]], 523.0)
+    assert sum(widths) <= 523.0 + 1e-6
+    assert widths[4] < stringWidth(cols[4], BOLD, size)     # the header needs two lines in its column
 
 
 def test_long_table_continues_on_new_pages_and_keeps_every_row(tmp_path):
@@ -128,3 +138,45 @@ def test_long_table_continues_on_new_pages_and_keeps_every_row(tmp_path):
     assert all(f"S{i:03d}" in text for i in range(150))
     assert "after the table" in text and "(continued)" in text
     assert len(reader.pages) > len(TITLES)
+
+
+def test_participant_with_a_long_stride_table_keeps_every_row(tmp_path):
+    """A participant with 2400 strides listed one per row (eight columns, one of them wrapping): the PDF runs
+    over many sheets, each report page still starts its own sheet in order, and every stride's row is in the
+    extracted text with its values."""
+    import numpy as np
+    import pandas as pd
+
+    from reports.render_pdf import render_pdf
+    rng = np.random.default_rng(7)
+    n = 2400
+    strides = pd.DataFrame({"Stride": [f"ST{i:05d}" for i in range(n)],
+                            "Session": [f"P077-lab-{1 + i // 800}" for i in range(n)],
+                            "Side": np.where(np.arange(n) % 2, "right", "left"),
+                            "Length m": rng.uniform(0.4, 1.6, n).round(3),
+                            "Time s": rng.uniform(0.8, 1.6, n).round(3),
+                            "Speed m/s": rng.uniform(0.3, 1.5, n).round(3),
+                            "Stance %": rng.uniform(55, 70, n).round(1),
+                            "Flags": ["turn; near the walkway end; foot contact confirmed by the second sensor"
+                                      if i % 97 == 0 else "" for i in range(n)]})
+    pages = {k: [("text", f"content of page {k}")] for k in TITLES}
+    pages[2] = [("text", "before the strides"), ("table", "Every stride", strides), ("note", "after the strides")]
+    render_pdf({"participant_id": "P077", "study": "s"}, pages, {"generated": "now", "snapshot": "x", "version": "0"},
+               tmp_path / "r.pdf")
+    reader = pypdf.PdfReader(tmp_path / "r.pdf")
+    texts = [p.extract_text() for p in reader.pages]
+    print(f"{n} strides: {len(reader.pages)} pages")
+    assert len(reader.pages) > len(TITLES) + 1
+    firsts = [next(i for i, t in enumerate(texts) if f"content of page {k}" in t or
+                   (k == 2 and "before the strides" in t)) for k in TITLES]
+    assert firsts == sorted(firsts) and len(set(firsts)) == len(TITLES)   # each report page on its own sheet
+    words = " ".join(texts[firsts[1]:firsts[2]]).split()
+    at = {w: i for i, w in enumerate(words) if w.startswith("ST")}
+    for r in strides.itertuples(index=False):              # the row, its values in order after its id
+        i = at[r.Stride]
+        assert words[i + 1:i + 7] == [r.Session, r.Side, f"{r._3:.3g}", f"{r._4:.3g}", f"{r._5:.3g}",
+                                      f"{r._6:.3g}"], r.Stride
+    assert sum("Every stride" in t for t in texts) == 1 and all("Length m" in t for t in texts[firsts[1]:firsts[2]])
+    assert "after the strides" in texts[firsts[2] - 1]
+    assert "(continued)" in texts[firsts[1] + 1]
+    assert "ST00000" in texts[firsts[1]]                     # the table starts below the text, not on a new sheet

@@ -34,6 +34,11 @@ def _in_namespace(script: str) -> subprocess.CompletedProcess:
     return subprocess.run([*pre, "bash", "-c", script], capture_output=True, text=True, timeout=300)
 
 
+#: the test-only fault hooks (tests/pipeline/fault_plugin/sitecustomize.py) on the path of the run and its workers
+FAULT_PLUGIN = {"PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).parent / "fault_plugin"),
+                                                           os.environ.get("PYTHONPATH")]))}
+
+
 READ_COUNT = f"{sys.executable} -c \"import sys; from warehouse.read import connect_snapshot; " \
              f"c = connect_snapshot(sys.argv[1]); print('RECORDINGS', c.execute('SELECT count(*) FROM recordings').fetchall()[0][0])\""
 
@@ -84,7 +89,7 @@ def test_a_worker_killed_mid_task_is_retried_and_nothing_is_lost(tmp_path):
     assert clean.returncode == 0, clean.stderr
     marker = tmp_path / "killed-once"
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "2",
-            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker)})
+            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker), **FAULT_PLUGIN})
     assert r.returncode == 0, r.stderr
     assert marker.exists(), "the fault was not injected"
     assert snapshot_fingerprint(tmp_path / "wh") == snapshot_fingerprint(tmp_path / "clean")
@@ -110,7 +115,7 @@ def test_dask_worker_killed_mid_task_is_retried(tmp_path):
     make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
     marker = tmp_path / "killed-once"
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "2", "--engine", "dask",
-            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker)})
+            env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker), **FAULT_PLUGIN})
     assert r.returncode == 0, r.stderr
     assert marker.exists()
     con = connect_snapshot(tmp_path / "wh")
@@ -124,7 +129,7 @@ def test_coordinator_killed_mid_commit_then_rerun_equals_a_clean_run(tmp_path):
     assert clean.returncode == 0, clean.stderr
     marker = tmp_path / "killed"
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1",
-            env={"STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT": str(marker)})
+            env={"STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT": str(marker), **FAULT_PLUGIN})
     assert r.returncode == -9 and marker.exists()          # died between DELETE and INSERT of a stage commit
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1")
     assert r.returncode == 0, r.stderr

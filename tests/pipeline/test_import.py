@@ -283,6 +283,7 @@ def write_cwa(path, acc_counts, gyr_counts=None, *, fs=100, device_id=4321, sess
 
 @pytest.mark.parametrize("ax6", [False, True])
 def test_cwa_counts_become_m_s2_rad_s_on_the_device_clock(tmp_path, ax6):
+    pytest.importorskip("skdh", reason="the CWA reader is the optional extra 'cwa': pip install 'stridelab[cwa]'")
     rng = np.random.default_rng(5)
     n = 1200
     acc = rng.integers(-8000, 8000, (n, 3)).astype(np.int16)
@@ -325,6 +326,19 @@ def test_bad_cwa_files_one_line_each_nothing_written(tmp_path):
     assert "without data blocks" in why["header.cwa"]           # skdh would abort the process on this one
     assert "not an Axivity CWA file" in why["text.cwa"]
     assert not inbox.exists() or not list(inbox.iterdir())
+
+
+def test_cwa_without_the_optional_extra_is_refused_in_one_line(tmp_path, monkeypatch):
+    """scikit-digital-health is the optional extra 'cwa': where it is missing, a sound CWA file is refused with a
+    line naming the file and the extra to install, and nothing is written."""
+    import sys
+    monkeypatch.setitem(sys.modules, "skdh", None)           # import skdh -> ImportError, as where it is absent
+    monkeypatch.setitem(sys.modules, "skdh.io", None)
+    write_cwa(tmp_path / "wrist.cwa", np.zeros((400, 3), np.int16))
+    res = import_paths("cwa", [tmp_path / "wrist.cwa"], tmp_path / "inbox")
+    assert not res.written and len(res.errors) == 1 and "\n" not in res.errors[0]
+    assert "wrist.cwa" in res.errors[0] and "pip install 'stridelab[cwa]'" in res.errors[0]
+    assert not (tmp_path / "inbox").exists() or not list((tmp_path / "inbox").iterdir())
 
 
 # ---- bad files ------------------------------------------------------------------------------

@@ -140,25 +140,6 @@ def test_stacked_starts_equal_one_alternation_each_bit_for_bit():
             assert np.array_equal(h, h1) and np.array_equal(m, m1) and c == c1
 
 
-def test_eigh_shortcut_is_numpys_eigh_bit_for_bit():
-    """The alternation calls the gufunc behind ``np.linalg.eigh`` directly (``_eigh``): the same eigenvalues and
-    vectors to the last bit, one matrix or a stack, and ``LinAlgError`` where ``np.linalg.eigh`` raises it."""
-    from estimators.orientation.evaluation import _eigh
-    rng = np.random.default_rng(5)
-    for _ in range(300):
-        a = rng.normal(size=(4, 4))
-        a = a @ a.T
-        for m in (a, np.stack([a, 2 * a, a + np.eye(4)])):
-            w0, v0 = np.linalg.eigh(m)
-            w1, v1 = _eigh(m)
-            assert np.array_equal(w0, w1) and np.array_equal(v0, v1)
-    bad = np.full((4, 4), np.nan)
-    with pytest.raises(np.linalg.LinAlgError):
-        np.linalg.eigh(bad)
-    with pytest.raises(np.linalg.LinAlgError), pytest.warns(RuntimeWarning, match="invalid value"):
-        _eigh(bad)                  # without NumPy's error-state context the gufunc's own warning comes first
-
-
 def test_product_matrices_are_the_hamilton_product():
     """``_left(p) q = p ⊗ q`` and ``_right(q) p = p ⊗ q``; L(p)ᵀ = L(p*) exactly (every entry is ± a component)."""
     from estimators.orientation.evaluation import _left, _right
