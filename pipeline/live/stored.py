@@ -29,14 +29,15 @@ def read_live_topics(path: str | Path) -> dict:
     """Every live-output message of a recording: {"angles": [docs], "events": [docs], "calibration": doc | None,
     "standing": doc | None}. ``ValueError`` naming the file when a message is not the JSON the recorder writes."""
     from mcap.reader import make_reader
-    from mcap_ros2.decoder import DecoderFactory
+
+    from pipeline.live.recorder import decode_string
     out = {"angles": [], "events": [], "calibration": None, "standing": None}
     with open(path, "rb") as fh:
-        r = make_reader(fh, decoder_factories=[DecoderFactory()])
-        for _s, ch, m, d in r.iter_decoded_messages(topics=list(JSON_TOPICS), log_time_order=True):
+        r = make_reader(fh)
+        for _s, ch, m in r.iter_messages(topics=list(JSON_TOPICS), log_time_order=True):
             try:
-                doc = json.loads(d.data)
-            except (ValueError, AttributeError):
+                doc = json.loads(decode_string(m.data))
+            except (ValueError, UnicodeDecodeError):
                 raise ValueError(f"{Path(path).name}: {ch.topic} message at log time {m.log_time} is not JSON; "
                                  f"re-record the session with `stridelab live`") from None
             kind = ch.topic.rsplit("/", 1)[1]

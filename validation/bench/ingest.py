@@ -218,6 +218,11 @@ def command(hours, rate_hz, naive_samples, workdir, cache_dir, as_json) -> None:
       stridelab bench ingest --json
       stridelab bench ingest --hours 1 --json
     """
+    try:
+        import mcap_ros2  # noqa: F401  (the third-party writer and decoder the bench compares with)
+    except ImportError:
+        raise click.ClickException("bench ingest compares with mcap_ros2's writer and decoder, which is not installed: "
+                                   "pip install 'stridelab[bench]' (make install does)") from None
     from pipeline.formats.mcap_write import write_recording
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
