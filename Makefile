@@ -13,6 +13,9 @@
 # Packages are installed by uv (UV_VERSION, from the package index through pip): 6 s instead of pip's 90 s for
 # requirements.lock on 2 cores (download 18 s, unpack 26 s, bytecode 45 s); without bytecode compilation,
 # which Python then does for the modules a process imports. If uv cannot be installed or fails, pip does it.
+# The project itself is installed editable in setuptools' "lenient" mode (EDITABLE): an import hook maps
+# stridelab.pipeline -> pipeline/ and so on (setup.py), so `import stridelab.pipeline` works from any directory,
+# the repository root included, and new modules need no reinstall; docs/architecture.md "One installed name".
 
 PY ?= python3
 VENV := .venv
@@ -21,12 +24,13 @@ STAMP := $(VENV)/.installed-stamp
 BYTECODE := $(VENV)/.bytecode-stamp
 UV_VERSION := 0.13.8
 INSTALLER ?= uv
+EDITABLE := editable_mode=lenient
 ARGS ?=
 PYTEST_ARGS ?=
 
 .PHONY: demo test test-fast install browser clean docs docs-tools bids-validator anchors-mobgap
 
-$(DEPS): pyproject.toml requirements.lock
+$(DEPS): pyproject.toml setup.py requirements.lock
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null || \
 	  { echo "error: StrideLab needs Python >= 3.11; '$(PY)' is $$($(PY) --version 2>&1). Run: make PY=python3.11 ..." >&2; exit 1; }
 	@test -x $(VENV)/bin/python || $(PY) -m venv $(VENV) 2>/dev/null || { \
@@ -40,13 +44,13 @@ $(DEPS): pyproject.toml requirements.lock
 	@if [ "$(INSTALLER)" = uv ] && { $(VENV)/bin/python -m pip install --quiet uv==$(UV_VERSION) >/dev/null 2>&1 || \
 	    { echo "note: could not install uv $(UV_VERSION) with pip" >&2; false; }; } && \
 	  $(VENV)/bin/uv pip install --quiet --python $(VENV)/bin/python -r requirements.lock && \
-	  $(VENV)/bin/uv pip install --quiet --python $(VENV)/bin/python --no-deps -e . ; then \
+	  $(VENV)/bin/uv pip install --quiet --python $(VENV)/bin/python --no-deps -C $(EDITABLE) -e . ; then \
 	  echo "installed requirements.lock with uv $(UV_VERSION)" >&2; \
 	else \
 	  [ "$(INSTALLER)" != uv ] || echo "note: installing with uv $(UV_VERSION) failed; installing with pip instead (slower: about 1.5 min)" >&2; \
 	  $(VENV)/bin/python -m pip install --quiet --upgrade pip && \
 	  $(VENV)/bin/python -m pip install --quiet -r requirements.lock && \
-	  $(VENV)/bin/python -m pip install --quiet --no-deps -e . ; \
+	  $(VENV)/bin/python -m pip install --quiet --no-deps --config-settings $(EDITABLE) -e . ; \
 	fi
 	@touch $@
 
