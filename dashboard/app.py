@@ -1,4 +1,5 @@
-"""StrideLab dashboard: ``streamlit run dashboard/app.py -- --warehouse PATH`` (or ``stridelab dashboard``).
+"""StrideLab dashboard: ``stridelab dashboard`` (or ``streamlit run dashboard/app.py -- --warehouse PATH`` in a
+checkout with StrideLab installed: the app imports ``stridelab.dashboard``, never its folder by name).
 
 Reads only the newest published snapshot of the warehouse (read-only); never blocks a nightly run.
 The warehouse comes from ``--warehouse`` after ``--``, else ``$STRIDELAB_WAREHOUSE``, else
@@ -6,14 +7,9 @@ The warehouse comes from ``--warehouse`` after ``--``, else ``$STRIDELAB_WAREHOU
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-_ROOT = Path(__file__).resolve().parent.parent
-if str(_ROOT) not in sys.path:          # `streamlit run dashboard/app.py` puts only dashboard/ on the path
-    sys.path.insert(0, str(_ROOT))
-
-import streamlit as st  # noqa: E402
+import streamlit as st
 
 _PAGES = Path(__file__).resolve().parent / "views"   # not "pages/": that name turns on the legacy auto-navigation
 

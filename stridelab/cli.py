@@ -644,7 +644,8 @@ def _serve(wh: Path, port: int, address: str = "localhost") -> None:
     import subprocess
     import sys
     from pipeline.console import err_console
-    app = Path(__file__).resolve().parent.parent / "dashboard" / "app.py"
+    from importlib.util import find_spec
+    app = Path(find_spec("stridelab.dashboard").origin).with_name("app.py")   # dashboard/ in a checkout, installed
     err_console.print(f"dashboard on http://{address}:{port}  (Ctrl+C to stop)")
     cmd = [sys.executable, "-m", "streamlit", "run", str(app), "--server.port", str(port),
            "--server.address", address, "--server.headless", "true", "--browser.gatherUsageStats", "false",

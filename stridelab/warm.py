@@ -25,7 +25,7 @@ from dataclasses import replace
 from pathlib import Path
 
 MARKER = "warm-kernels.json"
-KERNEL_PACKAGES = ("estimators", "pipeline", "warehouse")   # where the pipeline's numba kernels are defined
+KERNEL_PACKAGES = ("estimators", "pipeline", "warehouse")   # the layers (folders) that define the numba kernels
 
 
 def kernel_stats() -> dict:
@@ -37,7 +37,7 @@ def kernel_stats() -> dict:
     names_compiled = []
     seen = set()
     for name, mod in list(sys.modules.items()):
-        if mod is None or not name.split(".")[0] in ("estimators", "pipeline", "warehouse", "studies", "validation", "reports", "stridelab"):
+        if mod is None or not (name == "stridelab" or name.startswith("stridelab.")):
             continue
         for obj in list(vars(mod).values()):
             if not isinstance(obj, CPUDispatcher) or id(obj) in seen:
@@ -97,9 +97,13 @@ def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_
 
 def fingerprint(root: Path | None = None) -> str:
     """What numba's cache validity depends on here: each kernel module's path, size and mtime (numba's own
-    index check), numba's and Python's versions."""
+    index check), numba's and Python's versions. ``root`` holds the layers' folders: the repository in a checkout,
+    ``site-packages/stridelab`` once installed (where ``stridelab.estimators`` is found)."""
     import numba
-    root = Path(__file__).resolve().parent.parent if root is None else Path(root)
+    from importlib.util import find_spec
+    if root is None:
+        root = Path(find_spec("stridelab.estimators").submodule_search_locations[0]).resolve().parent
+    root = Path(root)
     h = hashlib.sha256(f"{numba.__version__} {sys.version}".encode())
     for pkg in KERNEL_PACKAGES:
         for f in sorted((root / pkg).rglob("*.py")):

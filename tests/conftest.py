@@ -1,12 +1,34 @@
 """Shared fixtures: project paths, the public data folder, small real MCAP recordings."""
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
+import sys
 from pathlib import Path
 
 import pytest
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
 SHARED_DATA = PROJECT_ROOT.parent / "shared" / "data"
+LAYERS = ("estimators", "warehouse", "pipeline", "reports", "dashboard", "validation", "studies")
+
+
+class _NoBareLayerImports(importlib.abc.MetaPathFinder):
+    """The layers are installed as ``stridelab.<layer>`` only; pytest puts the repository root on ``sys.path``, where
+    ``import pipeline`` would still find the folder and load a second copy of it beside ``stridelab.pipeline``. A
+    bare layer name (an import, a ``mock.patch`` target, a pickled reference) fails here as it would installed.
+    tests/test_layers.py checks the import statements; this catches the names in strings."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        if path is None and fullname in LAYERS:
+            spec = importlib.machinery.PathFinder.find_spec(fullname)
+            if spec is not None and spec.origin and Path(spec.origin).resolve().is_relative_to(PROJECT_ROOT):
+                raise ModuleNotFoundError(f"import stridelab.{fullname}, not {fullname}: the layers are installed "
+                                          f"under the stridelab namespace (docs/architecture.md)", name=fullname)
+        return None
+
+
+sys.meta_path.insert(0, _NoBareLayerImports())
 
 
 def shared_data(name: str) -> Path:

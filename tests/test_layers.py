@@ -4,6 +4,10 @@ estimators <- warehouse <- pipeline <- reports / validation <- stridelab (the co
 dashboard reads the warehouse (and the reports, and the scorers ``estimators.<family>.evaluation``) only;
 the simulator (``validation.simulator``) imports nothing from ``estimators`` (its ground truth is its own code).
 Every ``import`` statement counts, including the lazy ones inside functions.
+
+The folders are the layers; installed, each is imported as ``stridelab.<layer>`` (setup.py). The rules below name
+the layers without that prefix (``_canon`` strips it); an import of a layer by its bare folder name is reported:
+it works only from the repository root and breaks every installed copy.
 """
 from __future__ import annotations
 
@@ -14,6 +18,22 @@ import pytest
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("estimators", "studies", "warehouse", "pipeline", "reports", "dashboard", "validation", "stridelab")
+NAMESPACE = "stridelab"
+LAYERS = tuple(p for p in PACKAGES if p != NAMESPACE)   # installed as stridelab.<layer>
+
+
+def _canon(name: str) -> str:
+    """``stridelab.pipeline.x`` -> ``pipeline.x`` (the name the rules use); ``stridelab.cli`` stays."""
+    head, _, rest = name.partition(".")
+    if head == NAMESPACE and rest.split(".")[0] in LAYERS:
+        return rest
+    return name
+
+
+def _bare(name: str) -> bool:
+    """An import of a layer by its folder name (``pipeline.x``): not importable once installed."""
+    return name.split(".")[0] in LAYERS
+
 
 #: package (or sub-package: the longest prefix wins) -> project packages it may import
 ALLOWED: dict[str, set[str]] = {
@@ -32,12 +52,13 @@ EXCEPTIONS = {("pipeline.__main__", "stridelab.cli")}
 
 
 def _rule(module: str) -> set[str]:
-    best = max((k for k in ALLOWED if module == k or module.startswith(k + ".")), key=len)
-    return ALLOWED[best]
+    rules = {_canon(k): v for k, v in ALLOWED.items()}
+    best = max((k for k in rules if module == k or module.startswith(k + ".")), key=len)
+    return rules[best]
 
 
 def _permitted(target: str, allowed: set[str]) -> bool:
-    for a in allowed:
+    for a in map(_canon, allowed):
         if a == "estimators.*.evaluation":
             parts = target.split(".")
             if parts[0] == "estimators" and len(parts) == 3 and parts[2] == "evaluation":
@@ -71,12 +92,26 @@ def violations(root: Path) -> list[str]:
             module = ".".join(rel.with_suffix("").parts).removesuffix(".__init__")
             allowed = _rule(module)
             tree = ast.parse(f.read_text(encoding="utf-8"), filename=str(f))
-            for node, target in _walk(tree, rel):
+            for node, name in _walk(tree, rel):
+                target = _canon(name)
                 if target.split(".")[0] not in PACKAGES or _permitted(target, allowed):
                     continue
-                if (module, target) in EXCEPTIONS:
+                if (module, target) in {(_canon(a), _canon(b)) for a, b in EXCEPTIONS}:
                     continue
                 out.append(f"{rel}:{node.lineno}: {module} imports {target}")
+    return out
+
+
+def bare_imports(root: Path) -> list[str]:
+    """Absolute imports of a layer by its folder name (``from pipeline.x import y``) in the project and its
+    tests, examples and tools: they must name ``stridelab.pipeline.x`` (relative imports are fine)."""
+    out = []
+    for top in (*PACKAGES, "tests", "examples", "tools"):
+        for f in sorted((root / top).rglob("*.py")):
+            rel = f.relative_to(root)
+            for node, name in _walk(ast.parse(f.read_text(encoding="utf-8"), filename=str(f)), rel):
+                if _bare(name) and not (isinstance(node, ast.ImportFrom) and node.level):
+                    out.append(f"{rel}:{node.lineno}: import of {name} (installed as {NAMESPACE}.{name})")
     return out
 
 
@@ -85,12 +120,17 @@ def test_imports_flow_one_way():
     assert not bad, "wrong-direction imports (DESIGN.md 'Layers'):\n" + "\n".join(bad)
 
 
+def test_every_import_names_the_installed_package():
+    bad = bare_imports(PROJECT_ROOT)
+    assert not bad, "imports of a layer by its folder name (installed as stridelab.<layer>):\n" + "\n".join(bad)
+
+
 def test_the_simulator_imports_nothing_from_estimators():
     hits = []
     for f in sorted((PROJECT_ROOT / "validation" / "simulator").rglob("*.py")):
         rel = f.relative_to(PROJECT_ROOT)
         hits += [f"{rel}:{node.lineno}: {name}" for node, name in _walk(ast.parse(f.read_text()), rel)
-                 if name.split(".")[0] == "estimators"]
+                 if _canon(name).split(".")[0] == "estimators"]
     assert not hits, hits
 
 
@@ -112,6 +152,20 @@ def test_the_checker_catches_a_wrong_direction_import(tmp_path, package, source,
     d.mkdir(parents=True, exist_ok=True)
     (d / "bad.py").write_text(source)
     assert any(expect in v for v in violations(tmp_path)), violations(tmp_path)
+
+
+def test_the_checker_reports_a_bare_layer_import(tmp_path):
+    for top in PACKAGES:
+        (tmp_path / top).mkdir()
+    (tmp_path / "tests").mkdir()
+    bare = "from pipeline.config import x\n"               # namespace-rewrite: keep
+    lazy = "def f():\n    import warehouse.store as s\n"   # namespace-rewrite: keep
+    (tmp_path / "tests" / "test_x.py").write_text(bare + "from . import helpers\nfrom stridelab.pipeline import "
+                                                  "config\nimport stridelab\n")
+    (tmp_path / "validation" / "y.py").write_text(lazy)
+    assert bare_imports(tmp_path) == [
+        "validation/y.py:2: import of warehouse.store (installed as stridelab.warehouse.store)",
+        "tests/test_x.py:1: import of pipeline.config (installed as stridelab.pipeline.config)"]
 
 
 def test_allowed_imports_are_not_reported(tmp_path):
