@@ -30,6 +30,11 @@ def _canon(name: str) -> str:
     return name
 
 
+def _installed(module: str) -> str:
+    """``pipeline.x`` (a file's module by its folder) -> ``stridelab.pipeline.x`` (its name once installed)."""
+    return f"{NAMESPACE}.{module}" if module.split(".")[0] in LAYERS else module
+
+
 def _bare(name: str) -> bool:
     """An import of a layer by its folder name (``pipeline.x``): not importable once installed."""
     return name.split(".")[0] in LAYERS
@@ -47,7 +52,7 @@ ALLOWED: dict[str, set[str]] = {
     "validation.simulator": {"validation.simulator", "studies"},
     "stridelab": set(PACKAGES),
 }
-#: entry points that may import upward: ``python -m pipeline`` is kept as an alias of ``python -m stridelab``
+#: entry points that may import upward: ``python -m stridelab.pipeline`` is kept as an alias of ``python -m stridelab``
 EXCEPTIONS = {("pipeline.__main__", "stridelab.cli")}
 
 
@@ -98,7 +103,7 @@ def violations(root: Path) -> list[str]:
                     continue
                 if (module, target) in {(_canon(a), _canon(b)) for a, b in EXCEPTIONS}:
                     continue
-                out.append(f"{rel}:{node.lineno}: {module} imports {target}")
+                out.append(f"{rel}:{node.lineno}: {_installed(module)} imports {name}")
     return out
 
 
