@@ -29,7 +29,9 @@ def venv_cache_dir() -> Path | None:
     """The installation's shared cache directory (None outside a writable virtual environment)."""
     if sys.prefix == sys.base_prefix:
         return None
-    d = Path(sys.prefix) / "var" / "cache" / "stridelab-numba"
+    # one folder per package layout: a cached kernel refers to the kernels it calls by module name, so entries
+    # written when the layers were top-level packages (``estimators``) would not load as ``stridelab.estimators``
+    d = Path(sys.prefix) / "var" / "cache" / "stridelab-numba" / __package__
     try:
         d.mkdir(parents=True, exist_ok=True)
     except OSError:
