@@ -4,25 +4,15 @@ screenshots."""
 from __future__ import annotations
 
 import os
-import shutil
-import socket
-import subprocess
-import sys
-import time
-import urllib.request
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
 from pipeline.privacy import stored_name
-from tests.dashboard.conftest import APP
+from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-CHROMIUM = os.environ.get("STRIDELAB_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-        "--disable-sync", "--no-first-run"]
 # page url path -> texts that must be visible
 EXPECT = {      # the default page (Overview) lives at the root URL
     # the quarantined file (conftest's broken.mcap) appears under its stored name with its reason (the name: in the test)
@@ -43,48 +33,9 @@ EXPECT_DEMO = {
 }
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@contextmanager
-def _serve(wh: Path):
-    if not Path(CHROMIUM).exists():
-        pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
-    pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")
-    port = _free_port()
-    env = {**os.environ, "STRIDELAB_WAREHOUSE": str(wh)}
-    proc = subprocess.Popen([sys.executable, "-m", "streamlit", "run", str(APP), "--server.port", str(port),
-                             "--server.address", "localhost", "--server.headless", "true",
-                             "--browser.gatherUsageStats", "false", "--server.fileWatcherType", "none",
-                             "--", "--warehouse", str(wh)],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    url = f"http://localhost:{port}"
-    try:
-        for _ in range(120):
-            if proc.poll() is not None:
-                pytest.fail(f"streamlit exited: {proc.stdout.read()[-2000:]}")
-            try:
-                if urllib.request.urlopen(f"{url}/_stcore/health", timeout=1).status == 200:
-                    break
-            except OSError:
-                time.sleep(0.25)
-        else:
-            pytest.fail("streamlit did not become healthy within 30 s")
-        yield url
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-
-
 @pytest.fixture(scope="module")
 def server(full_wh):
-    with _serve(full_wh) as url:
+    with serve_dashboard(full_wh) as url:
         yield url
 
 
@@ -112,7 +63,7 @@ def test_every_page_of_the_demo_pipeline_warehouse_in_chromium(demo_wh, tmp_path
     from playwright.sync_api import sync_playwright
     shots = tmp_path_factory.mktemp("screenshots_demo")
     errors: list[str] = []
-    with _serve(demo_wh) as url, sync_playwright() as p:
+    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
             _open_every_page(browser, url, EXPECT_DEMO, shots, errors)
@@ -158,7 +109,7 @@ def test_cohort_change_page_in_chromium(demo_wh, tmp_path_factory):
     shots = Path(os.environ.get("STRIDELAB_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots_programme"))
     shots.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
-    with _serve(demo_wh) as url, sync_playwright() as p:
+    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})

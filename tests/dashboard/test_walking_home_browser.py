@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.dashboard.test_browser import ARGS, CHROMIUM, _serve
+from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -27,7 +27,7 @@ def test_walking_at_home_page_in_chromium(demo_wh, tmp_path_factory):
     shots = Path(os.environ.get("STRIDELAB_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots_home"))
     shots.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
-    with _serve(demo_wh) as url, sync_playwright() as p:
+    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
