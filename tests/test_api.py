@@ -11,6 +11,7 @@ import pytest
 
 import stridelab
 
+pytestmark = pytest.mark.slow      # a simulated study run through every stage (small_home), or a fresh process
 ROOT = Path(__file__).resolve().parents[1]
 
 

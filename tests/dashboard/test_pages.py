@@ -137,6 +137,7 @@ def test_new_snapshot_is_picked_up(app_env, tmp_path, ingested_wh):
 
 
 @pytest.mark.parametrize("page", PAGES)
+@pytest.mark.slow
 def test_every_page_on_the_real_pipeline_output(page, app_env, demo_wh):
     """The demo study (small) through the real pipeline: each page shows results, no 'run a stage' hint."""
     app_env(demo_wh)

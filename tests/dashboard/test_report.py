@@ -9,6 +9,8 @@ import pytest
 
 from reports.participant import TITLES, build_report
 
+pytestmark = pytest.mark.slow
+
 pypdf = pytest.importorskip("pypdf", reason="pypdf is needed to read the report PDF (pip install pypdf)")
 
 

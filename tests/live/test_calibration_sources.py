@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 
+@pytest.mark.slow
 def test_stored_calibration_of_a_previous_visit_is_the_one_the_nightly_computed(tmp_path, lab_files,
                                                                                 lab_calibration):
     from pipeline.live.calibration import calibration_from_warehouse

@@ -41,6 +41,7 @@ def test_nested_bundles_other_addresses_and_bad_packets():
     assert abs(timetag_to_ns(ns_to_timetag(1_765_000_000_123_456_789)) - 1_765_000_000_123_456_789) <= 1
 
 
+@pytest.mark.slow
 def test_ngimus_streaming_over_loopback_udp_are_seen_live(lab_streams, lab_calibration):
     """Seven NGIMUs (one UDP port each, their own clocks) send the hemiparetic walk as /sensors bundles over
     127.0.0.1; two packets are lost on purpose and one is garbage. The session sees every sample, counts the

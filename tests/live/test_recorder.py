@@ -47,6 +47,7 @@ def _live(args):
     return [sys.executable, "-m", "stridelab", "live", *map(str, args)]
 
 
+@pytest.mark.slow
 def test_a_finished_session_is_valid_mcap_and_ingests(tmp_path, lab_files):
     cal, walk = lab_files
     inbox = tmp_path / "inbox"
@@ -83,6 +84,7 @@ def test_a_finished_session_is_valid_mcap_and_ingests(tmp_path, lab_files):
         assert agree["joints"][key]["rmse_deg"][0] < 5.0, agree["joints"]     # flexion: online vs offline filter
 
 
+@pytest.mark.slow
 def test_kill_9_leaves_a_valid_file_up_to_the_last_chunk_and_recover_moves_it_in(tmp_path, lab_files):
     cal, walk = lab_files
     inbox = tmp_path / "inbox"

@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
+import pytest
+
 from pipeline import runner
 from pipeline.formats.mcap_write import write_recording
 from pipeline.privacy import stored_name as N     # the catalog keeps a keyed hash of each file name
@@ -20,6 +22,7 @@ def _q(root, sql, params=()):
         con.close()
 
 
+@pytest.mark.slow
 def test_the_same_recording_exported_under_other_names_is_reported_and_ingested_once(tmp_path):
     rec = small_recording(seconds=6, session="P001-lab-1", trial="walk-1")
     inbox = tmp_path / "inbox"
@@ -50,6 +53,7 @@ def test_a_re_export_with_other_metadata_is_still_the_same_recording(tmp_path):
     assert len(s.ingested) == 1 and len(s.reexports) == 1
 
 
+@pytest.mark.slow
 def test_replace_supersedes_the_old_recording_and_recomputes_what_depended_on_it(tmp_path):
     inbox = tmp_path / "inbox"
     inbox.mkdir()

@@ -31,6 +31,7 @@ def _items(tmp_path: Path, done: list, seen: list):
 
 
 @pytest.mark.parametrize("engine", ["local", "dask"])
+@pytest.mark.slow
 def test_engines_run_the_first_items_while_the_generator_produces_the_next(tmp_path, engine):
     done, seen = [], []
     eng = LocalEngine(2) if engine == "local" else DaskEngine(2)

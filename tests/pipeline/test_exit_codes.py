@@ -24,6 +24,7 @@ def test_the_table_in_the_docs_lists_the_three_codes():
     assert rows == ["0", "1", "2"]
 
 
+@pytest.mark.slow
 def test_all_ok_exits_0_and_a_second_run_with_nothing_to_do_too(tmp_path):
     _inbox(tmp_path / "inbox")
     args = ("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1",
@@ -35,6 +36,7 @@ def test_all_ok_exits_0_and_a_second_run_with_nothing_to_do_too(tmp_path):
     assert r.returncode == 0, r.stderr
 
 
+@pytest.mark.slow
 def test_a_quarantined_file_exits_1_and_the_good_files_are_still_processed(tmp_path):
     good = _inbox(tmp_path / "inbox")[0]
     (tmp_path / "inbox" / "broken.mcap").write_bytes(good.read_bytes()[:5000])
@@ -49,6 +51,7 @@ def test_a_quarantined_file_exits_1_and_the_good_files_are_still_processed(tmp_p
     assert r.returncode == 1, r.stderr
 
 
+@pytest.mark.slow
 def test_a_failed_stage_exits_1(tmp_path):
     studies = tmp_path / "studies" / "broken"
     studies.mkdir(parents=True)
@@ -60,6 +63,7 @@ def test_a_failed_stage_exits_1(tmp_path):
     assert "failed: orientation broken-S0" in r.stderr
 
 
+@pytest.mark.slow
 def test_a_report_that_cannot_be_written_exits_1(tmp_path):
     _inbox(tmp_path / "inbox")
     (tmp_path / "not-a-dir").write_text("x")
@@ -69,6 +73,7 @@ def test_a_report_that_cannot_be_written_exits_1(tmp_path):
     assert "failed: report testing/P001" in r.stderr
 
 
+@pytest.mark.slow
 def test_lock_held_exits_2(tmp_path):
     (tmp_path / "wh").mkdir()
     with RunLock(tmp_path / "wh", "stridelab run (test holder)"):

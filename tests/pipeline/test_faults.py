@@ -65,6 +65,7 @@ def _ingest_on_small_tmpfs(tmp_path: Path, break_fs: str, new_seconds: float) ->
 
 
 @needs_mount
+@pytest.mark.slow
 def test_disk_full_stops_the_run_with_a_clear_error_and_keeps_the_snapshot(tmp_path):
     # leave about 20 kB free: the new recording's series cannot be written
     out, err = _ingest_on_small_tmpfs(tmp_path, "avail=$(df --output=avail -B1 MNT | tail -1); "
@@ -123,6 +124,7 @@ def test_dask_worker_killed_mid_task_is_retried(tmp_path):
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 16
 
 
+@pytest.mark.slow
 def test_coordinator_killed_mid_commit_then_rerun_equals_a_clean_run(tmp_path):
     make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
     clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "-j", "1")

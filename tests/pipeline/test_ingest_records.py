@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 
+import pytest
+
 from pipeline.privacy import shown_topic, stored_name as N    # what the catalog keeps of a topic / a file name
 from tests.corpus import small_recording
 from tests.pipeline._interop import IMU_DEF, MAG_DEF, imu_dict, mag_dict
@@ -51,6 +53,7 @@ def _series_files(wh):
         if (wh / "series").exists() else []
 
 
+@pytest.mark.slow
 def test_a_typo_in_the_topic_map_is_an_error_and_the_right_map_ingests_the_file_again(tmp_path):
     f = write_ros2(tmp_path / "walk.mcap", _rec(), {"/foot_left/imu/data_raw": ("foot_left", "imu"),
                                                     "/shank_left/imu/data_raw": ("shank_left", "imu")})
@@ -70,6 +73,7 @@ def test_a_typo_in_the_topic_map_is_an_error_and_the_right_map_ingests_the_file_
     assert _rows(wh, "SELECT count(*) FROM superseded_ingests") == [(1,)]       # the quarantined try, kept
 
 
+@pytest.mark.slow
 def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_path):
     f = write_ros2(tmp_path / "walk.mcap", _rec(), {"/imu/foot_left": ("foot_left", "imu"),
                                                     "/spare/imu": ("shank_left", "imu")})
@@ -91,6 +95,7 @@ def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_pa
     assert page[["file_name", "topic"]].values.tolist() == [[N("walk.mcap"), shown_topic("/spare/imu")]]
 
 
+@pytest.mark.slow
 def test_a_magnetometer_mapped_to_a_placement_without_imu_is_an_error(tmp_path):
     f = write_ros2(tmp_path / "walk.mcap", _rec(), {"/imu/foot_left": ("foot_left", "imu"),
                                                     "/foot/mag": ("foot_left", "mag")})
@@ -103,6 +108,7 @@ def test_a_magnetometer_mapped_to_a_placement_without_imu_is_an_error(tmp_path):
     assert _series_files(tmp_path / "wh2") == []
 
 
+@pytest.mark.slow
 def test_replace_ingests_the_same_file_again_and_keeps_the_earlier_ingest(tmp_path):
     f = write_ros2(tmp_path / "walk.mcap", _rec(), {"/imu/foot_left": ("foot_left", "imu")})
     wh = tmp_path / "wh"
@@ -115,6 +121,7 @@ def test_replace_ingests_the_same_file_again_and_keeps_the_earlier_ingest(tmp_pa
     assert _rows(wh, "SELECT count(*) FROM recordings WHERE status = 'ingested'") == [(1,)]
 
 
+@pytest.mark.slow
 def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_path):
     rec = _rec()
     with_crc = write_ros2(tmp_path / "a.mcap", rec, {"/imu/foot_left": ("foot_left", "imu")})
@@ -134,6 +141,7 @@ def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_pat
     assert r.returncode == 1 and "no CRCs" in r.stderr, r.stderr
 
 
+@pytest.mark.slow
 def test_reference_events_written_twice_are_stored_once(tmp_path):
     """A chunk (here: its messages) written twice by the mcap library's writer: the IMU duplicates are dropped,
     and so are the reference events (they were stored twice)."""
@@ -169,6 +177,7 @@ def test_reference_events_written_twice_are_stored_once(tmp_path):
     assert "2 exact duplicate reference events dropped" in msgs
 
 
+@pytest.mark.slow
 def test_message_compressed_mcap_by_rosbags_is_read_as_a_bag_and_as_a_file(tmp_path):
     """rosbags writes MESSAGE-level compression (each message zstd-compressed): it was refused as corrupt."""
     import shutil

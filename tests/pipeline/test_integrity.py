@@ -40,6 +40,7 @@ def _ingested(tmp_path):
     return con, h, rel
 
 
+@pytest.mark.slow
 def test_flipped_bytes_in_a_series_file_are_never_served_and_are_recomputed(tmp_path):
     con, h, rel = _ingested(tmp_path)
     wh = tmp_path / "wh"
@@ -131,6 +132,7 @@ def _two_runs(tmp_path):
     return tmp_path / "wh"
 
 
+@pytest.mark.slow
 def test_a_corrupt_catalog_names_the_file_and_is_rebuilt_from_the_newest_snapshot(tmp_path):
     wh = _two_runs(tmp_path)
     con = connect_snapshot(wh)
@@ -164,6 +166,7 @@ def test_a_corrupt_catalog_names_the_file_and_is_rebuilt_from_the_newest_snapsho
     con.close()
 
 
+@pytest.mark.slow
 def test_a_corrupt_newest_snapshot_falls_back_to_the_previous_one_with_a_message(tmp_path):
     from warehouse.read import latest_snapshot, snapshot_status
     wh = _two_runs(tmp_path)

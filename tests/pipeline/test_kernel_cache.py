@@ -35,6 +35,7 @@ def _py(code: str, cache: Path, *args) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_a_second_fresh_process_loads_the_kernel_instead_of_compiling(tmp_path):
     cache = tmp_path / "numba-cache"
     a = _py(KERNEL, cache)

@@ -43,6 +43,7 @@ def _assert_same(a: dict, b: dict) -> None:
             assert np.ascontiguousarray(x).tobytes() == np.ascontiguousarray(y).tobytes(), topic
 
 
+@pytest.mark.slow
 def test_lab_files_with_imu_mag_poses_events_and_ranges_decode_as_the_general_path(tmp_path, monkeypatch):
     files, _ = write_lab_session(tmp_path, distance_sensors=True, optical_reference=True)
     kinds = set()

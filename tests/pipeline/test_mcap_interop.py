@@ -69,6 +69,7 @@ def test_unchunked_file_and_schema_channel_only_in_summary(tmp_path):
     _check_stored(tmp_path / "wh", rec)
 
 
+@pytest.mark.slow
 def test_project_file_rewritten_by_mcap_library_in_another_order_and_compression(tmp_path):
     rec = small_recording(seconds=8.0, session="S02")
     own = write_recording(rec, tmp_path / "own.mcap")
@@ -133,6 +134,7 @@ def test_db3_without_its_bag_and_a_bag_without_session_are_reported(tmp_path):
     assert "loose.db3: quarantined: a .db3 file is read with its bag directory" in reasons
 
 
+@pytest.mark.slow
 def test_every_file_simulate_writes_opens_in_rosbags_and_mcap_ros2(tmp_path):
     """rosbags' AnyReader and mcap_ros2's decoder read every message; Statistics == messages present."""
     from mcap.reader import make_reader

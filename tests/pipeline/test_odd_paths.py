@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import os
 
+import pytest
+
 from pipeline.formats.mcap_write import write_recording
 from pipeline.privacy import stored_name
 from tests.corpus import small_recording
@@ -14,6 +16,7 @@ from warehouse.read import connect_snapshot
 FORGED = "evil\nrun 20990101T000000Z-abcdef: 99 ingested\x1b[2J"
 
 
+@pytest.mark.slow
 def test_odd_inbox_entries_are_listed_with_the_reason_and_odd_names_forge_nothing(tmp_path):
     inbox = tmp_path / "inbox"
     inbox.mkdir()

@@ -97,6 +97,7 @@ def test_a_chunk_with_a_bad_crc_is_skipped_and_the_rest_kept(recording, tmp_path
     assert rep.messages_lost in (None, n3)
 
 
+@pytest.mark.slow
 def test_ingest_recover_stores_what_is_intact_and_says_what_was_lost(recording, tmp_path):
     f, chunks = recording
     data = f.read_bytes()

@@ -41,12 +41,14 @@ def _foreign_encoding(path, encoding, schema_name, schema_encoding, topic="/imu/
     ("protobuf", "foxglove.Imu", "protobuf", "/imu/foot_left"),
     ("json", "sensor_msgs/msg/Imu", "jsonschema", "/sensors/imu0"),
 ])
+@pytest.mark.slow
 def test_json_and_protobuf_mcap_are_refused_with_the_fix(tmp_path, encoding, schema, schema_enc, topic):
     f = _foreign_encoding(tmp_path / "foreign.mcap", encoding, schema, schema_enc, topic)
     reason = _quarantined(tmp_path, f)
     assert f"{encoding} messages: StrideLab reads ROS 2 CDR" in reason and "mcap_ros2" in reason, reason
 
 
+@pytest.mark.slow
 def test_a_ros1_bag_is_refused_with_the_conversion(tmp_path):
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
@@ -60,12 +62,14 @@ def test_a_ros1_bag_is_refused_with_the_conversion(tmp_path):
     assert "a ROS 1 bag" in reason and "rosbags-convert" in reason
 
 
+@pytest.mark.slow
 def test_metadata_yaml_instead_of_the_bag_folder_is_refused_with_the_fix(tmp_path):
     bag = rosbags_write(tmp_path / "bag", small_recording(seconds=2.0))
     reason = _quarantined(tmp_path, bag / "metadata.yaml")
     assert "ingest the bag folder" in reason
 
 
+@pytest.mark.slow
 def test_gyro_in_deg_s_is_refused_with_the_factor(tmp_path):
     rec = small_recording(seconds=5.0)
     x = rec.imu["foot_left"]
@@ -75,6 +79,7 @@ def test_gyro_in_deg_s_is_refused_with_the_factor(tmp_path):
     assert "looks like deg/s" in reason and "pi/180" in reason
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("writer", ["mcap_ros2", "rosbags"])
 def test_a_slow_rotation_in_deg_s_is_refused_although_its_size_looks_like_rad_s(tmp_path, writer):
     """The magnitude check misses a slow turn exported in deg/s (here peak 30 deg/s, below its 35 threshold): the
@@ -99,6 +104,7 @@ def test_a_slow_rotation_in_deg_s_is_refused_although_its_size_looks_like_rad_s(
     assert r.returncode == 0 and json.loads(r.stdout)["ingested"] == 1, r.stderr
 
 
+@pytest.mark.slow
 def test_a_split_bag_without_metadata_is_recognised_and_refused_with_the_fix(tmp_path):
     rec = small_recording(seconds=12.0)
     bag = rosbags_write(tmp_path / "walk", rec, parts=3)

@@ -53,6 +53,7 @@ def snapshot_fingerprint(root: Path) -> dict:
         con.close()
 
 
+@pytest.mark.slow
 def test_run_computes_orientation_for_every_imu_then_is_fresh(tmp_path):
     make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--jobs", "1", "--json",
@@ -120,6 +121,7 @@ def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapsho
     assert not list(wh.rglob(".tmp-*"))
 
 
+@pytest.mark.slow
 def test_a_reader_holding_a_snapshot_neither_blocks_nor_is_blocked(tmp_path):
     make_inbox(tmp_path / "inbox", n_sessions=1, seconds=10)
     assert cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "1").returncode == 0
@@ -136,6 +138,7 @@ def test_a_reader_holding_a_snapshot_neither_blocks_nor_is_blocked(tmp_path):
     assert first(fresh.execute("SELECT count(*) FROM recordings"))[0] == before + 4
 
 
+@pytest.mark.slow
 def test_second_concurrent_run_refuses_with_a_clear_message(tmp_path):
     (tmp_path / "wh").mkdir()
     with RunLock(tmp_path / "wh", "stridelab run (test holder)"):
@@ -145,6 +148,7 @@ def test_second_concurrent_run_refuses_with_a_clear_message(tmp_path):
     assert line.startswith("error: another stridelab process") and "test holder" in line
 
 
+@pytest.mark.slow
 def test_a_failing_session_is_recorded_and_does_not_block_the_others(tmp_path):
     studies = tmp_path / "studies" / "broken"
     studies.mkdir(parents=True)
@@ -163,6 +167,7 @@ def test_a_failing_session_is_recorded_and_does_not_block_the_others(tmp_path):
     assert first(con.execute("SELECT count(*) FROM orientation"))[0] == 8
 
 
+@pytest.mark.slow
 def test_an_older_warehouse_is_upgraded_in_place(tmp_path):
     f = write_recording(small_recording(seconds=5), tmp_path / "a.mcap")
     with Warehouse.open(tmp_path / "wh", migrate_upto=1) as wh:

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import hashlib
 
+import pytest
+
 from validation.simulate import simulate_to_dir
 
 
@@ -10,6 +12,7 @@ def _digests(files):
     return [(f.name, hashlib.sha256(f.read_bytes()).hexdigest()) for f in files]
 
 
+@pytest.mark.slow
 def test_parallel_simulation_is_byte_identical_to_serial(tmp_path):
     serial = simulate_to_dir(tmp_path / "a", participants=2, hours=0.02, jobs=1)
     parallel = simulate_to_dir(tmp_path / "b", participants=2, hours=0.02, jobs=2)

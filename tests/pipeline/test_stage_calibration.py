@@ -21,6 +21,8 @@ from warehouse.store import read_table
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with, use_registry, write_lab_session
 
+pytestmark = pytest.mark.slow
+
 LOWER = {"pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right"}
 
 

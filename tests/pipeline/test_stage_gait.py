@@ -19,6 +19,8 @@ from warehouse.store import read_table
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with, use_registry, write_lab_session
 
+pytestmark = pytest.mark.slow
+
 
 def _registry():
     return [ori_stage.STAGE, gait_stage.STAGE]

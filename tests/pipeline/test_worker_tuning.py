@@ -80,6 +80,7 @@ def _one_worker(*kinds):
         return [pool.submit(run_task, probe, k).result() for k in kinds]
 
 
+@pytest.mark.slow
 def test_local_engine_workers_serve_large_arrays_from_the_heap():
     out = {}
     eng = LocalEngine(2)
@@ -90,6 +91,7 @@ def test_local_engine_workers_serve_large_arrays_from_the_heap():
     assert out == {0: True, 1: True}        # M_MMAP_MAX = 0: no mmap of their own
 
 
+@pytest.mark.slow
 def test_local_engine_starts_its_workers_before_the_first_task():
     """``start`` spawns every worker at once (a pool spawns one per task submitted while none is idle), and each
     imports the ingest modules as it starts, so the first file does not wait for them."""
@@ -104,6 +106,7 @@ def test_local_engine_starts_its_workers_before_the_first_task():
     assert out == [True]
 
 
+@pytest.mark.slow
 def test_workers_started_early_are_taken_over_by_the_run_and_ready():
     """``start_workers_early`` (the CLI's ``run`` and the pipeline bench, before they import the runner) starts
     the pool; the next ``make_engine`` of the same size takes it over, with its workers already spawned and past
@@ -154,6 +157,7 @@ def _hold_until_teardown(path: str) -> bool:
     return True
 
 
+@pytest.mark.slow
 def test_local_engine_workers_exit_without_the_interpreter_teardown(tmp_path):
     """A pool worker leaves by ``os._exit`` from an exit handler (pipeline/engines.py ``_exit_now``): an object
     a task left in a module global is never finalised, and ``close`` does not wait for a teardown. Checked by
@@ -170,6 +174,7 @@ def test_local_engine_workers_exit_without_the_interpreter_teardown(tmp_path):
     assert (tmp_path / "plain").read_text() == "torn down"
 
 
+@pytest.mark.slow
 def test_dask_workers_task_thread_serves_large_arrays_from_the_heap():
     """A Dask worker's task thread exists before its first task: only MALLOC_ARENA_MAX at the worker's
     start keeps it on the main heap (pipeline/engines.py)."""
@@ -189,6 +194,7 @@ def test_without_tuning_a_large_array_is_a_separate_mapping():
     assert not _in_heap(a.ctypes.data)
 
 
+@pytest.mark.slow
 def test_a_blas_library_loaded_after_the_first_task_has_one_thread_too():
     """SciPy loads its own OpenBLAS only when a stage imports scipy.linalg, after the limit of the first task."""
     for probes in (_one_worker("rss", "blas_late"), _local_engine_worker("rss", "blas_late")):
@@ -219,6 +225,7 @@ def test_worker_threads_share_the_heap():
     assert _one_worker("thread_alloc") == [True]    # M_ARENA_MAX = 1: no per-thread arena of its own
 
 
+@pytest.mark.slow
 def test_worker_keeps_freed_memory_below_the_budget_and_gives_it_back_above():
     held, after, released = _one_worker("touch", "rss", "release")
     assert held - after < 100, (held, after)        # 400 MB freed, kept for the next task (< 1.5 GB held)

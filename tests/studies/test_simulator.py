@@ -10,6 +10,8 @@ from estimators.quaternion import quat_angle_deg, quat_conj, quat_exp_step_1, qu
 from studies.manifest import DEFAULT_MANIFEST, SensorModelSpec, load_manifest
 from validation.simulator import simulate_chest_day, simulate_lab_session, simulate_study, study_participants
 
+pytestmark = pytest.mark.slow
+
 G = 9.81
 
 

@@ -1,11 +1,13 @@
 """``stridelab bench calibration --json`` runs and prints the figures (small, fast configuration)."""
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from stridelab.cli import main
 
 
+@pytest.mark.slow
 def test_bench_calibration_json():
     r = CliRunner().invoke(main, ["bench", "calibration", "-n", "1", "--reps", "10", "--minutes", "0.5",
                                   "--scene", "synthetic", "--json"])

@@ -10,6 +10,8 @@ from estimators.calibration import (CalibrationParams, CalibrationWindows, calib
                                     helical_angle_deg)
 from estimators.quaternion import quat_to_matrix
 
+pytestmark = pytest.mark.slow
+
 FS = 100.0
 LEGS = ("thigh_left", "thigh_right", "shank_left", "shank_right")
 

@@ -36,6 +36,7 @@ def test_loop_reader(tmp_path):
     assert abs(np.median(np.linalg.norm(rec.acc, axis=1)) - 9.81) < 0.05
 
 
+@pytest.mark.slow
 def test_bench_trajectory_cli(tmp_path):
     from validation.bench.trajectory import command
     paths = []
@@ -65,6 +66,7 @@ def test_bench_trajectory_bad_file(tmp_path):
     assert res.exit_code == 2 and "missing column" in res.output
 
 
+@pytest.mark.slow
 def test_bench_loop_lists_an_unreadable_file_and_goes_on(tmp_path):
     """Issue 43 point 3: one bad file among good ones is listed with its reason; the others are scored, exit 0;
     the loop blocks carry the horizontal and 3-D final errors."""
