@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.dashboard.test_browser import ARGS, CHROMIUM, _serve
+from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
 from tests.dashboard.test_pages import open_page
 
 pytestmark = [pytest.mark.realdata, pytest.mark.slow]
@@ -59,7 +59,7 @@ def test_every_page_on_the_public_study_in_chromium(public_wh, tmp_path_factory)
     from playwright.sync_api import sync_playwright
     shots = Path(tmp_path_factory.mktemp("screenshots_public"))
     errors: list[str] = []
-    with _serve(public_wh) as url, sync_playwright() as p:
+    with serve_dashboard(public_wh) as url, sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
         try:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
