@@ -52,7 +52,8 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-@pytest.mark.parametrize("engine", ["local", pytest.param("dask", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("engine", [pytest.param("local", marks=pytest.mark.slow),
+                                    pytest.param("dask", marks=pytest.mark.slow)])
 def test_killing_only_the_coordinator_leaves_no_worker_behind(tmp_path, engine):
     make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
     coord = subprocess.Popen([*STRIDELAB, "run", "--inbox", str(tmp_path / "inbox"), "--warehouse",

@@ -60,7 +60,7 @@ def _kill_when(tmp_path, seen) -> None:
 
 
 @pytest.mark.parametrize("kill_point", [
-    "while-writing",                       # a temporary report file exists: killed mid-file
+    pytest.param("while-writing", marks=pytest.mark.slow),   # a temporary report file exists: killed mid-file
     pytest.param("after-first", marks=pytest.mark.slow),   # the first report is complete
 ])
 def test_a_run_killed_while_writing_reports_is_completed_by_the_next_run(tmp_path, kill_point):

@@ -24,6 +24,7 @@ def test_fsm_finds_every_swing_and_zvu_zero_in_stance():
     assert np.all(z.vel[ph.stance] == 0.0)
 
 
+@pytest.mark.slow
 def test_yun_100_steps_noise1_under_0p1_percent_and_constant_gain():
     from estimators.orientation import YunCFParams
     errs = []
