@@ -25,6 +25,6 @@ pages = [
     st.Page(_PAGES / "runs.py", title="Runs", icon=":material/history:", url_path="runs"),
 ]
 nav = st.navigation(pages)
-from dashboard.common import study_selector  # noqa: E402  (after set_page_config)
+from stridelab.dashboard.common import study_selector  # noqa: E402  (after set_page_config)
 study_selector()
 nav.run()

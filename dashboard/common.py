@@ -8,9 +8,9 @@ from pathlib import Path
 
 import streamlit as st
 
-from dashboard.snapshot import Snapshot, open_snapshot
-from warehouse.read import snapshot_status
-from warehouse import queries as Q
+from stridelab.dashboard.snapshot import Snapshot, open_snapshot
+from stridelab.warehouse.read import snapshot_status
+from stridelab.warehouse import queries as Q
 
 ENV = "STRIDELAB_WAREHOUSE"
 ALL_STUDIES = "All studies"
@@ -26,7 +26,7 @@ def warehouse_root() -> Path:
         return Path(args.warehouse).expanduser().resolve()
     if os.environ.get(ENV):
         return Path(os.environ[ENV]).expanduser().resolve()
-    from warehouse.location import default_warehouse
+    from stridelab.warehouse.location import default_warehouse
     return default_warehouse()
 
 

@@ -6,8 +6,8 @@ import pandas as pd
 import plotly.express as px
 import plotly.graph_objects as go
 
-from reports.normative import is_sagittal, normative_band
-from warehouse.queries import ACTIVITY_CLASSES, ACTIVITY_COLORS, GAIT_PARAMS
+from stridelab.reports.normative import is_sagittal, normative_band
+from stridelab.warehouse.queries import ACTIVITY_CLASSES, ACTIVITY_COLORS, GAIT_PARAMS
 
 KIND_COLORS = {"lab": "#4c78a8", "free_living": "#f58518", "calibration": "#54a24b"}
 

@@ -1,5 +1,5 @@
 """The pages' cached, read-only access to the newest snapshot (Streamlit), over the queries of
-``warehouse.queries``: one cached read-only connection per published snapshot (``st.cache_resource``; a newer
+``stridelab.warehouse.queries``: one cached read-only connection per published snapshot (``st.cache_resource``; a newer
 snapshot gives a new connection, the old one is closed when it leaves the cache) and ``st.cache_data`` on every
 query, keyed by the snapshot name, so a nightly run that publishes a snapshot invalidates the cache without ever
 being blocked by a reader."""
@@ -10,8 +10,8 @@ from typing import Callable
 
 import duckdb
 
-from warehouse.queries import QUERIES
-from warehouse.read import latest_snapshot
+from stridelab.warehouse.queries import QUERIES
+from stridelab.warehouse.read import latest_snapshot
 
 
 
@@ -27,7 +27,7 @@ class Snapshot:
 
     def q(self, fn: Callable, *args, **kwargs):
         if fn.__name__ not in QUERIES:
-            raise ValueError(f"{fn.__name__} is not a query of warehouse.queries")
+            raise ValueError(f"{fn.__name__} is not a query of stridelab.warehouse.queries")
         return _cache()[1](str(self.root), self.name, fn.__name__, args, tuple(sorted(kwargs.items())))
 
 

@@ -6,4 +6,4 @@ earth frame (``v_E = q ⊗ v_S ⊗ q*``); earth frame ENU (z up); accelerometer 
 +9.81 on the up axis at rest), gyroscope rad/s, magnetometer µT, time in float seconds.
 """
 
-from estimators import _numba_cache  # noqa: F401,E402 - the installation's shared numba cache, before any kernel
+from stridelab.estimators import _numba_cache  # noqa: F401,E402 - the installation's shared numba cache, before any kernel

@@ -9,7 +9,7 @@ kernel once and every later process, pool worker or Dask worker of that installa
 (each of them imports this package before it defines or loads a kernel). Outside a venv, or when the venv
 is read-only, numba's default stays.
 
-Nothing leaks out of the process: the environment is left as it was (``import estimators`` does not set
+Nothing leaks out of the process: the environment is left as it was (``import stridelab.estimators`` does not set
 ``NUMBA_CACHE_DIR`` for the process or its children). Numba chooses a kernel's cache directory when the
 ``@njit(cache=True)`` decorator runs and re-reads its environment variables only when one of them changes,
 so a value set here holds for every kernel module imported afterwards.
@@ -58,7 +58,7 @@ def configure() -> str | None:
 
 class _SetCacheDirOnLoad(importlib.abc.MetaPathFinder):
     """Sets ``numba.core.config.CACHE_DIR`` right after numba executes that module (before any ``@njit`` of ours
-    runs), then removes itself: ``import estimators`` (and ``pipeline``, which the engines' workers import before
+    runs), then removes itself: ``import stridelab.estimators`` (and ``pipeline``, which the engines' workers import before
     the heavy libraries) does not import numba just to configure it."""
 
     def __init__(self, cache_dir: str):

@@ -27,7 +27,7 @@ SESSION_BODY_FIELDS = ("height_m", "leg_length_m", "sensor_height_m", "walking_a
 SESSION_BODY_RANGES = {"height_m": (0.5, 2.5), "leg_length_m": (0.3, 1.5), "sensor_height_m": (0.3, 1.6),
                        "walking_aid": (0, 1)}
 #: study-design marks of a session: ``repeat_baseline = 1`` = one of several baseline sessions before an
-#: intervention (the between-session error of a change is taken from them: estimators.gait.clinical.change_mdc95)
+#: intervention (the between-session error of a change is taken from them: stridelab.estimators.gait.clinical.change_mdc95)
 SESSION_DESIGN_FIELDS = ("repeat_baseline",)
 
 

@@ -1,7 +1,7 @@
 """Build a participant's report
 ===============================
 
-``reports.participant.build_report`` writes the per-participant report (self-contained HTML and a PDF) from the
+``stridelab.reports.participant.build_report`` writes the per-participant report (self-contained HTML and a PDF) from the
 newest snapshot, as ``stridelab report PID`` and the nightly run do: sessions, gait parameters with their
 accuracy against the reference, the change between visits against its MDC95, daily activity. The figure is the
 PDF's first page (rendered with ``pdftoppm`` from poppler-utils, when installed).
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import stridelab
 from _common import home, out, saved
-from reports.participant import build_report
+from stridelab.reports.participant import build_report
 
 h = home()
 with stridelab.open(h) as wh:

@@ -12,7 +12,7 @@ import numpy as np
 
 import stridelab
 from _common import home, out, saved
-from warehouse.queries import walking_bouts
+from stridelab.warehouse.queries import walking_bouts
 
 COLOURS = {"lying": "#4c72b0", "sitting": "#8c8c8c", "standing": "#dd8452", "level_walking": "#55a868",
            "stairs_up": "#c44e52", "stairs_down": "#8172b3", "non_wear": "#ffffff"}

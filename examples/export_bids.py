@@ -1,7 +1,7 @@
 """Share recordings as Motion-BIDS
 ==================================
 
-``stridelab export bids WAREHOUSE OUT/`` (here through ``pipeline.export.bids.export_bids``) writes the recordings
+``stridelab export bids WAREHOUSE OUT/`` (here through ``stridelab.pipeline.export.bids.export_bids``) writes the recordings
 with their events as a BIDS 1.9 Motion dataset: ``*_motion.tsv`` (samples), ``*_channels.tsv`` (name, type,
 placement, units), ``*_motion.json``, ``*_events.tsv`` (reference and estimated contacts), ``participants.tsv``
 and ``dataset_description.json``, pseudonymised (subjects renumbered, no dates, no file names). Any BIDS tool can
@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from _common import home, out, saved
-from pipeline.export.bids import export_bids
+from stridelab.pipeline.export.bids import export_bids
 
 with tempfile.TemporaryDirectory() as tmp:
     ds = Path(tmp) / "bids"

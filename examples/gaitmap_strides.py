@@ -1,7 +1,7 @@
 """Foot trajectory and strides of the gaitmap example walk
 ==========================================================
 
-``estimators.gait.foot_kinematics`` on one foot IMU (gyr rad/s, acc m/s², any mounting): an error-state Kalman
+``stridelab.estimators.gait.foot_kinematics`` on one foot IMU (gyr rad/s, acc m/s², any mounting): an error-state Kalman
 filter with zero-velocity updates and a smoother integrates the foot's trajectory, the pitch signal gives initial
 and terminal contacts (Nazarahari 2021, ch. 6), strides run mid-stance to mid-stance. The gaitmap example walk
 (Küderle et al. 2022; two NilsPod IMUs on the shoes, 204.8 Hz) comes with Qualisys markers: the figure shows
@@ -11,8 +11,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _common import data, out, saved
-from estimators.gait import foot_kinematics
-from pipeline.formats.gaitmap import load_gaitmap_example
+from stridelab.estimators.gait import foot_kinematics
+from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
 
 walk = load_gaitmap_example(data("gaitmap_example"))
 fs = walk.sampling_rate_hz

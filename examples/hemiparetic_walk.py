@@ -1,9 +1,9 @@
 """Events and clinical measures of a hemiparetic walk
 =====================================================
 
-A simulated walk of a person after stroke (``validation.simulator.hemiparetic_gait``: moderate severity, its own
+A simulated walk of a person after stroke (``stridelab.validation.simulator.hemiparetic_gait``: moderate severity, its own
 kinematic model, sharing no code with the estimators) gives two foot IMUs and the true contact times. Each foot
-goes through ``estimators.gait.foot_kinematics``; ``estimators.gait.clinical`` turns the strides and events into
+goes through ``stridelab.estimators.gait.foot_kinematics``; ``stridelab.estimators.gait.clinical`` turns the strides and events into
 what a clinician reads: step, swing and stance times per side, their paretic and symmetry ratios (Patterson et
 al. 2010) and the minimal detectable change (``docs/clinical_measures.md``). Step length needs both feet in one
 frame (the clinical stage does it) and is left out here.
@@ -12,9 +12,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _common import out, saved
-from estimators.gait import foot_kinematics
-from estimators.gait.clinical import FootEvents, FootStrides, clinical_summary, step_phases
-from validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
+from stridelab.estimators.gait import foot_kinematics
+from stridelab.estimators.gait.clinical import FootEvents, FootStrides, clinical_summary, step_phases
+from stridelab.validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
 
 trial = simulate_hemiparetic_trial("moderate", 3, strides=14)
 fs = trial.rate_hz

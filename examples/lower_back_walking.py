@@ -1,11 +1,11 @@
 """Walking outcomes from a lower-back sensor
 ===========================================
 
-``estimators.trunk_gait`` finds walking bouts, initial contacts with their side, cadence, stride length and speed
+``stridelab.estimators.trunk_gait`` finds walking bouts, initial contacts with their side, cadence, stride length and speed
 in one trunk sensor's signals (lower back at L4/L5 or chest; any mounting: the body frame is detected), and
 ``daily_outcomes`` summarises the bouts as Mobilise-D-style digital mobility outcomes (``docs/trunk_gait.md``).
 Here the simulated-daily-living test (Test 11) of the one Mobilise-D lab participant in the public data
-(``pipeline.formats.mobilised``), against the INDIP reference system's walking bouts recorded with it. This
+(``stridelab.pipeline.formats.mobilised``), against the INDIP reference system's walking bouts recorded with it. This
 participant's three trials were part of the data the trunk-gait defaults were chosen on (the stride-length factor
 on them alone): an illustration, not an accuracy figure; those are in ``stridelab bench trunk-gait`` and
 ``validation/provenance.toml``.
@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _common import data, out, saved
-from estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
-from pipeline.formats.mobilised import read_mobilised
+from stridelab.estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
+from stridelab.pipeline.formats.mobilised import read_mobilised
 
 trial = next(t for t in read_mobilised(data("mobilised_lab") / "HA" / "001") if t.test == "Test11")
 res = analyse_trunk_gait(trial.acc, trial.gyr, trial.fs_hz, placement="lower_back", height_m=trial.info.height_m)

@@ -1,10 +1,10 @@
 """Orientation on a BROAD trial, against VQF
 =============================================
 
-Two orientation estimators from ``estimators.orientation`` on one trial of the BROAD benchmark (Laidig et al.
+Two orientation estimators from ``stridelab.estimators.orientation`` on one trial of the BROAD benchmark (Laidig et al.
 2021: IMU + optical reference): StrideLab's default online filter ``dcf`` and VQF (Laidig & Seel 2023) with its
 defaults. Arrays in (gyr rad/s, acc m/s², mag µT), quaternions ``[w, x, y, z]`` sensor → ENU out; the error is
-the BROAD metric (``estimators.orientation.evaluation``: the angle of ``q_est ⊗ q_ref*``, no alignment), RMS over
+the BROAD metric (``stridelab.estimators.orientation.evaluation``: the angle of ``q_est ⊗ q_ref*``, no alignment), RMS over
 the trial's movement phases. ``dcf``'s defaults were chosen on the BROAD trials, so this trial is in-sample for
 it; the held-out figures (leave-one-group-out) are in the accuracy table of the README and ``docs/orientation.md``.
 """
@@ -12,9 +12,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from _common import data, out, saved
-from estimators.orientation import dcf, vqf_orientation
-from estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
-from pipeline.formats.broad import load_broad
+from stridelab.estimators.orientation import dcf, vqf_orientation
+from stridelab.estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
+from stridelab.pipeline.formats.broad import load_broad
 
 trial = load_broad(data("broad") / "24_disturbed_tapping_A.hdf5")[0]
 fs = trial.sampling_rate_hz

@@ -1,7 +1,7 @@
 """The pipeline's default chest-activity classifier: rule timeline refined by a window model fitted on UCI.
 
 ``classify_recording`` is what the activity stage and ``stridelab bench activity`` (method ``default``) run:
-``estimators.activity.classify_day`` (rules) then ``refine_with_window_model`` with the shipped model
+``stridelab.estimators.activity.classify_day`` (rules) then ``refine_with_window_model`` with the shipped model
 ``pipeline/models/activity_window_lr.json``. That file is produced by
 ``stridelab bench activity --fit-model pipeline/models/activity_window_lr.json`` from ``../shared/data/uci_chest``
 participants 1-8 (UCI "Activity Recognition from a Single Chest-Mounted Accelerometer", Casale et al.,
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.activity import PRESETS, ActivityParams, ActivityResult, classify_day
-from estimators.activity.window_model import (FEATURE_SETS, MODEL_CLASSES, RATE_HZ, WINDOW_S, WindowModel,
+from stridelab.estimators.activity import PRESETS, ActivityParams, ActivityResult, classify_day
+from stridelab.estimators.activity.window_model import (FEATURE_SETS, MODEL_CLASSES, RATE_HZ, WINDOW_S, WindowModel,
                                               merge_window_posterior, resample_to_model_rate)
-from estimators.activity.windows import FEATURE_NAMES, add_context, window_features
+from stridelab.estimators.activity.windows import FEATURE_NAMES, add_context, window_features
 
 MODEL_PATH = Path(__file__).resolve().parent / "models" / "activity_window_lr.json"
 #: designs the model is chosen among by leave-one-participant-out (feature set, context half widths, C)
@@ -53,14 +53,14 @@ def classify_recording(acc_m_s2: np.ndarray, *, sampling_rate_hz: float, t0_ns: 
     (a 24 h day at 100 Hz: 200 MB less at the peak; the caller must not use ``acc_m_s2`` afterwards)."""
     posterior = None
     if window_model is not None:
-        from estimators.activity.window_model import window_posterior
+        from stridelab.estimators.activity.window_model import window_posterior
         model = load_model(MODEL_PATH if window_model == "default" else window_model)
         posterior = window_posterior(acc_m_s2, sampling_rate_hz, model)
     res = classify_day(acc_m_s2, sampling_rate_hz=sampling_rate_hz, t0_ns=t0_ns, timezone=timezone, params=params,
                        overwrite_input=overwrite_input)
     if window_model is None:
         return res
-    from estimators.activity.window_model import apply_window_posterior
+    from stridelab.estimators.activity.window_model import apply_window_posterior
     return apply_window_posterior(res, posterior, params.stairs_lean_deg)
 
 

@@ -3,14 +3,14 @@ format": a C3D file beside the recording is an accepted alternative for optical 
 
 ``stridelab import c3d markers.c3d --recording walk.mcap --segment foot_left=LHEE,LTOE,LMT5 [--offset-s S]``
 writes one MCAP into the inbox, ``<recording>+c3d-<hash>.mcap`` (file names are not kept: keyed hashes of them,
-:func:`pipeline.privacy.stored_name`):
+:func:`stridelab.pipeline.privacy.stored_name`):
 
 * every record of the recording unchanged: its channels and messages (log times and header stamps as they were,
   topics StrideLab does not decode included), its metadata records and attachments;
 * per ``--segment PLACEMENT=M1[,M2,M3]`` a topic ``/reference/pose/<placement>`` (``geometry_msgs/msg/PoseStamped``,
   CDR, ``frame_id`` ``c3d_lab``), one message per marker frame: position = marker M1 (the point whose path gives
   stride lengths and foot trajectories, e.g. the heel), orientation = the rigid cluster M1-M2-M3 (x = M1→M2,
-  z = x × M1→M3, y = z × x, :func:`pipeline.formats.c3d.cluster_orientation`), NaN with one marker or while a
+  z = x × M1→M3, y = z × x, :func:`stridelab.pipeline.formats.c3d.cluster_orientation`), NaN with one marker or while a
   marker is occluded (C3D residual < 0 or all-zero coordinates);
 * the ``session`` record of the recording plus ``reference`` (which file and markers, for the Accuracy page) and
   ``reference_frame = segment_lab`` (a marker cluster in the lab frame: the orientation stage estimates the
@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats import ros2_cdr
 
 POSE_SCHEMA = "geometry_msgs/msg/PoseStamped"
 FRAME_ID = "c3d_lab"
@@ -57,7 +57,7 @@ class Segment:
 def _output_name(recording: Path, c3d: Path) -> str:
     """``<recording>+c3d-<keyed hash of the C3D's name>.mcap``: the recording's stem when StrideLab gave it (an
     importer's ``xio-f<hash>``), else a keyed hash of it too (file names may hold a participant's name)."""
-    from pipeline.privacy import name_token
+    from stridelab.pipeline.privacy import name_token
     rec = recording.stem if re.fullmatch(r"[a-z0-9]+-f[a-p]{10}|rec-[a-p]{10}", recording.stem) else \
         "rec-" + name_token(recording.name)
     return f"{rec}+c3d-{name_token(c3d.name)}.mcap"
@@ -65,7 +65,7 @@ def _output_name(recording: Path, c3d: Path) -> str:
 
 def reference_text(segments: list[Segment], units: str, rate_hz: float, offset_s: float) -> str:
     """The session's ``reference`` label: the markers of each placement, or (when that would pass the label's
-    120 characters, pipeline.privacy: many segments) the marker count and the placements or their number."""
+    120 characters, stridelab.pipeline.privacy: many segments) the marker count and the placements or their number."""
     tail = f"; {units} -> m, {rate_hz:g} Hz, offset {offset_s:g} s)"
     text = "C3D markers (" + "; ".join(f"{s.placement} = {'/'.join(s.markers)}" for s in segments) + tail
     n = sum(len(s.markers) for s in segments)
@@ -96,8 +96,8 @@ def parse_segments(items) -> list[Segment]:
 
 def segment_poses(markers, segments: list[Segment], up: str = "z") -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """placement -> (pos (N, 3) m, quat (N, 4) [w x y z] segment → lab) from a :class:`MarkerData`."""
-    from estimators.quaternion import quat_from_matrix
-    from pipeline.formats.c3d import MarkerData, cluster_orientation
+    from stridelab.estimators.quaternion import quat_from_matrix
+    from stridelab.pipeline.formats.c3d import MarkerData, cluster_orientation
     pos = markers.pos_m
     if up == "y":
         pos = np.stack([pos[..., 0], -pos[..., 2], pos[..., 1]], axis=-1)
@@ -121,7 +121,7 @@ def segment_poses(markers, segments: list[Segment], up: str = "z") -> dict[str, 
 
 def _imu_start_ns(recording: Path) -> tuple[int, int]:
     """(earliest, latest) header.stamp of the recording's IMU topics, read by the project's own reader."""
-    from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
+    from stridelab.pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
     lo, hi = None, None
     try:
         for b in iter_blocks(recording, ReadResult()):
@@ -141,7 +141,7 @@ def import_c3d_reference(c3d: Path, recording: Path, inbox: Path, segments: list
     """Write ``inbox/<recording>+<c3d>.mcap`` (module docstring); raises :class:`C3DImportRejected`."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
-    from pipeline.formats.c3d import C3DFormatError, read_c3d_markers
+    from stridelab.pipeline.formats.c3d import C3DFormatError, read_c3d_markers
     c3d, recording, inbox = Path(c3d), Path(recording), Path(inbox)
     if not recording.is_file() or recording.suffix.lower() != ".mcap":
         raise C3DImportRejected(f"{recording}: --recording must be the recording's .mcap file")

@@ -1,8 +1,8 @@
 """The clock policy of ingest (docs/clocks.md): what a topic's time base is, each decision named in a warning.
 
-Applied by :class:`pipeline.ingest.series.TopicSeries` to every block (:class:`TopicClock`) and every slice
+Applied by :class:`stridelab.pipeline.ingest.series.TopicSeries` to every block (:class:`TopicClock`) and every slice
 (:class:`Batching`); the series itself only orders, de-duplicates and writes. (Unset stamps take their log time in
-the per-block checks, :mod:`pipeline.ingest.block_checks`.)
+the per-block checks, :mod:`stridelab.pipeline.ingest.block_checks`.)
 
 Implausible stamps (docs/clocks.md "Implausible stamps"): never a silent 1970 or a 56-year gap.
 

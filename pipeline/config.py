@@ -13,7 +13,7 @@ import tomllib
 from functools import lru_cache
 from pathlib import Path
 
-from warehouse.location import default_warehouse, home  # noqa: F401  (one definition, shared with the dashboard)
+from stridelab.warehouse.location import default_warehouse, home  # noqa: F401  (one definition, shared with the dashboard)
 
 PACKAGE_STUDIES = Path(__file__).resolve().parent.parent / "studies"
 
@@ -46,7 +46,7 @@ def study_manifest(study: str) -> dict:
 def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
     """Stage defaults overridden by the study manifest's ``[stages.<stage_name>]`` table (key by key). An unknown
     key is refused here, nested tables included: the overrides must map onto the stage's frozen parameter class
-    (``Stage.params_cls``, :func:`pipeline.stages._shape.params_from_dict`)."""
+    (``Stage.params_cls``, :func:`stridelab.pipeline.stages._shape.params_from_dict`)."""
     over = study_manifest(study).get("stages", {}).get(stage_name, {})
     unknown = set(over) - set(defaults)
     if unknown:
@@ -55,7 +55,7 @@ def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
     merged = {**defaults, **over}
     cls = _params_cls(stage_name) if over else None
     if cls is not None:
-        from pipeline.stages._shape import params_from_dict
+        from stridelab.pipeline.stages._shape import params_from_dict
         try:
             params_from_dict(cls, merged)
         except ValueError as e:
@@ -65,7 +65,7 @@ def stage_params(study: str, stage_name: str, defaults: dict) -> dict:
 
 def _params_cls(stage_name: str):
     """The frozen parameter class of the registered stage ``stage_name`` (None when it has none)."""
-    from pipeline import stages
+    from stridelab.pipeline import stages
     return next((s.params_cls for s in stages.registry() if s.name == stage_name), None)
 
 

@@ -24,8 +24,8 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterable
 
-from pipeline.lifeline import COORDINATOR_ENV, die_with_parent
-from pipeline.worker_tuning import run_task, single_thread_env
+from stridelab.pipeline.lifeline import COORDINATOR_ENV, die_with_parent
+from stridelab.pipeline.worker_tuning import run_task, single_thread_env
 
 
 class TaskLost(RuntimeError):
@@ -51,7 +51,7 @@ def _get_ready() -> None:
     its first ``pa.array`` of a NumPy array, to ask whether it is categorical) and numba's registries of
     NumPy implementations (``refresh``: loaded once per process, before the first kernel comes from the cache).
     Done here, it overlaps the coordinator's own start (:func:`start_workers_early`)."""
-    import pipeline.ingest  # noqa: F401
+    import stridelab.pipeline.ingest  # noqa: F401
     try:
         import pandas  # noqa: F401
     except ImportError:         # pragma: no cover - a dependency of the dashboard; pyarrow works without it
@@ -224,7 +224,7 @@ class DaskEngine:
             # the preload makes each worker process die with this coordinator (pipeline/lifeline.py)
             os.environ[COORDINATOR_ENV] = str(os.getpid())
             self.cluster = LocalCluster(n_workers=max(1, jobs), threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=40, preload=["pipeline.lifeline"])
+                                        dashboard_address=None, silence_logs=40, preload=["stridelab.pipeline.lifeline"])
             self.client = Client(self.cluster)
         self.max_attempts = max_attempts
 
@@ -265,7 +265,7 @@ _early: LocalEngine | None = None
 
 def start_workers_early(name: str, jobs: int, scheduler: str | None = None) -> None:
     """Start the local engine's worker processes now, before the caller imports the runner: a cold start of the
-    coordinator (``from pipeline import runner``: DuckDB, pyarrow, NumPy from the disk) takes ~0.8-1 s, and the
+    coordinator (``from stridelab.pipeline import runner``: DuckDB, pyarrow, NumPy from the disk) takes ~0.8-1 s, and the
     workers start and get ready (:func:`_get_ready`) meanwhile instead of after it. The next
     ``make_engine(name, jobs)`` of this process takes them over; workers no run took over are shut down at exit.
     Does nothing for the Dask engine or a single job."""

@@ -1,10 +1,10 @@
 """``stridelab import``: device exports -> recording-format MCAP files in an inbox (DESIGN.md "Recording format").
 
 One converter per format turns what the format's reader in ``pipeline/formats`` returns into
-:class:`estimators.recording.Recording` objects: StrideLab units (the readers convert), the ``session`` record
+:class:`stridelab.estimators.recording.Recording` objects: StrideLab units (the readers convert), the ``session`` record
 filled (defaults per format, then a sidecar ``<file>.session.toml``, then ``--session FIELD=VALUE``), and the
 references the file carries written as reference topics (``/reference/pose/<placement>``,
-``/reference/events``). The MCAP is written by :func:`pipeline.formats.mcap_write.write_recording`, atomically
+``/reference/events``). The MCAP is written by :func:`stridelab.pipeline.formats.mcap_write.write_recording`, atomically
 (temporary file + rename): a bad file leaves nothing behind and gets one line (file, what is wrong, what to do).
 
 Times: formats without an absolute clock start at the session field ``start`` (ISO 8601, default
@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from estimators.recording import ImuData, PLACEMENTS, PoseData, Recording
+from stridelab.estimators.recording import ImuData, PLACEMENTS, PoseData, Recording
 
 DEFAULT_START = "2000-01-01T00:00:00Z"
 _NOT_SESSION = ("start",)          # import options, not written into the session record
@@ -74,7 +74,7 @@ def _pick_placement(placement: str | None, default: str) -> str:
 # ---- converters (one per format; the parsing is in pipeline/formats) ----------------------------
 
 def _xio(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.loop_csv import load_loop_csv
+    from stridelab.pipeline.formats.loop_csv import load_loop_csv
     r = load_loop_csv(path)
     pl = _pick_placement(placement, "foot_right")
     t = _rel_ns(len(r.acc), r.sampling_rate_hz)
@@ -84,9 +84,9 @@ def _xio(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _gaitmap(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.c3d import MarkerData, cluster_orientation
-    from pipeline.formats.gaitmap import load_gaitmap_example
-    from estimators.quaternion import quat_from_matrix
+    from stridelab.pipeline.formats.c3d import MarkerData, cluster_orientation
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.estimators.quaternion import quat_from_matrix
     d = path if path.is_dir() else path.parent
     ex = load_gaitmap_example(d)
     imu, poses, events = {}, {}, []
@@ -124,8 +124,8 @@ def _gaitmap(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _uci(path: Path, placement: str | None) -> list[Converted]:
-    from estimators.activity.evaluation import SCORED_CLASSES
-    from pipeline.formats.uci_chest import LABEL_TO_CLASS, load_uci_participant
+    from stridelab.estimators.activity.evaluation import SCORED_CLASSES
+    from stridelab.pipeline.formats.uci_chest import LABEL_TO_CLASS, load_uci_participant
     u = load_uci_participant(path)
     pl = _pick_placement(placement, "chest")
     t = _rel_ns(len(u.acc), u.sampling_rate_hz)
@@ -148,7 +148,7 @@ def _uci(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _broad(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.broad import load_broad
+    from stridelab.pipeline.formats.broad import load_broad
     out = []
     pl = _pick_placement(placement, "hand")
     for tr in load_broad(path):
@@ -173,7 +173,7 @@ def _broad(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _apdm(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.apdm import LABEL_PLACEMENTS, load_apdm
+    from stridelab.pipeline.formats.apdm import LABEL_PLACEMENTS, load_apdm
     r = load_apdm(path)
     imu = {}
     for s in r.sensors:
@@ -193,7 +193,7 @@ def _apdm(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _cwa(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.axivity import load_cwa
+    from stridelab.pipeline.formats.axivity import load_cwa
     r = load_cwa(path)
     pl = _pick_placement(placement, "chest")
     rec = Recording(metadata={}, imu={pl: ImuData(r.t_ns - r.t_ns[0], r.acc, r.gyr, r.mag)}, name=path.stem)
@@ -204,7 +204,7 @@ def _cwa(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.pyshoe import load_pyshoe_trial
+    from stridelab.pipeline.formats.pyshoe import load_pyshoe_trial
     tr = load_pyshoe_trial(path)
     pl = _pick_placement(placement, "foot_right")
     # samples on the reader's nominal-rate grid (ts jitters 3.3-6.1 ms around 5 ms): the foot INS runs at a constant
@@ -224,8 +224,8 @@ def _pyshoe(path: Path, placement: str | None) -> list[Converted]:
 
 def _xsens_times(x) -> np.ndarray:
     """Sample times from the packet counter (dropped packets keep their gap; the 16-bit counter unwrapped and a
-    repeated counter placed by the reader's policy, ``pipeline.formats.xsens_mt.packet_index``)."""
-    from pipeline.formats.xsens_mt import packet_index
+    repeated counter placed by the reader's policy, ``stridelab.pipeline.formats.xsens_mt.packet_index``)."""
+    from stridelab.pipeline.formats.xsens_mt import packet_index
     k = x.index if x.index is not None else packet_index(x.packet)[0]
     return np.rint(np.asarray(k, np.int64) * (1e9 / x.sampling_rate_hz)).astype(np.int64)
 
@@ -234,7 +234,7 @@ _XSENS_SUFFIX = {"lf": "foot_left", "rf": "foot_right", "lb": "lower_back"}
 
 
 def _xsens(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.xsens_mt import load_xsens_mt_txt
+    from stridelab.pipeline.formats.xsens_mt import load_xsens_mt_txt
     x = load_xsens_mt_txt(path)
     suffix = path.stem.rsplit("_", 1)[-1].lower()
     pl = placement or _XSENS_SUFFIX.get(suffix)
@@ -248,7 +248,7 @@ def _xsens(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _voisard(path: Path, placement: str | None) -> list[Converted]:
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     d = path.parent if path.is_file() else path
     name = path.stem if path.is_file() else None
     if name is None:
@@ -278,12 +278,12 @@ def _voisard(path: Path, placement: str | None) -> list[Converted]:
 
 
 def _mobilised(path: Path, placement: str | None) -> list[Converted]:
-    """Every trial of every ``data.mat`` under ``path`` -> one recording (``pipeline.formats.mobilised``): the SU
+    """Every trial of every ``data.mat`` under ``path`` -> one recording (``stridelab.pipeline.formats.mobilised``): the SU
     lower-back IMU as ``lower_back``; per reference system (label = INDIP / Stereophoto) the MicroWB walking bouts
     (``walking_bout``: start/end, cadence, stride length, walking speed, strides), initial contacts with side and
     turns on ``/reference/events``; infoForAlgo height, leg length, sensor height, walking aid into the session."""
-    from estimators.recording import SESSION_BODY_FIELDS
-    from pipeline.formats.mobilised import find_mobilised_files, read_mobilised
+    from stridelab.estimators.recording import SESSION_BODY_FIELDS
+    from stridelab.pipeline.formats.mobilised import find_mobilised_files, read_mobilised
     out = []
     for f in find_mobilised_files(path):
         for tr in read_mobilised(f):
@@ -386,7 +386,7 @@ def register(fmt: Format) -> None:
 
 def parse_session_options(items) -> dict:
     """``FIELD=VALUE`` pairs -> dict, parsed as ``stridelab ingest --session`` does (raises ImportRejected)."""
-    from pipeline.session_sources import parse_assignments
+    from stridelab.pipeline.session_sources import parse_assignments
     try:
         return parse_assignments(items, "--session")
     except ValueError as e:
@@ -396,7 +396,7 @@ def parse_session_options(items) -> dict:
 def read_sidecar(path: Path) -> dict:
     """Fields of the sidecar beside an export (``<file>.session.toml`` or ``<stem>.session.toml``, a
     ``[session]`` table or top-level keys; read as ingest reads sidecars), {} if there is none."""
-    from pipeline.session_sources import SessionSourceError, read_sidecar as _read, sidecar_paths
+    from stridelab.pipeline.session_sources import SessionSourceError, read_sidecar as _read, sidecar_paths
     for side in [path.with_name(path.name + ".session.toml"), *sidecar_paths(path)]:
         if side.is_file():
             try:
@@ -419,8 +419,8 @@ def _t0_ns(start: str, where: Path) -> int:
 
 def session_record(c: Converted, path: Path, study: str | None, sidecar: dict, overrides: dict) -> tuple[dict, int]:
     """(session record, absolute start ns) from the format defaults, the sidecar and ``--session``."""
-    from pipeline.ingest import IngestRejected, check_session_metadata
-    from pipeline.pseudonym import SITE_KEYS
+    from stridelab.pipeline.ingest import IngestRejected, check_session_metadata
+    from stridelab.pipeline.pseudonym import SITE_KEYS
     s = {"study": study or "imported", **c.defaults, **sidecar, **overrides}
     if "session" not in sidecar and "session" not in overrides:
         s["session"] = _slug(f"{s['participant']}-{s.get('trial') or c.stem}")
@@ -467,7 +467,7 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
     Warnings a reader raises while converting a file (e.g. ``XsensPacketWarning``) are reported as
     ``warning: <file>: …`` lines and kept in ``ImportResult.warnings``; the file is imported."""
     import warnings
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
     fmt = FORMATS[fmt_name]
     if placement is not None and placement not in PLACEMENTS:
         on_file(f"note: placement '{placement}' is not one of the standard placements {', '.join(PLACEMENTS)}")
@@ -525,11 +525,11 @@ def import_paths(fmt_name: str, paths, inbox: Path, *, study: str | None = None,
 
 def _without_file_name(c: Converted, path: Path) -> Converted:
     """``c`` with the export's file name replaced, wherever a converter used it (output name, default trial), by
-    ``f`` + 10 letters of its keyed hash (:func:`pipeline.privacy.name_token`): a user's file name may hold
+    ``f`` + 10 letters of its keyed hash (:func:`stridelab.pipeline.privacy.name_token`): a user's file name may hold
     a name or a birth date, and the inbox, the catalog and the reports keep what the importer writes. Public data
     sets (study ``public``) keep their authors' names."""
     from dataclasses import replace as _replace
-    from pipeline.privacy import name_token
+    from stridelab.pipeline.privacy import name_token
     slug, token = _slug(path.stem), "f" + name_token(path.name)
     defaults = {k: (token if k in ("trial", "session") and v == slug else v) for k, v in c.defaults.items()}
     stem = c.stem[:-len(slug)] + token if c.stem.endswith(slug) else c.stem

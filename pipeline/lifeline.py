@@ -53,6 +53,6 @@ def die_with_parent(parent_pid: int | None = None, poll_s: float = POLL_S) -> No
 
 
 def dask_setup(worker=None) -> None:
-    """Dask preload hook (``preload=["pipeline.lifeline"]``): runs in each worker process at start."""
+    """Dask preload hook (``preload=["stridelab.pipeline.lifeline"]``): runs in each worker process at start."""
     pid = os.environ.get(COORDINATOR_ENV)
     die_with_parent(int(pid) if pid and pid.isdigit() else None)

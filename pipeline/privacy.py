@@ -2,7 +2,7 @@
 
 * Session metadata is a declared schema (:data:`SCHEMA`): each field the recording format knows has a type
   (identifier, code, closed value, label, number); a study adds fields in its manifest's ``[privacy]``
-  (:mod:`studies.privacy`: ``free_text_fields``, ``numeric_fields``, ``conditions``). Any other field is dropped
+  (:mod:`stridelab.studies.privacy`: ``free_text_fields``, ``numeric_fields``, ``conditions``). Any other field is dropped
   with a warning, whatever its name (a unit suffix such as ``note_s`` earns nothing) and whatever its value (a
   number too: ``+41791234567``); a value in which the screen finds personal data refuses the recording.
   Text that is kept (labels, allow-listed free text) is screened: names in any script, dates in any common
@@ -24,18 +24,18 @@ import math
 import re
 from pathlib import Path
 
-from estimators.recording import PLACEMENTS, SESSION_BODY_FIELDS, SESSION_DESIGN_FIELDS
-from pipeline.config import study_manifest
-from studies.privacy import (PrivacyPolicy, code_problem, identifier_problem, key_problem, privacy_policy,
+from stridelab.estimators.recording import PLACEMENTS, SESSION_BODY_FIELDS, SESSION_DESIGN_FIELDS
+from stridelab.pipeline.config import study_manifest
+from stridelab.studies.privacy import (PrivacyPolicy, code_problem, identifier_problem, key_problem, privacy_policy,
                              value_problem)
 
 ID_FIELDS = ("participant", "session", "trial")
-#: closed values (checked here or, ``kind``, ``timezone``, ``reference_frame``, by pipeline.ingest)
+#: closed values (checked here or, ``kind``, ``timezone``, ``reference_frame``, by stridelab.pipeline.ingest)
 ENUMS = {"paretic_side": ("left", "right", "none"), "pseudonymised": ("hmac-sha256",)}
 #: values of ``condition`` every study knows (a study adds its own with ``[privacy] conditions``)
 CONDITIONS = ("healthy", "hemiparetic", "stroke", "parkinson", "multiple_sclerosis", "osteoarthritis",
               "amputee", "cerebral_palsy", "elderly", "unknown")
-#: numbers the stages read (plausible ranges checked by pipeline.ingest) or an importer records (``counts_per_g``:
+#: numbers the stages read (plausible ranges checked by stridelab.pipeline.ingest) or an importer records (``counts_per_g``:
 #: the UCI conversion used); ``*_length_m`` too
 NUMERIC_FIELDS = tuple(dict.fromkeys(("height_m", "mass_kg", "sampling_rate_hz", "thigh_length_m", "shank_length_m",
                                      "foot_length_m", "counts_per_g", *SESSION_BODY_FIELDS, *SESSION_DESIGN_FIELDS)))   # body measures, repeat_baseline (#42; ranges: ingest)
@@ -208,7 +208,7 @@ def _name_key() -> bytes:
     """The key of stored names: the pseudonymisation key when it exists (outside the warehouse; then a stored
     name cannot be linked to a guessed file name), else a fixed domain string (a stored name then confirms only
     an exact guess of the whole name)."""
-    from pipeline.pseudonym import key_path
+    from stridelab.pipeline.pseudonym import key_path
     try:
         text = key_path().read_text().strip()
     except OSError:

@@ -45,7 +45,7 @@ class Recovery:
 
     def summary(self, name: str | None = None) -> str:
         """One line: what was kept and what was lost, starting with ``name`` (default: the file's name; a stored
-        note gets another, pipeline.privacy)."""
+        note gets another, stridelab.pipeline.privacy)."""
         name = Path(self.source).name if name is None else name
         if self.complete:
             return f"{name}: intact, {self.messages_kept:,} messages; nothing to recover"
@@ -229,9 +229,9 @@ def rebuild_catalog(root: str | Path) -> str:
     import shutil
     import time as _time
 
-    from warehouse.catalog import CATALOG, Warehouse
-    from warehouse.lock import RunLock
-    from warehouse.read import snapshot_status
+    from stridelab.warehouse.catalog import CATALOG, Warehouse
+    from stridelab.warehouse.lock import RunLock
+    from stridelab.warehouse.read import snapshot_status
     root = Path(root)
     with RunLock(root, "repair-catalog"):
         snap, problem = snapshot_status(root)

@@ -16,8 +16,8 @@ import pickle
 from pathlib import Path
 from typing import Callable
 
-from pipeline.stages import canonical_json
-from warehouse.catalog import Warehouse, first
+from stridelab.pipeline.stages import canonical_json
+from stridelab.warehouse.catalog import Warehouse, first
 
 #: bump when the report's content or layout changes: every report is then rewritten once
 REPORT_FORMAT = 3                  # 2: clinician summary page, clinical measures, walking bouts (issue 18); 3: PDF laid out by ReportLab, tables whole

@@ -23,15 +23,15 @@ from importlib.metadata import version as pkg_version
 from pathlib import Path
 from typing import Callable, Iterable
 
-from pipeline.privacy import stored_name, stored_path
-from pipeline import ingest as ingest_mod
-from pipeline.formats.rosbag2 import is_bag
-from pipeline.engines import make_engine
-from pipeline.reports import ReportBuilder, write_reports
-from pipeline.config import requested, stage_params
-from pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
-from warehouse.catalog import first, Warehouse
-from warehouse.lock import RunLock
+from stridelab.pipeline.privacy import stored_name, stored_path
+from stridelab.pipeline import ingest as ingest_mod
+from stridelab.pipeline.formats.rosbag2 import is_bag
+from stridelab.pipeline.engines import make_engine
+from stridelab.pipeline.reports import ReportBuilder, write_reports
+from stridelab.pipeline.config import requested, stage_params
+from stridelab.pipeline.stages import SessionInput, Stage, StageOutput, canonical_json, params_hash, registry, stamp
+from stridelab.warehouse.catalog import first, Warehouse
+from stridelab.warehouse.lock import RunLock
 
 
 STORAGE_ERRNOS = {errno.ENOSPC, errno.EROFS, errno.EDQUOT, errno.EACCES, errno.EPERM}

@@ -3,10 +3,10 @@
 Every series file carries a CRC-32 per Parquet page (warehouse/store.py); :func:`verify` reads each file the
 catalog refers to in full with the checksums verified, and compares its row count with the catalog's. A damaged
 file is never served (every read verifies the pages it touches and raises
-:class:`warehouse.store.SeriesDamaged`); with ``repair``:
+:class:`stridelab.warehouse.store.SeriesDamaged`); with ``repair``:
 
 - a raw series (``sensors``) is recomputed from its recording when the file is found with the same SHA-256 (the
-  catalog keeps only a keyed hash of the path, pipeline.privacy: the recording is looked for in the folders given
+  catalog keeps only a keyed hash of the path, stridelab.pipeline.privacy: the recording is looked for in the folders given
   with ``search`` and the default inbox, by that hash, else by size and SHA-256): the recording is decoded again (with the ingest settings it was ingested with) into a
   scratch folder, the new file must give the recording's sample hash, and it replaces the damaged one;
 - a stage output is dropped from the stage's state, so the next ``stridelab run`` recomputes it (the new file
@@ -25,8 +25,8 @@ from pathlib import Path
 
 import duckdb
 
-from warehouse.catalog import CATALOG, SNAPSHOT_DIR, first
-from warehouse.store import SeriesDamaged, damage_check, open_series
+from stridelab.warehouse.catalog import CATALOG, SNAPSHOT_DIR, first
+from stridelab.warehouse.store import SeriesDamaged, damage_check, open_series
 
 
 @dataclass
@@ -127,8 +127,8 @@ def verify(root: str | os.PathLike, *, repair: bool = False, search=(), on_progr
     if rep.catalog != "ok" and not repair:
         return rep
     if repair:
-        from warehouse.catalog import Warehouse
-        from warehouse.lock import RunLock
+        from stridelab.warehouse.catalog import Warehouse
+        from stridelab.warehouse.lock import RunLock
         if rep.catalog != "ok":
             return rep                   # the catalog itself: `stridelab repair-catalog` (pipeline/recover.py)
         with RunLock(root, "verify --repair"), Warehouse.open(root) as wh:
@@ -150,7 +150,7 @@ def _reader(root: Path):
     try:
         return duckdb.connect(str(root / CATALOG), read_only=True)
     except duckdb.Error:
-        from warehouse.read import connect_snapshot
+        from stridelab.warehouse.read import connect_snapshot
         return connect_snapshot(root)
 
 
@@ -164,7 +164,7 @@ def _check_all(root: Path, con, rep: VerifyReport, on_progress) -> None:
 
 
 def _repair(wh, rep: VerifyReport, on_progress, search: list[Path]) -> None:
-    from pipeline.stages import registry
+    from stridelab.pipeline.stages import registry
     owner = {t: s.name for s in registry() for t in s.tables}
     raw = {}
     for d in rep.damaged:
@@ -194,8 +194,8 @@ def _repair(wh, rep: VerifyReport, on_progress, search: list[Path]) -> None:
 
 def _candidates(search: list[Path]):
     """Recording files and bag folders in (or given as) ``search`` and the default inbox."""
-    from pipeline.config import default_inbox
-    from pipeline.formats.rosbag2 import is_bag
+    from stridelab.pipeline.config import default_inbox
+    from stridelab.pipeline.formats.rosbag2 import is_bag
     for d in [*search, default_inbox()]:
         if d.is_file() or is_bag(d):
             yield d
@@ -207,9 +207,9 @@ def _candidates(search: list[Path]):
 
 def find_recording(wh, content_hash: str, search: list[Path]) -> Path | None:
     """Where the recording with ``content_hash`` is now: the catalog keeps only a keyed hash of its path and its
-    size (pipeline.privacy), so a candidate matches by that hash, else (moved or renamed) by size and SHA-256."""
-    from pipeline import ingest
-    from pipeline.privacy import stored_path
+    size (stridelab.pipeline.privacy), so a candidate matches by that hash, else (moved or renamed) by size and SHA-256."""
+    from stridelab.pipeline import ingest
+    from stridelab.pipeline.privacy import stored_path
     r = first(wh.con.execute("SELECT source_path, size_bytes FROM recordings WHERE content_hash = ?", [content_hash]))
     source, size = (r or (None, None))
     cands = list(dict.fromkeys(_candidates(search)))
@@ -224,7 +224,7 @@ def find_recording(wh, content_hash: str, search: list[Path]) -> Path | None:
 
 def _recompute_raw(wh, content_hash: str, paths: list[str], search: list[Path] = ()) -> str | None:
     """Decode the recording again and put the damaged files back; None on success, else why not."""
-    from pipeline import ingest
+    from stridelab.pipeline import ingest
     r = first(wh.con.execute("SELECT source_path, sample_hash, status FROM recordings WHERE content_hash = ?",
                              [content_hash]))
     if r is None or r[2] != "ingested":
@@ -232,7 +232,7 @@ def _recompute_raw(wh, content_hash: str, paths: list[str], search: list[Path] =
     _, sample_hash, _ = r
     src = find_recording(wh, content_hash, list(search))
     if src is None:
-        from pipeline.privacy import stored_path
+        from stridelab.pipeline.privacy import stored_path
         moved = [p for p in _candidates(list(search)) if stored_path(p) == r[0]]
         if moved:
             return f"cannot be recomputed: the file at {moved[0]} changed since it was ingested"

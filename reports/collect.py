@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from warehouse import queries as Q
+from stridelab.warehouse import queries as Q
 
 def collect(con, root: Path, participant_id: str, study: str | None) -> dict:
     """Everything the report shows, as DataFrames (None = stage not run yet)."""

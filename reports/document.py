@@ -22,11 +22,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports import figures as F
-from reports.tables import (accuracy_table, activity_table, clinical_side_table, clinical_visit_table,
+from stridelab.reports import figures as F
+from stridelab.reports.tables import (accuracy_table, activity_table, clinical_side_table, clinical_visit_table,
                             gait_table, home_days_table, quality_table, sessions_table, summary_table,
                             walking_table)
-from warehouse import queries as Q
+from stridelab.warehouse import queries as Q
 
 TITLES = {1: "Summary", 2: "Gait: speed, steps and asymmetry", 3: "Joint angles",
           4: "Daily activity and free-living walking", 5: "Sessions, data quality and accuracy against reference",

@@ -6,8 +6,8 @@ import io
 import numpy as np
 import pandas as pd
 
-from reports.normative import CLINICAL_BANDS, normative_band
-from warehouse import queries as Q
+from stridelab.reports.normative import CLINICAL_BANDS, normative_band
+from stridelab.warehouse import queries as Q
 
 def pyplot():
     import matplotlib

@@ -81,7 +81,7 @@ def speed_category_centres() -> dict[str, float]:
     """Dimensionless speed each Schwartz category stands for: the middle of its published range; the open-ended
     very slow and very fast categories are given a range as wide as their neighbour's (0.136), i.e. 0.159 and
     0.704 (our assumption: the paper gives only the inner boundary)."""
-    from reports._schwartz2008 import RANGES
+    from stridelab.reports._schwartz2008 import RANGES
     width = RANGES["slow"][1] - RANGES["slow"][0]
     out = {}
     for cat, (lo, hi) in RANGES.items():
@@ -108,7 +108,7 @@ def speed_matched_band(joint: str, speed_m_s: float, leg_length_m: float = DEFAU
     """
     import numpy as np
 
-    from reports._schwartz2008 import CATEGORIES, DATA
+    from stridelab.reports._schwartz2008 import CATEGORIES, DATA
     key = next((k for k in DATA if k in joint.lower()), None)
     if key is None:
         return None
@@ -132,7 +132,7 @@ def speed_matched_band(joint: str, speed_m_s: float, leg_length_m: float = DEFAU
 def speed_band_table(joints=("hip", "knee")) -> dict:
     """Every category's curve of ``joints`` and the category centres: what the live page interpolates itself as the
     participant's speed changes (the same linear rule as :func:`speed_matched_band`)."""
-    from reports._schwartz2008 import CATEGORIES, DATA
+    from stridelab.reports._schwartz2008 import CATEGORIES, DATA
     return {"categories": list(CATEGORIES), "centres": speed_category_centres(),
             "pct": [float(p) for p in range(0, 101, 2)],
             "curves": {j: {cat: {"mean": list(DATA[j][cat][0]), "sd": list(DATA[j][cat][1])} for cat in CATEGORIES}

@@ -1,9 +1,9 @@
 """Per-participant report: a self-contained HTML file and an A4 PDF with the same content, from the newest
 published snapshot.
 
-The report is assembled in small steps, one module each: ``reports.collect`` reads what the report shows,
-``reports.tables`` and ``reports.figures`` shape it, ``reports.document`` orders it into the report's pages
-(the page list and their content are described there), and ``reports.render_html`` / ``reports.render_pdf``
+The report is assembled in small steps, one module each: ``stridelab.reports.collect`` reads what the report shows,
+``stridelab.reports.tables`` and ``stridelab.reports.figures`` shape it, ``stridelab.reports.document`` orders it into the report's pages
+(the page list and their content are described there), and ``stridelab.reports.render_html`` / ``stridelab.reports.render_pdf``
 write the two files (the PDF is laid out and paginated by ReportLab's Platypus: content that does not fit on a
 sheet continues on the next, none is dropped). Only the pseudonym identifies the participant; file names
 (which may carry site identifiers) are not printed.
@@ -15,11 +15,11 @@ import re
 from datetime import datetime, timezone
 from pathlib import Path
 
-from reports.collect import collect
-from reports.document import FIG_CAPTIONS, TITLES, blocks
-from reports.figures import pyplot
-from reports.render_html import render_html
-from reports.render_pdf import render_pdf
+from stridelab.reports.collect import collect
+from stridelab.reports.document import FIG_CAPTIONS, TITLES, blocks
+from stridelab.reports.figures import pyplot
+from stridelab.reports.render_html import render_html
+from stridelab.reports.render_pdf import render_pdf
 
 __all__ = ["FIG_CAPTIONS", "TITLES", "build_report", "collect", "render_html", "render_pdf"]
 
@@ -38,7 +38,7 @@ def build_report(warehouse_root: Path, participant_id: str, out_dir: Path, *, st
     Raises LookupError (participant or snapshot not found) or ValueError (ambiguous participant).
     """
     from importlib.metadata import PackageNotFoundError, version
-    from warehouse.read import connect_snapshot, latest_snapshot
+    from stridelab.warehouse.read import connect_snapshot, latest_snapshot
     root = Path(warehouse_root)
     snap = latest_snapshot(root)
     con = connect_snapshot(root)

@@ -5,9 +5,9 @@ import html
 
 import pandas as pd
 
-from reports.document import TITLES
-from reports.figures import svg
-from reports.tables import fmt
+from stridelab.reports.document import TITLES
+from stridelab.reports.figures import svg
+from stridelab.reports.tables import fmt
 
 _CSS = """body{font-family:DejaVu Sans,Helvetica,Arial,sans-serif;font-size:11px;color:#222;max-width:820px;margin:20px auto}
 h1{font-size:18px;margin:0} h2{font-size:14px;border-bottom:1px solid #888;margin-top:28px}

@@ -1,6 +1,6 @@
 """The report as an A4 PDF laid out by ReportLab's Platypus (a layout engine that flows and paginates).
 
-Each report page (``reports.document.TITLES``) starts on a new sheet; whatever does not fit goes on over
+Each report page (``stridelab.reports.document.TITLES``) starts on a new sheet; whatever does not fit goes on over
 continuation sheets marked "(continued)" in the running header, so no row, note or figure is ever dropped.
 Tables are split between rows with their header row repeated; a table title stays with its first rows and a
 figure with its caption. Cells and headers wrap inside their column rather than being cut. Figures are the
@@ -20,9 +20,9 @@ from xml.sax.saxutils import escape
 
 import pandas as pd
 
-from reports.document import TITLES
-from reports.figures import png
-from reports.tables import fmt
+from stridelab.reports.document import TITLES
+from stridelab.reports.figures import png
+from stridelab.reports.tables import fmt
 
 FONT, BOLD, ITALIC = "DejaVuSans", "DejaVuSans-Bold", "DejaVuSans-Oblique"
 #: table text size (pt), and the smallest it goes to before columns are narrowed and their cells wrap

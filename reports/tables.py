@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports.normative import CLINICAL_BANDS, band_label
-from warehouse import queries as Q
+from stridelab.reports.normative import CLINICAL_BANDS, band_label
+from stridelab.warehouse import queries as Q
 
 #: page-1 rows from the clinical measures: (measure, quantity, label, band key)
 SUMMARY_GAIT = [("gait_speed_m_s", "value", "Gait speed (m/s)", "gait_speed_m_s"),

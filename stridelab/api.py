@@ -27,7 +27,7 @@ if TYPE_CHECKING:                                    # pragma: no cover - typing
     import duckdb
     import pandas as pd
 
-    from estimators.recording import Recording
+    from stridelab.estimators.recording import Recording
 
 __all__ = ["Warehouse", "TableMissing", "open", "read_recording", "resolve_warehouse"]
 
@@ -43,7 +43,7 @@ class TableMissing(LookupError):
 def resolve_warehouse(path: str | Path) -> Path:
     """The warehouse directory for ``path``: a warehouse (it holds ``snapshots/``) or a StrideLab home folder
     (its ``warehouse/`` subfolder). Raises FileNotFoundError with what to do otherwise."""
-    from warehouse.catalog import SNAPSHOT_DIR
+    from stridelab.warehouse.catalog import SNAPSHOT_DIR
     p = Path(path).expanduser()
     for cand in (p, p / "warehouse"):
         if (cand / SNAPSHOT_DIR).is_dir():
@@ -80,7 +80,7 @@ class Warehouse:
     """
 
     def __init__(self, root: Path):
-        from warehouse.read import latest_snapshot
+        from stridelab.warehouse.read import latest_snapshot
         self.root = Path(root)
         snap = latest_snapshot(self.root)
         if snap is None:
@@ -156,13 +156,13 @@ class Warehouse:
     # ---- the tables a researcher asks for -----------------------------------------------------
     def participants(self, study: str | None = None) -> pd.DataFrame:
         """One row per participant (pseudonym): study, participant_id, sessions, recordings, last_data."""
-        from warehouse.queries import participants
+        from stridelab.warehouse.queries import participants
         return participants(self.con, study)
 
     def sessions(self, participant: str | None = None, study: str | None = None) -> pd.DataFrame:
         """One row per session: study, participant_id, session_id, kind (lab | free_living | calibration),
         protocol, timezone, start, end (UTC timestamps), hours, recordings, trials."""
-        from warehouse.queries import sessions
+        from stridelab.warehouse.queries import sessions
         return sessions(self.con, participant, study)
 
     def recordings(self, participant: str | None = None, study: str | None = None) -> pd.DataFrame:
@@ -191,7 +191,7 @@ class Warehouse:
     def clinical_measures(self, participant: str | None = None, study: str | None = None) -> pd.DataFrame:
         """Clinical gait measures per lab session and visit (``docs/clinical_measures.md``): measure, unit, value,
         sem, mdc95, left/right values, paretic and symmetry ratios."""
-        from warehouse.queries import clinical_visits
+        from stridelab.warehouse.queries import clinical_visits
         out = clinical_visits(self.con, study, participant)
         if out is None:
             raise TableMissing(f"no clinical_measures table in {self.root}: written by the clinical stage")
@@ -240,9 +240,9 @@ class Warehouse:
 
     # ---- series ------------------------------------------------------------------------------
     def imu(self, session: str, placement: str, trial: str | None = None):
-        """Stored samples of one IMU (`warehouse.read.ImuSeries`: t_ns, acc m/s², gyr rad/s, mag µT or
+        """Stored samples of one IMU (`stridelab.warehouse.read.ImuSeries`: t_ns, acc m/s², gyr rad/s, mag µT or
         None, sampling_rate_hz) of a session's recording (its ``trial``, or the first one)."""
-        from warehouse.read import read_imu
+        from stridelab.warehouse.read import read_imu
         rows = self.con.execute("""
             SELECT r.content_hash FROM recordings r JOIN sensors x USING (content_hash)
             WHERE r.session_id = ? AND r.status = 'ingested' AND x.placement = ? AND x.kind = 'imu'
@@ -254,7 +254,7 @@ class Warehouse:
 
     def orientation(self, session: str, placement: str, trial: str | None = None):
         """(t_ns (N,), quat (N, 4) [w, x, y, z] sensor → ENU) of the orientation stage, for one IMU."""
-        from warehouse.read import read_orientation
+        from stridelab.warehouse.read import read_orientation
         rows = self.con.execute("""
             SELECT r.content_hash FROM recordings r JOIN orientation o USING (content_hash)
             WHERE r.session_id = ? AND o.placement = ? AND (? IS NULL OR r.trial = ?)
@@ -269,7 +269,7 @@ def read_recording(path: str | Path) -> Recording:
     (every CRC checked; a corrupt file raises ``ValueError`` with a one-line reason).
 
     Returns:
-        `estimators.recording.Recording`: ``metadata`` (the ``session`` record), ``imu[placement]``
+        `stridelab.estimators.recording.Recording`: ``metadata`` (the ``session`` record), ``imu[placement]``
         (``t_ns`` int64 ns, ``acc`` (N, 3) m/s², ``gyr`` (N, 3) rad/s, ``mag`` (N, 3) µT or None),
         ``reference_poses[placement]`` (``pos`` m, ``quat`` [w, x, y, z] segment → ENU), ``ranges`` (m) and
         ``events`` (dicts with ``t_ns``, ``type``, ``side``/``label``...). ``mag`` is on the IMU's stamps
@@ -277,8 +277,8 @@ def read_recording(path: str | Path) -> Recording:
     """
     import numpy as np
 
-    from estimators.recording import ImuData, PoseData, RangeData, Recording
-    from pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
+    from stridelab.estimators.recording import ImuData, PoseData, RangeData, Recording
+    from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
 
     p = Path(path)
     if not p.is_file():

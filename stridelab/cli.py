@@ -7,18 +7,18 @@ import pkgutil
 
 import click
 
-from validation import bench as bench_pkg
+from stridelab.validation import bench as bench_pkg
 
 
 class _BenchGroup(click.Group):
-    """``stridelab bench``: subcommands discovered from ``validation.bench.<module>.command``."""
+    """``stridelab bench``: subcommands discovered from ``stridelab.validation.bench.<module>.command``."""
 
     def _commands(self) -> dict[str, click.Command]:
         found = {}
         for mod in pkgutil.iter_modules(bench_pkg.__path__):
             if mod.name.startswith("_"):
                 continue
-            m = importlib.import_module(f"validation.bench.{mod.name}")
+            m = importlib.import_module(f"stridelab.validation.bench.{mod.name}")
             cmd = getattr(m, "command", None)
             if isinstance(cmd, click.Command):
                 found[cmd.name] = cmd
@@ -82,8 +82,8 @@ def _with_topic_crc(options: dict | None, skip_topics, require_crc) -> dict | No
 
 
 def _ingest_options(session_fields, topic_map) -> dict | None:
-    from pipeline.console import UserError
-    from pipeline.session_sources import parse_assignments
+    from stridelab.pipeline.console import UserError
+    from stridelab.pipeline.session_sources import parse_assignments
     try:
         opts = {"session": parse_assignments(session_fields, "--session"),
                 "topic_map": parse_assignments(topic_map, "--topic-map")}
@@ -101,12 +101,12 @@ def _warehouse_option(f):
 
 
 def _wh(path: Path | None) -> Path:
-    from pipeline.config import default_warehouse
+    from stridelab.pipeline.config import default_warehouse
     return Path(path) if path else default_warehouse()
 
 
 def _print_summary(summary, as_json: bool) -> None:
-    from pipeline.console import emit_json, err_console
+    from stridelab.pipeline.console import emit_json, err_console
     if as_json:
         emit_json(summary.as_dict())
         return
@@ -144,13 +144,13 @@ def exit_code(summary) -> int:
 
 def _run_with_progress(**kw):
     """Run the pipeline with a progress bar per phase (ingest, then each level of stages) on stderr."""
-    from pipeline.engines import start_workers_early
+    from stridelab.pipeline.engines import start_workers_early
     start_workers_early(kw.get("engine", "local"), kw.get("jobs", 1), kw.get("scheduler"))   # before the imports below
     import duckdb
-    from pipeline import runner
-    from pipeline.console import UserError, err_console, progress
-    from pipeline.runner import StorageError
-    from warehouse.lock import WarehouseBusy
+    from stridelab.pipeline import runner
+    from stridelab.pipeline.console import UserError, err_console, progress
+    from stridelab.pipeline.runner import StorageError
+    from stridelab.warehouse.lock import WarehouseBusy
     try:
         with progress() as bar:
             current = {"task": None}
@@ -203,8 +203,8 @@ def simulate(directory: Path, manifest, seed, participants, hours, jobs, as_json
       stridelab simulate /tmp/inbox --participants 2 --hours 1 --seed 7
     """
     import os
-    from pipeline.console import UserError, emit_json, err_console
-    from validation.simulate import simulate_to_dir
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.validation.simulate import simulate_to_dir
     try:
         files = simulate_to_dir(directory, manifest=manifest, seed=seed, participants=participants, hours=hours,
                                 jobs=jobs or os.cpu_count() or 1, on_file=lambda p: err_console.print(f"wrote {p}", markup=False, highlight=False))
@@ -245,8 +245,8 @@ def ingest(paths, warehouse_dir, jobs, session_fields, topic_map, replace, skip_
       stridelab ingest walk.mcap --skip-topic /imu/spare --require-crc
       stridelab ingest walk.mcap --topic-map /foot_left/imu=foot_left --replace   # again, on purpose
     """
-    from pipeline.formats.rosbag2 import is_bag
-    from pipeline.runner import inbox_entries
+    from stridelab.pipeline.formats.rosbag2 import is_bag
+    from stridelab.pipeline.runner import inbox_entries
     files, skipped = [], []
     for p in paths:
         if p.is_dir() and not is_bag(p):
@@ -269,15 +269,15 @@ def _recover_damaged(wh: Path, files, options, summary, jobs):
     """``ingest --recover``: the files just quarantined as truncated or damaged are recovered
     (pipeline/recover.py) and the recovered copies ingested; a file recovered counts as handled."""
     import shutil
-    from pipeline.console import err_console
-    from pipeline.privacy import stored_name, stored_path
-    from pipeline.recover import recover, recovered_name
-    from pipeline.session_sources import sidecar_paths
-    from warehouse.read import connect_snapshot
+    from stridelab.pipeline.console import err_console
+    from stridelab.pipeline.privacy import stored_name, stored_path
+    from stridelab.pipeline.recover import recover, recovered_name
+    from stridelab.pipeline.session_sources import sidecar_paths
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     if con is None:
         return summary
-    try:     # the catalog keeps a keyed hash of each path (pipeline.privacy), not the path
+    try:     # the catalog keeps a keyed hash of each path (stridelab.pipeline.privacy), not the path
         wanted = {stored_path(f): Path(f) for f in files if Path(f).is_file()}
         rows = [(p, r) for p, r in con.execute("SELECT source_path, reason FROM recordings WHERE status = "
                                                "'quarantined'").fetchall() if p in wanted]
@@ -321,8 +321,8 @@ def repair(paths, out_dir, as_json) -> None:
       stridelab repair logger_2026-03-02.mcap
       stridelab repair inbox/*.mcap --out recovered/ --json
     """
-    from pipeline.console import emit_json, err_console
-    from pipeline.recover import recover, recovered_name
+    from stridelab.pipeline.console import emit_json, err_console
+    from stridelab.pipeline.recover import recover, recovered_name
     reps = []
     for p in paths:
         out = (out_dir or p.parent) / recovered_name(p)
@@ -354,9 +354,9 @@ def verify(warehouse_dir, repair, search, as_json) -> None:
       stridelab verify
       stridelab verify --repair --warehouse /data/wh --search /data/recordings
     """
-    from pipeline.console import UserError, emit_json, err_console
-    from pipeline.verify import verify as run_verify
-    from warehouse.lock import WarehouseBusy
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.pipeline.verify import verify as run_verify
+    from stridelab.warehouse.lock import WarehouseBusy
     try:
         rep = run_verify(_wh(warehouse_dir), repair=repair, search=search)
     except WarehouseBusy as e:
@@ -391,9 +391,9 @@ def repair_catalog(warehouse_dir) -> None:
     Examples:
       stridelab repair-catalog --warehouse /data/wh && stridelab run --inbox /data/inbox --warehouse /data/wh
     """
-    from pipeline.console import UserError, err_console
-    from pipeline.recover import rebuild_catalog
-    from warehouse.lock import WarehouseBusy
+    from stridelab.pipeline.console import UserError, err_console
+    from stridelab.pipeline.recover import rebuild_catalog
+    from stridelab.warehouse.lock import WarehouseBusy
     try:
         err_console.print(rebuild_catalog(_wh(warehouse_dir)), markup=False, highlight=False)
     except (WarehouseBusy, RuntimeError) as e:
@@ -401,7 +401,7 @@ def repair_catalog(warehouse_dir) -> None:
 
 
 def _format_choices() -> list[str]:
-    from pipeline.importers import FORMATS
+    from stridelab.pipeline.importers import FORMATS
     return sorted([*FORMATS, "c3d"])
 
 
@@ -442,9 +442,9 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, recording, se
       stridelab import c3d walk01.c3d --recording walk01.mcap --segment foot_left=LHEE,LTOE,LMT5 \\
           --segment foot_right=RHEE,RTOE,RMT5 --offset-s 0.25     # markers beside a recording (docs/import.md)
     """
-    from pipeline.config import default_inbox
-    from pipeline.console import UserError, emit_json, err_console
-    from pipeline.importers import ImportRejected, import_paths, parse_session_options
+    from stridelab.pipeline.config import default_inbox
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.pipeline.importers import ImportRejected, import_paths, parse_session_options
     if fmt == "c3d":
         if study or session_items or placement:
             raise UserError("c3d: the session comes from --recording; --study, --session and --placement do not "
@@ -468,8 +468,8 @@ def import_cmd(fmt, paths, inbox, study, session_items, placement, recording, se
 
 
 def _import_c3d(paths, recording, segments, offset_s, up, inbox, as_json) -> None:
-    from pipeline.c3d_reference import C3DImportRejected, import_c3d_reference, parse_segments
-    from pipeline.console import UserError, emit_json, err_console
+    from stridelab.pipeline.c3d_reference import C3DImportRejected, import_c3d_reference, parse_segments
+    from stridelab.pipeline.console import UserError, emit_json, err_console
     if recording is None:
         raise UserError("import c3d: give --recording REC.mcap (the recording the markers belong to)")
     if len(paths) != 1:
@@ -523,11 +523,11 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
       stridelab run --require-crc --skip-topic /spare/imu    # strict study; a spare IMU left out on purpose
     """
     import os
-    from pipeline.config import default_inbox
+    from stridelab.pipeline.config import default_inbox
     if scheduler and engine != "dask":
-        from pipeline.console import UserError
+        from stridelab.pipeline.console import UserError
         raise UserError("--scheduler needs --engine dask")
-    from pipeline.config import default_reports
+    from stridelab.pipeline.config import default_reports
     summary = _run_with_progress(root=_wh(warehouse_dir), inbox=inbox or default_inbox(),
                                  jobs=jobs or os.cpu_count() or 1, command="run", engine=engine,
                                  scheduler=scheduler,
@@ -541,7 +541,7 @@ def run(inbox, warehouse_dir, jobs, engine, scheduler, reports_dir, no_reports, 
 
 
 def _build_report(wh: Path, study: str, participant: str, out_dir: Path) -> dict:
-    from reports.participant import build_report
+    from stridelab.reports.participant import build_report
     return build_report(wh, participant, out_dir, study=study)
 
 
@@ -575,18 +575,18 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
       stridelab demo --public ../shared/data --max-trials 0  # every recording (slow)
     """
     import os
-    from pipeline.console import err_console
-    from validation.simulate import simulate_to_dir
+    from stridelab.pipeline.console import err_console
+    from stridelab.validation.simulate import simulate_to_dir
     h = Path(home) if home else None
     if h is not None:
         os.environ["STRIDELAB_HOME"] = str(h.resolve())
-    from pipeline.config import default_inbox, default_warehouse
+    from stridelab.pipeline.config import default_inbox, default_warehouse
     inbox, wh = default_inbox(), default_warehouse()
     existing = sorted(inbox.glob("*.mcap")) if inbox.is_dir() else []
     warming = _start_warm_kernels()
     try:
         if public_dir is not None:
-            from pipeline.importers import import_public
+            from stridelab.pipeline.importers import import_public
             res = import_public(public_dir, inbox / "public", max_trials=max_trials or None,
                                 on_file=lambda m: err_console.print(f"  {m}", markup=False, highlight=False))
             for e in res.errors:
@@ -594,7 +594,7 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
         elif existing:
             err_console.print(f"using the {len(existing)} recordings already in {inbox}")
         else:
-            from studies.manifest import DEFAULT_MANIFEST, load_manifest
+            from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
             fl = load_manifest(DEFAULT_MANIFEST).free_living
             err_console.print(f"simulating the demo study into {inbox} (chest days of {fl.hours:g} h from "
                               f"{fl.start_local}, not whole days: studies/demo/study.toml [free_living]) …", markup=False)
@@ -606,7 +606,7 @@ def demo(no_serve, home, port, jobs, public_dir, max_trials) -> None:
     finally:
         if warming is not None and warming.poll() is None:
             warming.terminate()
-    from pipeline.config import default_reports
+    from stridelab.pipeline.config import default_reports
     summary = _run_with_progress(root=wh, inbox=inbox, jobs=jobs or os.cpu_count() or 1, command="demo",
                                  reports_dir=default_reports(), build_report=_report_builder(wh))
     _print_summary(summary, False)
@@ -622,7 +622,7 @@ def _start_warm_kernels():
     demo study is simulated instead of before; None when there is nothing to compile."""
     import subprocess
     import sys
-    from pipeline.console import err_console
+    from stridelab.pipeline.console import err_console
     from stridelab.warm import is_warm
     if is_warm():
         return None
@@ -632,7 +632,7 @@ def _start_warm_kernels():
 
 def _finish_warm_kernels(proc) -> None:
     """Wait for the warm-up before the pipeline starts, so that no stage compiles a kernel on the run's clock."""
-    from pipeline.console import err_console
+    from stridelab.pipeline.console import err_console
     if proc is None:
         return
     if proc.wait() != 0:
@@ -643,7 +643,7 @@ def _finish_warm_kernels(proc) -> None:
 def _serve(wh: Path, port: int, address: str = "localhost") -> None:
     import subprocess
     import sys
-    from pipeline.console import err_console
+    from stridelab.pipeline.console import err_console
     from importlib.util import find_spec
     app = Path(find_spec("stridelab.dashboard").origin).with_name("app.py")   # dashboard/ in a checkout, installed
     err_console.print(f"dashboard on http://{address}:{port}  (Ctrl+C to stop)")
@@ -679,7 +679,7 @@ def warm_kernels(as_json) -> None:
     Examples:
       stridelab warm-kernels          # once after installing; later runs load the kernels
     """
-    from pipeline.console import emit_json, err_console
+    from stridelab.pipeline.console import emit_json, err_console
     from stridelab.warm import warm
     out = warm()
     if as_json:
@@ -704,8 +704,8 @@ def pseudonym_key(path) -> None:
       stridelab pseudonym-key
       STRIDELAB_PSEUDONYM_KEY=/secure/key stridelab pseudonym-key
     """
-    from pipeline.console import UserError, err_console
-    from pipeline.pseudonym import create_key
+    from stridelab.pipeline.console import UserError, err_console
+    from stridelab.pipeline.pseudonym import create_key
     try:
         p = create_key(path)
     except FileExistsError:
@@ -728,10 +728,10 @@ def report(participant, warehouse_dir, study, out_dir, as_json) -> None:
       stridelab report P001
       stridelab report P003 --study demo --out /tmp/reports --json
     """
-    from pipeline.config import default_reports
-    from pipeline.console import UserError, emit_json, err_console
-    from reports.participant import build_report   # the CLI is the one place that wires every layer
-    from warehouse.read import snapshot_status
+    from stridelab.pipeline.config import default_reports
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.reports.participant import build_report   # the CLI is the one place that wires every layer
+    from stridelab.warehouse.read import snapshot_status
     snap, damaged = snapshot_status(_wh(warehouse_dir))    # a damaged newest snapshot: the previous one, said
     if damaged:
         err_console.print(f"warning: {damaged}", markup=False, highlight=False)
@@ -804,20 +804,20 @@ def live(replay, speed, minutes, osc, osc_host, osc_rate_hz, osc_clock, calibrat
       stridelab live --recover
       stridelab live --compare inbox/P003_live_x.mcap --calibration inbox/P003_lab1_calibration.mcap --json
     """
-    from pipeline.config import default_inbox
-    from pipeline.console import UserError
-    from pipeline.live.command import print_summary, run_live
-    from reports.normative import DEFAULT_LEG_LENGTH_M, speed_band_table   # the CLI wires every layer
+    from stridelab.pipeline.config import default_inbox
+    from stridelab.pipeline.console import UserError
+    from stridelab.pipeline.live.command import print_summary, run_live
+    from stridelab.reports.normative import DEFAULT_LEG_LENGTH_M, speed_band_table   # the CLI wires every layer
     inbox = Path(inbox) if inbox else default_inbox()
     if recover:
-        from pipeline.live.recorder import recover as _recover
+        from stridelab.pipeline.live.recorder import recover as _recover
         for path, outcome in _recover(inbox):
             click.echo(f"{path}: {outcome}")
         return
     if compare:
-        from pipeline.console import emit_json
-        from pipeline.live.agreement import live_vs_offline
-        from pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
+        from stridelab.pipeline.console import emit_json
+        from stridelab.pipeline.live.agreement import live_vs_offline
+        from stridelab.pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
         try:
             if calibration is not None:
                 cal = calibration_from_trial(calibration)
@@ -882,8 +882,8 @@ def export_table_cmd(name, out, warehouse_dir, as_json) -> None:
       stridelab export table strides strides.csv
       stridelab export table activity_daily /tmp/daily.parquet --warehouse stridelab-home/warehouse
     """
-    from pipeline.console import UserError, emit_json, err_console
-    from pipeline.export.tables import export_table
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.pipeline.export.tables import export_table
     try:
         r = export_table(_wh(warehouse_dir), name, out)
     except ValueError as e:
@@ -919,8 +919,8 @@ def export_bids_cmd(warehouse, out, study, participants, kinds, keep_ids, subjec
       stridelab export bids stridelab-home/warehouse bids-lab/ --kind lab --subject-map key.tsv \
           --author "A. Researcher" --author "B. Clinician" --name "Gait study 2026"
     """
-    from pipeline.console import UserError, emit_json, err_console
-    from pipeline.export.bids import export_bids
+    from stridelab.pipeline.console import UserError, emit_json, err_console
+    from stridelab.pipeline.export.bids import export_bids
     try:
         s = export_bids(warehouse, out, study=study, participants=tuple(participants), kinds=tuple(kinds),
                         keep_ids=keep_ids, subject_map=subject_map, overwrite=overwrite, authors=tuple(authors),

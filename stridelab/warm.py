@@ -58,10 +58,10 @@ def kernel_stats() -> dict:
 def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_local: str = "07:00") -> dict:
     """Simulate one participant of the demo study (lab session + ``hours`` of free-living chest data) and run
     ingest and every stage on it in this process; returns :func:`kernel_stats` afterwards."""
-    from pipeline import config, runner
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_chest_day, simulate_lab_session, study_participants
+    from stridelab.pipeline import config, runner
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, name="warm-kernels", lab=replace(m.lab, walking_trials=1),
                 free_living=replace(m.free_living, hours=hours, start_local=start_local))
@@ -113,7 +113,7 @@ def fingerprint(root: Path | None = None) -> str:
 
 
 def _marker() -> Path | None:
-    from estimators._numba_cache import CACHE_DIR
+    from stridelab.estimators._numba_cache import CACHE_DIR
     return Path(CACHE_DIR) / MARKER if CACHE_DIR else None
 
 
@@ -140,7 +140,7 @@ def write_marker(signatures: int) -> None:
 
 
 def warm(**kw) -> dict:
-    from estimators._numba_cache import CACHE_DIR
+    from stridelab.estimators._numba_cache import CACHE_DIR
     with tempfile.TemporaryDirectory(prefix="stridelab-warm-") as tmp:
         out = run_small_study(Path(tmp), **kw)
     write_marker(out["signatures_compiled"] + out["signatures_from_cache"])

@@ -18,7 +18,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from studies.privacy import PrivacyPolicy, identifier_problem, privacy_policy
+from stridelab.studies.privacy import PrivacyPolicy, identifier_problem, privacy_policy
 
 __all__ = ["DEFAULT_MANIFEST", "ParticipantSpec", "LabProtocol", "FreeLivingSpec", "SensorModelSpec",
            "StudyManifest", "load_manifest"]

@@ -246,7 +246,7 @@ def identifier_problem(value, policy: PrivacyPolicy) -> str | None:
     if not policy.allow_date_like_ids and _DATE.search(value):
         return ("looks like it contains a date (a birth date is personal data); use a pseudonym, or set "
                 "allow_date_like_ids in the study manifest's [privacy]")
-    if re.fullmatch(r"PS-[A-Z2-7]{12}", value):          # a keyed pseudonym (pipeline.pseudonym)
+    if re.fullmatch(r"PS-[A-Z2-7]{12}", value):          # a keyed pseudonym (stridelab.pipeline.pseudonym)
         return None
     if _LONG_DIGITS.search(_DATE.sub(" ", value)) or _EMAIL.search(value):
         return ("looks like a phone, identity or record number (6 digits or more in a row); use a pseudonym, or "

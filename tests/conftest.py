@@ -15,7 +15,7 @@ LAYERS = ("estimators", "warehouse", "pipeline", "reports", "dashboard", "valida
 
 class _NoBareLayerImports(importlib.abc.MetaPathFinder):
     """The layers are installed as ``stridelab.<layer>`` only; pytest puts the repository root on ``sys.path``, where
-    ``import pipeline`` would still find the folder and load a second copy of it beside ``stridelab.pipeline``. A
+    ``import stridelab.pipeline`` would still find the folder and load a second copy of it beside ``stridelab.pipeline``. A
     bare layer name (an import, a ``mock.patch`` target, a pickled reference) fails here as it would installed.
     tests/test_layers.py checks the import statements; this catches the names in strings."""
 
@@ -44,8 +44,8 @@ def small_home(tmp_path_factory) -> Path:
     """A StrideLab home made the real way: the demo study cut to one participant with 6-min chest days,
     simulated to MCAP and run through every stage (``home/warehouse``, ``home/inbox``). For the Python API,
     export and examples tests."""
-    from pipeline import runner
-    from validation.simulate import simulate_to_dir
+    from stridelab.pipeline import runner
+    from stridelab.validation.simulate import simulate_to_dir
     home = tmp_path_factory.mktemp("home")
     simulate_to_dir(home / "inbox", participants=1, hours=0.1, jobs=2)
     summary = runner.run(home / "warehouse", home / "inbox", jobs=2, command="run")

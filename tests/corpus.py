@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from estimators.quaternion import quat_from_axis_angle, quat_rotate, quat_conj
-from estimators.recording import ImuData, PoseData, Recording
-from pipeline.formats import ros2_cdr
-from pipeline.formats.mcap_write import ChannelData, recording_channels, write_mcap, write_recording
+from stridelab.estimators.quaternion import quat_from_axis_angle, quat_rotate, quat_conj
+from stridelab.estimators.recording import ImuData, PoseData, Recording
+from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats.mcap_write import ChannelData, recording_channels, write_mcap, write_recording
 
 T0_NS = 1_772_438_400_000_000_000   # 2026-03-02 08:00:00 UTC
 

@@ -31,7 +31,7 @@ for name in ("filterwarnings", "simplefilter"):
 before = dict(os.environ)
 import stridelab
 light = [m for m in ("duckdb", "pandas", "streamlit", "numba") if m in sys.modules]
-import estimators, estimators.orientation, estimators.gait, estimators.activity, estimators.trajectory
+import stridelab.estimators, stridelab.estimators.orientation, stridelab.estimators.gait, stridelab.estimators.activity, stridelab.estimators.trajectory
 print(sorted(set(os.environ) ^ set(before)), [c for c in calls if c.startswith(ours) and "site-packages" not in c], light)
 """
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}

@@ -2,7 +2,7 @@
 
 estimators <- warehouse <- pipeline <- reports / validation <- stridelab (the command line that wires them);
 dashboard reads the warehouse (and the reports, and the scorers ``estimators.<family>.evaluation``) only;
-the simulator (``validation.simulator``) imports nothing from ``estimators`` (its ground truth is its own code).
+the simulator (``stridelab.validation.simulator``) imports nothing from ``estimators`` (its ground truth is its own code).
 Every ``import`` statement counts, including the lazy ones inside functions.
 
 The folders are the layers; installed, each is imported as ``stridelab.<layer>`` (setup.py). The rules below name
@@ -49,11 +49,11 @@ ALLOWED: dict[str, set[str]] = {
     "reports": {"reports", "warehouse", "estimators"},
     "dashboard": {"dashboard", "warehouse", "reports", "estimators.*.evaluation"},
     "validation": {"validation", "pipeline", "warehouse", "estimators", "studies", "reports", "dashboard"},
-    "validation.simulator": {"validation.simulator", "studies"},
+    "stridelab.validation.simulator": {"stridelab.validation.simulator", "studies"},
     "stridelab": set(PACKAGES),
 }
 #: entry points that may import upward: ``python -m stridelab.pipeline`` is kept as an alias of ``python -m stridelab``
-EXCEPTIONS = {("pipeline.__main__", "stridelab.cli")}
+EXCEPTIONS = {("stridelab.pipeline.__main__", "stridelab.cli")}
 
 
 def _rule(module: str) -> set[str]:
@@ -140,14 +140,14 @@ def test_the_simulator_imports_nothing_from_estimators():
 
 
 @pytest.mark.parametrize("package, source, expect", [
-    ("estimators/orientation", "from pipeline.config import x\n", "estimators.orientation.bad imports pipeline.config"),
-    ("pipeline", "def f():\n    import dashboard.figures\n", "pipeline.bad imports dashboard.figures"),
-    ("pipeline", "from validation.bench import gait\n", "pipeline.bad imports validation.bench"),
-    ("dashboard", "from pipeline.config import default_warehouse\n", "dashboard.bad imports pipeline.config"),
-    ("dashboard", "from estimators.orientation import dcf\n", "dashboard.bad imports estimators.orientation"),
-    ("validation/simulator", "from estimators.quaternion import quat_mul\n",
-     "validation.simulator.bad imports estimators.quaternion"),
-    ("warehouse", "from reports.participant import build_report\n", "warehouse.bad imports reports.participant"),
+    ("estimators/orientation", "from stridelab.pipeline.config import x\n", "stridelab.estimators.orientation.bad imports stridelab.pipeline.config"),
+    ("pipeline", "def f():\n    import stridelab.dashboard.figures\n", "pipeline.bad imports stridelab.dashboard.figures"),
+    ("pipeline", "from stridelab.validation.bench import gait\n", "pipeline.bad imports stridelab.validation.bench"),
+    ("dashboard", "from stridelab.pipeline.config import default_warehouse\n", "dashboard.bad imports stridelab.pipeline.config"),
+    ("dashboard", "from stridelab.estimators.orientation import dcf\n", "dashboard.bad imports stridelab.estimators.orientation"),
+    ("validation/simulator", "from stridelab.estimators.quaternion import quat_mul\n",
+     "stridelab.validation.simulator.bad imports stridelab.estimators.quaternion"),
+    ("warehouse", "from stridelab.reports.participant import build_report\n", "warehouse.bad imports stridelab.reports.participant"),
 ])
 def test_the_checker_catches_a_wrong_direction_import(tmp_path, package, source, expect):
     """The scan itself: a wrong-direction import planted in a copy of the layout is reported."""
@@ -176,10 +176,10 @@ def test_the_checker_reports_a_bare_layer_import(tmp_path):
 def test_allowed_imports_are_not_reported(tmp_path):
     for top in PACKAGES:
         (tmp_path / top).mkdir()
-    (tmp_path / "dashboard" / "ok.py").write_text("from warehouse import queries\nfrom estimators.gait.evaluation "
-                                                  "import match_events\nfrom reports.normative import normative_band\n")
-    (tmp_path / "validation" / "ok.py").write_text("from pipeline.console import emit_json\n")
+    (tmp_path / "dashboard" / "ok.py").write_text("from stridelab.warehouse import queries\nfrom stridelab.estimators.gait.evaluation "
+                                                  "import match_events\nfrom stridelab.reports.normative import normative_band\n")
+    (tmp_path / "validation" / "ok.py").write_text("from stridelab.pipeline.console import emit_json\n")
     (tmp_path / "validation" / "simulator").mkdir()
-    (tmp_path / "validation" / "simulator" / "ok.py").write_text("from studies.manifest import StudyManifest\n"
+    (tmp_path / "validation" / "simulator" / "ok.py").write_text("from stridelab.studies.manifest import StudyManifest\n"
                                                                   "from . import _lab\n")
     assert violations(tmp_path) == []

@@ -11,12 +11,12 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
 
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 
 
 def _load(manifest, hours, visits=None):
     from dataclasses import replace
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     m = load_manifest(manifest or DEFAULT_MANIFEST)
     m = replace(m, visits=int(visits)) if visits is not None else m
     return m.with_free_living_hours(hours) if hours is not None else m
@@ -25,7 +25,7 @@ def _load(manifest, hours, visits=None):
 def _participant_files(manifest, participant, index: int, seed: int, directory: Path) -> list[Path]:
     """Simulate and write one participant's recordings: per visit of the programme (``[study] visits``) the lab
     trials, then the free-living day after it."""
-    from validation.simulator import simulate_chest_day, simulate_lab_session
+    from stridelab.validation.simulator import simulate_chest_day, simulate_lab_session
     out = []
     for visit in range(1, manifest.visits + 1):
         for rec, _truth in simulate_lab_session(manifest, participant, index, seed=seed, session=visit):
@@ -37,7 +37,7 @@ def _participant_files(manifest, participant, index: int, seed: int, directory: 
 
 def _worker(manifest, hours, seed: int, participants, index: int, directory: Path, visits=None) -> list[Path]:
     """In a worker process: the manifest is reloaded (it is not picklable), participant ``index`` simulated."""
-    from validation.simulator import study_participants
+    from stridelab.validation.simulator import study_participants
     m = _load(manifest, hours, visits)
     return _participant_files(m, study_participants(m, participants, seed)[index], index, seed, directory)
 
@@ -50,7 +50,7 @@ def simulate_to_dir(directory: Path, *, manifest=None, seed: int | None = None, 
     ``visits`` overrides the manifest's number of lab visits per participant (``[study] visits``).
     ``nice``: the workers' niceness increment (``stridelab demo`` lets its concurrent kernel warm-up go first:
     the pipeline waits for both, and the warm-up is the one process that cannot be split)."""
-    from validation.simulator import study_participants
+    from stridelab.validation.simulator import study_participants
     m = _load(manifest, hours, visits)
     seed = m.seed if seed is None else int(seed)
     people = study_participants(m, participants, seed)

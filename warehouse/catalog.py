@@ -3,7 +3,7 @@
 Only ``pipeline`` writes (through :class:`Warehouse`, under :class:`warehouse.lock.RunLock`).
 After every committed step the writer publishes an immutable copy of the catalog file under
 ``snapshots/``; readers (dashboard, reports, a notebook) open the newest copy read-only and never
-block, or get blocked by, a run. Bulk series live in Parquet (:mod:`warehouse.store`).
+block, or get blocked by, a run. Bulk series live in Parquet (:mod:`stridelab.warehouse.store`).
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from typing import Iterator
 import duckdb
 import pyarrow as pa
 
-from warehouse.store import TMP_PREFIX
+from stridelab.warehouse.store import TMP_PREFIX
 
 CATALOG = "catalog.duckdb"
 SNAPSHOT_DIR = "snapshots"
@@ -30,7 +30,7 @@ KEEP_SNAPSHOTS = 3
 def migrations() -> list[tuple[int, str, str]]:
     """All numbered migrations shipped with the package: (version, name, sql), ascending."""
     out = []
-    for f in resources.files("warehouse.migrations").iterdir():
+    for f in resources.files("stridelab.warehouse.migrations").iterdir():
         m = re.match(r"^(\d{3})_(.+)\.sql$", f.name)
         if m:
             out.append((int(m.group(1)), m.group(2), f.read_text()))

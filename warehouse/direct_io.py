@@ -2,7 +2,7 @@
 
 Reads, when the file is not cached already.
 
-Why: a committed series file of :data:`warehouse.store.UNCACHE_BYTES` or more is dropped from the page cache
+Why: a committed series file of :data:`stridelab.warehouse.store.UNCACHE_BYTES` or more is dropped from the page cache
 once it is on the disk, and is read back once, by one stage (the ``activity`` stage reads the accelerometer
 columns of a 24 h chest day: ~210 MB). A buffered read of it puts every byte into new page-cache pages first,
 which on the reference machine (a VM that hands free memory back to its host) cost ~0.9 CPU-s per chest day
@@ -199,7 +199,7 @@ class DirectWriteFile(io.RawIOBase):
     page-cache pages before the disk sees it, and on the reference machine (a VM whose free memory goes back
     to its host) each new page costs kernel time: ``dd`` of 416 MB took 0.58-1.19 CPU-s of system time
     buffered and 0.06-0.09 s with ``O_DIRECT``, measured here. The file is dropped from the page cache after its
-    ``fsync`` anyway (:meth:`warehouse.store.SeriesWriter.commit`) and read back once, with ``O_DIRECT``.
+    ``fsync`` anyway (:meth:`stridelab.warehouse.store.SeriesWriter.commit`) and read back once, with ``O_DIRECT``.
 
     How: writes collect in an aligned buffer of :data:`WRITE_BLOCK` bytes, allocated once the file reaches that
     size (a small file is kept as the pieces written and written with one buffered ``write`` at :meth:`close`, as

@@ -1,6 +1,6 @@
 """Where the warehouse lives by default: ``$STRIDELAB_HOME/warehouse`` (``STRIDELAB_HOME`` defaults to
 ``./stridelab-home``). One definition for every layer: the pipeline writes there, the dashboard and the reports read
-there (``pipeline.config`` re-exports these for the other folders under the home)."""
+there (``stridelab.pipeline.config`` re-exports these for the other folders under the home)."""
 from __future__ import annotations
 
 import os

@@ -27,7 +27,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from warehouse.store import read_table, SeriesDamaged
+from stridelab.warehouse.store import read_table, SeriesDamaged
 
 
 RUN_HINT = "run `stridelab run --inbox INBOX --warehouse WAREHOUSE` (or `stridelab demo --no-serve`)"
@@ -627,11 +627,11 @@ def clinical_series(visits: pd.DataFrame, measure: str, quantity: str = "value")
 def programme_change(visits: pd.DataFrame, measure: str, quantity: str = "value",
                      against: str = "first") -> pd.DataFrame:
     """Per participant: the latest visit against the first (``against="first"``) or the previous one
-    (``"previous"``), change, its MDC95 from between-session error (:func:`estimators.gait.clinical.change_mdc95`:
+    (``"previous"``), change, its MDC95 from between-session error (:func:`stridelab.estimators.gait.clinical.change_mdc95`:
     the study's repeated baseline sessions, session field ``repeat_baseline = 1``, when it has them; else the
     published test-retest value at the baseline; else NaN, and "beyond noise" stays unknown), where that MDC comes
     from (``mdc_source``), and whether the change exceeds it. Never the within-session SEM."""
-    from estimators.gait.clinical import change_mdc95
+    from stridelab.estimators.gait.clinical import change_mdc95
     s = clinical_series(visits, measure, quantity)
     rep = visits[visits["measure"] == measure] if "repeat_baseline" in visits else visits.iloc[:0]
     rep = rep[rep["repeat_baseline"].fillna(False).astype(bool)] if len(rep) else rep

@@ -7,9 +7,9 @@ from pathlib import Path
 import duckdb
 import numpy as np
 
-from warehouse.catalog import first, LATEST, SNAPSHOT_DIR
-from warehouse.direct_io import open_for_read
-from warehouse.store import UNCACHE_BYTES, damage_check, open_series, read_table
+from stridelab.warehouse.catalog import first, LATEST, SNAPSHOT_DIR
+from stridelab.warehouse.direct_io import open_for_read
+from stridelab.warehouse.store import UNCACHE_BYTES, damage_check, open_series, read_table
 
 
 def _pointed(root: Path) -> Path | None:

@@ -17,7 +17,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from warehouse.direct_io import DirectWriteFile
+from stridelab.warehouse.direct_io import DirectWriteFile
 
 _SAFE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,127}")     # whole string (fullmatch: '$' would pass 'P001\n')
 TMP_PREFIX = ".tmp-"
@@ -54,7 +54,7 @@ class SeriesWriter:
 
     Writes run on a background thread (Arrow releases the GIL while encoding and compressing), so
     the caller decodes the next block meanwhile; at most two blocks are in flight. The encoded bytes go to the
-    disk through :class:`warehouse.direct_io.DirectWriteFile` (past the page cache once the file outgrows a
+    disk through :class:`stridelab.warehouse.direct_io.DirectWriteFile` (past the page cache once the file outgrows a
     block of 4 MiB).
     """
 

@@ -2,9 +2,9 @@
 length, joint range of motion), event timing error histograms, posture confusion matrix."""
 import streamlit as st
 
-from dashboard import figures as F
-from warehouse import queries as Q
-from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
+from stridelab.dashboard import figures as F
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Accuracy against references")
 snap = snapshot()

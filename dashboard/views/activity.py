@@ -3,9 +3,9 @@ transitions) and trends across weeks."""
 import pandas as pd
 import streamlit as st
 
-from dashboard import figures as F
-from warehouse import queries as Q
-from dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
+from stridelab.dashboard import figures as F
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import current_study, empty_warehouse_note, footer, hint, snapshot
 
 st.title("Daily activity")
 snap = snapshot()

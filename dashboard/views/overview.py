@@ -1,8 +1,8 @@
 """Overview: studies, participants, sessions, last nightly run, quarantined files, QC flags."""
 import streamlit as st
 
-from warehouse import queries as Q
-from dashboard.common import current_study, empty_warehouse_note, footer, snapshot
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import current_study, empty_warehouse_note, footer, snapshot
 
 st.title("StrideLab overview")
 snap = snapshot()

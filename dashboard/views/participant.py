@@ -2,9 +2,9 @@
 normative band, foot trajectories, calibration QC, data quality."""
 import streamlit as st
 
-from dashboard import figures as F
-from warehouse import queries as Q
-from dashboard.common import empty_warehouse_note, footer, hint, participant_picker, snapshot, warehouse_root
+from stridelab.dashboard import figures as F
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import empty_warehouse_note, footer, hint, participant_picker, snapshot, warehouse_root
 
 st.title("Participant")
 snap = snapshot()

@@ -2,10 +2,10 @@
 the measurement's own uncertainty (MDC95 from the stride-to-stride variation, docs/clinical_measures.md)."""
 import streamlit as st
 
-from dashboard import figures as F
-from warehouse import queries as Q
-from dashboard.common import current_study, empty_warehouse_note, footer, snapshot
-from reports.normative import CLINICAL_BANDS
+from stridelab.dashboard import figures as F
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import current_study, empty_warehouse_note, footer, snapshot
+from stridelab.reports.normative import CLINICAL_BANDS
 
 st.title("Programme: change between visits")
 snap = snapshot()

@@ -1,9 +1,9 @@
 """Runs: the ledger of nightly runs and stage runs with durations and errors."""
 import streamlit as st
 
-from dashboard import figures as F
-from warehouse import queries as Q
-from dashboard.common import footer, snapshot
+from stridelab.dashboard import figures as F
+from stridelab.warehouse import queries as Q
+from stridelab.dashboard.common import footer, snapshot
 
 st.title("Pipeline runs")
 snap = snapshot()

@@ -5,8 +5,8 @@ import pandas as pd
 import plotly.graph_objects as go
 import streamlit as st
 
-from dashboard.common import current_study, empty_warehouse_note, footer, snapshot
-from warehouse import queries as Q
+from stridelab.dashboard.common import current_study, empty_warehouse_note, footer, snapshot
+from stridelab.warehouse import queries as Q
 
 st.title("Walking at home")
 snap = snapshot()

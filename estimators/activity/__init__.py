@@ -5,12 +5,12 @@ Arrays in (acc m/s², ``sampling_rate_hz`` keyword), frozen dataclasses out. See
 """
 from __future__ import annotations
 
-from estimators.activity._daily import daily_summaries, local_midnights_ns
-from estimators.activity._signals import (autocalibrate, chest_height_change_m, cumulative_svm_sign, ga_dc_gain,
+from stridelab.estimators.activity._daily import daily_summaries, local_midnights_ns
+from stridelab.estimators.activity._signals import (autocalibrate, chest_height_change_m, cumulative_svm_sign, ga_dc_gain,
                                           ga_filter_sos, gravitational_component, inclination_deg, svm_g,
                                           vertical_acc_g)
-from estimators.activity._timeline import classify_day
-from estimators.activity._types import (CLASSES, PRESETS, TRANSITIONS, WALKING_CLASSES, AccCalibration,
+from stridelab.estimators.activity._timeline import classify_day
+from stridelab.estimators.activity._types import (CLASSES, PRESETS, TRANSITIONS, WALKING_CLASSES, AccCalibration,
                                         ActivityParams, ActivityResult, Bouts, DailySummary, Transitions)
 
 __all__ = ["classify_day", "daily_summaries", "local_midnights_ns", "ActivityParams", "ActivityResult",

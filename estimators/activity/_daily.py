@@ -6,7 +6,7 @@ from zoneinfo import ZoneInfo
 
 import numpy as np
 
-from estimators.activity._types import (CLASSES, LEVEL, NON_WEAR, TRANSITIONS, WALKING_CLASSES, ActivityResult,
+from stridelab.estimators.activity._types import (CLASSES, LEVEL, NON_WEAR, TRANSITIONS, WALKING_CLASSES, ActivityResult,
                                         DailySummary)
 
 

@@ -7,8 +7,8 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from estimators.activity._signals import (chest_height_change_m, cumulative_svm_sign, runs, vertical_acc_g)
-from estimators.activity._types import (DOWN, LEVEL, LYSI, SILY, SIST, STSI, UP, ActivityParams, Bouts,
+from stridelab.estimators.activity._signals import (chest_height_change_m, cumulative_svm_sign, runs, vertical_acc_g)
+from stridelab.estimators.activity._types import (DOWN, LEVEL, LYSI, SILY, SIST, STSI, UP, ActivityParams, Bouts,
                                         Transitions)
 
 
@@ -183,7 +183,7 @@ def step_signal(acc_g: np.ndarray, ga: np.ndarray, fs: float, p: ActivityParams,
     if p.svm_walk_source == "ga":
         return np.sqrt(np.einsum("ij,ij->i", ga, ga)) - 1.0
     if p.svm_walk_source == "vertical":
-        from estimators.activity._kernels import vertical_projection
+        from stridelab.estimators.activity._kernels import vertical_projection
         x = vertical_projection(np.ascontiguousarray(acc_g), np.ascontiguousarray(ga))
         if x.size == 0:
             return x
@@ -203,7 +203,7 @@ def step_threshold(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray 
     √2 · RMS(step signal) over ``step_rms_window_s`` — adapts to a slow, weak or asymmetric gait."""
     if p.step_relative <= 0 or svm.size == 0:
         return p.step_threshold_g
-    from estimators.activity._kernels import step_threshold_kernel
+    from stridelab.estimators.activity._kernels import step_threshold_kernel
     w = max(3, int(round(p.step_rms_window_s * fs)))
     # np.maximum(thr, k·√max(uniform_filter1d(svm², w, mode="nearest"), 0)) with k = step_relative·√2, in one pass
     return step_threshold_kernel(np.ascontiguousarray(svm, dtype=np.float64), w, float(p.step_threshold_g),
@@ -215,7 +215,7 @@ def detect_steps(svm: np.ndarray, fs: float, p: ActivityParams) -> np.ndarray:
     ``step_min_interval_s`` apart (sample indices)."""
     if svm.size < 3:
         return np.zeros(0, dtype=np.int64)
-    from estimators.activity._kernels import prominent_peaks
+    from stridelab.estimators.activity._kernels import prominent_peaks
     h = step_threshold(svm, fs, p)
     pk, _ = signal.find_peaks(svm, height=h, distance=max(1, int(p.step_min_interval_s * fs)))
     # find_peaks(prominence=...) applies the prominence last, after height and distance: the same selection

@@ -146,7 +146,7 @@ def vertical_projection(acc, ga):
 @njit(cache=True)
 def acf_at_lag(v, lag, eps):
     """Per row of ``v`` (W, n): Σ (v_i − v̄)(v_{i+k} − v̄) / max(Σ (v_i − v̄)², eps) at the row's lag k (0 unless
-    0 < k < n). ``estimators.activity.windows`` step and stride regularity."""
+    0 < k < n). ``stridelab.estimators.activity.windows`` step and stride regularity."""
     w, n = v.shape
     out = np.zeros(w)
     for r in range(w):

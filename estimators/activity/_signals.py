@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from estimators.activity._types import AccCalibration
+from stridelab.estimators.activity._types import AccCalibration
 
 
 def ga_filter_sos(sampling_rate_hz: float, cutoff_hz: float = 0.25, ripple_db: float = 0.01,

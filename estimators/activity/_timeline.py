@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.activity import _kernels as K
-from estimators.activity._detect import (classify_bouts, detect_steps, detect_transitions, group_bouts,
+from stridelab.estimators.activity import _kernels as K
+from stridelab.estimators.activity._detect import (classify_bouts, detect_steps, detect_transitions, group_bouts,
                                          lying_state, step_signal)
-from estimators.activity._signals import (autocalibrate, calibration_from_windows, ga_dc_gain, gravitational_component,
+from stridelab.estimators.activity._signals import (autocalibrate, calibration_from_windows, ga_dc_gain, gravitational_component,
                                           nonwear_seconds, rotation_to_y, runs)
-from estimators.activity._types import (LYING, LYSI, NON_WEAR, SILY, SIST, SITTING, STANDING, STANDARD_GRAVITY,
+from stridelab.estimators.activity._types import (LYING, LYSI, NON_WEAR, SILY, SIST, SITTING, STANDING, STANDARD_GRAVITY,
                                         STSI, ActivityParams, ActivityResult, Transitions)
 
 _EVENT_STATE = {SILY: LYING, LYSI: SITTING, STSI: SITTING, SIST: STANDING}
@@ -35,7 +35,7 @@ def _check_input(acc: np.ndarray, fs: float) -> np.ndarray:
             raise ValueError(f"acc median norm is {g:.2f}: looks like g, expected m/s² (multiply by 9.80665)")
         if g > 50.0:
             raise ValueError(f"acc median norm is {g:.1f}: not m/s² (raw ADC counts? convert, e.g. "
-                             "pipeline.formats.uci_chest)")
+                             "stridelab.pipeline.formats.uci_chest)")
     return a
 
 
@@ -402,7 +402,7 @@ def _timeline(n_sec, tr: Transitions, bouts, nonwear, lying_sec, theta_sec, p: A
 
 
 def _empty_result(cal, fs, t0_ns, timezone, p, warn):
-    from estimators.activity._types import Bouts
+    from stridelab.estimators.activity._types import Bouts
     z = np.zeros(0)
     return ActivityResult(second_t_ns=np.zeros(0, np.int64), second_class=np.zeros(0, np.int8),
                           step_times_s=z, step_modality=np.zeros(0, np.int8),

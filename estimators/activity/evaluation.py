@@ -1,7 +1,7 @@
 """Activity accuracy against labelled intervals (STYLE P11): one scorer for the UCI bench and the activity stage.
 
 Classes are scored as four: ``SCORED_CLASSES`` (lying/sitting -> sitting, standing/non-wear -> standing, level
-walking -> walking, stairs up/down -> stairs; ``CLASS_MAP`` maps :data:`estimators.activity.CLASSES`). Windows of
+walking -> walking, stairs up/down -> stairs; ``CLASS_MAP`` maps :data:`stridelab.estimators.activity.CLASSES`). Windows of
 ``window_s`` (non-overlapping, from the first sample) are scored when they lie wholly inside one reference label
 run; the prediction of a window is the majority of its seconds' classes.
 """
@@ -13,7 +13,7 @@ from numba import njit
 __all__ = ["SCORED_CLASSES", "CLASS_MAP", "WINDOW_S", "window_confusion", "scores"]
 
 SCORED_CLASSES = ("sitting", "standing", "walking", "stairs")
-#: estimators.activity.CLASSES -> SCORED_CLASSES index
+#: stridelab.estimators.activity.CLASSES -> SCORED_CLASSES index
 CLASS_MAP = np.array([0, 0, 1, 2, 3, 3, 1])
 WINDOW_S = 10.0
 
@@ -27,7 +27,7 @@ def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, co
                      window_s: float = WINDOW_S, first_sample: int = 0) -> np.ndarray:
     """(4, 4) confusion (rows reference, columns predicted) over ``window_s`` windows inside one label.
 
-    second_class: (S,) per-second class index (:data:`estimators.activity.CLASSES`) from sample 0;
+    second_class: (S,) per-second class index (:data:`stridelab.estimators.activity.CLASSES`) from sample 0;
     labels: (N,) reference label code per sample; code_to_class: code -> SCORED_CLASSES index (codes not in it
     are not scored). ``labels`` may be a slice of the recording starting at sample ``first_sample`` (a
     multiple of :func:`window_samples`): confusions of consecutive slices add up to that of the whole, so a

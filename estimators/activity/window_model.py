@@ -4,7 +4,7 @@ The rule method (``classify_day``, thesis ch. 7 + extensions) decides sitting vs
 transitions and a lean rule, and stairs from cadence and lean. On the UCI chest set (participants 1-8,
 leave-one-participant-out) these rules score 0.58 balanced accuracy, mostly because sitting at a desk with an
 upright trunk and stand-ups without a clean transition stay "standing". This module adds a multinomial
-logistic regression on per-window features (``estimators.activity.windows``) and merges its 4-class window
+logistic regression on per-window features (``stridelab.estimators.activity.windows``) and merges its 4-class window
 posterior (sitting, standing, walking, stairs) into the per-second timeline with physical gates:
 
 - lying and non-wear seconds stay as the rules decide (the model has never seen them: UCI has no lying);
@@ -21,7 +21,7 @@ bands) and after the auto-calibration that ``window_features`` does (everything 
 angles to the participant's own walking posture, band RMS of the vertical dynamic acc, cadence, regularity).
 
 Pure functions: the fitted model is passed in as a ``WindowModel`` (coefficients); loading the artefact and
-fitting live in ``pipeline`` (``pipeline.activity_model``).
+fitting live in ``pipeline`` (``stridelab.pipeline.activity_model``).
 """
 from __future__ import annotations
 
@@ -30,9 +30,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from estimators.activity._resample import resample_poly_axis0
-from estimators.activity._types import DOWN, LEVEL, LYING, NON_WEAR, SITTING, STANDING, UP, ActivityResult
-from estimators.activity.windows import FEATURE_NAMES, add_context, window_features
+from stridelab.estimators.activity._resample import resample_poly_axis0
+from stridelab.estimators.activity._types import DOWN, LEVEL, LYING, NON_WEAR, SITTING, STANDING, UP, ActivityResult
+from stridelab.estimators.activity.windows import FEATURE_NAMES, add_context, window_features
 
 __all__ = ["RATE_HZ", "WINDOW_S", "MODEL_CLASSES", "WindowModel", "model_features", "resample_to_model_rate",
            "merge_window_posterior", "refine_with_window_model", "FEATURE_SETS"]

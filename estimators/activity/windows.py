@@ -9,7 +9,7 @@ chest set); the pipeline's activity stage does not use it (see docs/activity.md)
 
 Units: input m/s²; internally g (1 g = 9.80665 m/s²); angles in degrees, frequencies in Hz, amplitudes as
 log10 of g (so ``-2`` = 10 mg). Windows start at sample 0 and have ``round(window_s * fs)`` samples; a trailing
-partial window is dropped (same windows as ``validation.bench.activity.window_confusion``).
+partial window is dropped (same windows as ``stridelab.validation.bench.activity.window_confusion``).
 """
 from __future__ import annotations
 
@@ -19,9 +19,9 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import signal
 
-from estimators.activity._kernels import acf_at_lag
-from estimators.activity import _window_kernels as WK
-from estimators.activity._signals import CALIBRATION_WINDOW_S, autocalibrate, calibration_from_windows
+from stridelab.estimators.activity._kernels import acf_at_lag
+from stridelab.estimators.activity import _window_kernels as WK
+from stridelab.estimators.activity._signals import CALIBRATION_WINDOW_S, autocalibrate, calibration_from_windows
 
 __all__ = ["WindowFeatures", "FEATURE_NAMES", "window_features", "gait_windows", "walking_reference",
            "standing_reference", "posture_clusters", "lean_deg", "add_context", "calibrated_g", "GAIT_BAND_HZ",
@@ -306,7 +306,7 @@ def moving_fraction(acc_m_s2: np.ndarray, sampling_rate_hz: float, window_s: flo
     acc RMS (vector norm, g, after ``calibrated_g``) is at least ``rel`` × ``gait_level_g``, the participant's
     typical walking intensity (``10 ** median(log_dyn)`` over its gait-like windows). A person walking or
     climbing stairs moves in nearly every second at about that level; standing or sitting still stays far
-    below it (a few mg against ≈ 0.2 g). Used to check labels against the signal (``validation.bench.activity``).
+    below it (a few mg against ≈ 0.2 g). Used to check labels against the signal (``stridelab.validation.bench.activity``).
     """
     fs = float(sampling_rate_hz)
     w = int(round(window_s * fs))

@@ -5,7 +5,7 @@ straight steps give the medio-lateral axis by PCA of the angular velocity (Eq. 1
 the spec 7.A7 proposal. Windows are detected automatically or given (study manifest), and every IMU
 gets quality indicators and a pass / warn / fail status.
 
-    from estimators.calibration import calibrate_session
+    from stridelab.estimators.calibration import calibrate_session
     cal = calibrate_session(acc, gyr, sampling_rate_hz=100.0)     # dicts placement -> (N, 3)
     q_thigh_af = cal.segment_quat("thigh_left", q_thigh_sensor)
 

@@ -5,7 +5,7 @@ the pelvis uses the spec 7.A7 proposal. QC statuses: ``pass``; ``warn`` (usable,
 recommendation: short standing, movement axis tilted, noisy standing); ``fail`` (no calibration or
 not trustworthy: trial missing or too short, no standing, fewer repetitions / steps than needed,
 planarity below the minimum, sensor on the wrong segment or side). Joint angles computed with a
-failed calibration carry that status (``estimators.joints``).
+failed calibration carry that status (``stridelab.estimators.joints``).
 """
 from __future__ import annotations
 
@@ -15,13 +15,13 @@ from typing import Mapping
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from estimators.calibration._s2s import (CalibrationError, calibrate_imu, pelvis_from_sway, pelvis_from_thighs,
+from stridelab.estimators.calibration._s2s import (CalibrationError, calibrate_imu, pelvis_from_sway, pelvis_from_thighs,
                                          vertical_calibration)
-from estimators.calibration._types import (LEG_PLACEMENTS, LEG_SEGMENTS, SIDES, STATUS_ORDER, CalibrationParams,
+from stridelab.estimators.calibration._types import (LEG_PLACEMENTS, LEG_SEGMENTS, SIDES, STATUS_ORDER, CalibrationParams,
                                            CalibrationWindows, ImuCalibration, SessionCalibration)
-from estimators.calibration._windows import (count_cycles, count_repetitions, detect_calibration_windows,
+from stridelab.estimators.calibration._windows import (count_cycles, count_repetitions, detect_calibration_windows,
                                              smoothed_norm)
-from estimators.quaternion import quat_to_matrix
+from stridelab.estimators.quaternion import quat_to_matrix
 
 DEFAULT_PLACEMENTS = ("pelvis",) + LEG_PLACEMENTS
 _NAN33 = np.full((3, 3), np.nan)

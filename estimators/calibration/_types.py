@@ -6,7 +6,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from estimators.quaternion import quat_from_matrix
+from stridelab.estimators.quaternion import quat_from_matrix
 
 LEG_SEGMENTS = ("thigh", "shank", "foot")
 SIDES = ("left", "right")
@@ -174,7 +174,7 @@ class SessionCalibration:
 
     def segment_quat(self, placement: str, quat_sensor: np.ndarray) -> np.ndarray:
         """(N, 4) anatomical-frame orientation AF → ENU: ``q_sensor ⊗ q_sensor_af`` (Eq. 17)."""
-        from estimators.quaternion import quat_mul
+        from stridelab.estimators.quaternion import quat_mul
         return quat_mul(np.asarray(quat_sensor, float), self.imus[placement].quat_sensor_af)
 
     def as_dict(self) -> dict:

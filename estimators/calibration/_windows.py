@@ -15,7 +15,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import find_peaks
 
-from estimators.calibration._types import LEG_SEGMENTS, SIDES, CalibrationParams, CalibrationWindows
+from stridelab.estimators.calibration._types import LEG_SEGMENTS, SIDES, CalibrationParams, CalibrationWindows
 
 
 def smoothed_norm(x: np.ndarray, n: int) -> np.ndarray:

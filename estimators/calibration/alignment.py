@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.quaternion import quat_conj, quat_mul, quat_to_matrix, quat_to_rotvec
+from stridelab.estimators.quaternion import quat_conj, quat_mul, quat_to_matrix, quat_to_rotvec
 
 
 def body_rate_from_quat(quat: np.ndarray, *, sampling_rate_hz: float) -> np.ndarray:

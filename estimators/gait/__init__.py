@@ -5,9 +5,9 @@ and strides as sample indices. See docs/gait.md for conventions and measured acc
 """
 from __future__ import annotations
 
-from estimators.gait._events import (GaitEventDetector, GaitEvents, IcTcParams, detect_ic_tc, pitch_signal,
+from stridelab.estimators.gait._events import (GaitEventDetector, GaitEvents, IcTcParams, detect_ic_tc, pitch_signal,
                                      refine_heel_strike, refine_toe_off)
-from estimators.gait._kinematics import (PARAM_COLUMNS, STRIDE_COLUMNS, FootKinematics, FootParams, SessionGait,
+from stridelab.estimators.gait._kinematics import (PARAM_COLUMNS, STRIDE_COLUMNS, FootKinematics, FootParams, SessionGait,
                                          StrideTable, foot_kinematics, foot_params_from_dict, gait_session,
                                          gait_session_pooled, refine_events)
 

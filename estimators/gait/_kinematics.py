@@ -1,6 +1,6 @@
 """Foot kinematics of one foot (trajectory, events, strides) and the session parameters of both feet.
 
-Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (estimators.trajectory) → stance runs and their
+Per foot (``foot_kinematics``): ESKF + ZUPT + RTS trajectory (stridelab.estimators.trajectory) → stance runs and their
 mid-stance samples (minimum |ω| in each run, gaitmap's ``min_vel``) → the foot's anterior axis in sensor
 coordinates, found from the walk itself (mounting-agnostic, §K1) → pitch signal s = −sin(pitch) (thesis Eq. 52)
 → IC/TC by Algorithm 1 (with the flat-lift rule R4 on the zero-velocity samples) → events completed on the swings
@@ -35,10 +35,10 @@ import numpy as np
 
 from dataclasses import replace
 
-from estimators.gait._events import (GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_heel_strike,
+from stridelab.estimators.gait._events import (GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_heel_strike,
                                      refine_toe_off)
-from estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
-from estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
+from stridelab.estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
+from stridelab.estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "refine_events", "SessionGait",
            "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
@@ -139,7 +139,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _rot_T(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.quaternion import quat_to_matrix
     return quat_to_matrix(q).T @ v
 
 
@@ -389,7 +389,7 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         stance_t = (tc - pre_ic) / fs if pre_ic >= 0 else np.nan
         swing_t = (ic - tc) / fs
         clearance = float(np.nanmax(traj.pos[tc:ic + 1, 2]) - traj.pos[a, 2])
-        from estimators.quaternion import quat_rotate
+        from stridelab.estimators.quaternion import quat_rotate
         ha, hb = quat_rotate(traj.quat[a], u), quat_rotate(traj.quat[b], u)
         turn = np.degrees(np.angle(np.exp(1j * (np.arctan2(hb[1], hb[0]) - np.arctan2(ha[1], ha[0])))))
         idx_rows.append((a, b, tc, ic, pre_ic))
@@ -500,7 +500,7 @@ def gait_session_pooled(trials) -> SessionGait:
 def foot_params_from_dict(d: dict) -> FootParams:
     """:class:`FootParams` from its ``dataclasses.asdict`` form (nested dicts; e.g. a stage's JSON params).
     Unknown keys raise ``TypeError`` (a misspelt manifest key must not be silently ignored)."""
-    from estimators.trajectory import ZuptParams
+    from stridelab.estimators.trajectory import ZuptParams
     d = dict(d)
     traj = dict(d.pop("trajectory", {}))
     zupt = ZuptParams(**traj.pop("zupt", {}))

@@ -34,7 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from estimators.gait._events import GaitEvents
+from stridelab.estimators.gait._events import GaitEvents
 
 __all__ = ["complete_swing_events", "swing_runs", "heel_strike_fraction", "MAX_LOADING_S", "HEEL_STRIKER_FRACTION",
            "ROTATION_STOP_FRACTION"]

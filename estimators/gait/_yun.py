@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_rotate
+from stridelab.estimators.quaternion import quat_rotate
 
 __all__ = ["YunFsmParams", "YunPhases", "yun_stance_fsm", "ZvuResult", "yun_zvu", "yun_foot_trajectory"]
 
@@ -147,12 +147,12 @@ def yun_zvu(acc: np.ndarray, quat: np.ndarray, swings: np.ndarray, *, sampling_r
 
 def yun_foot_trajectory(gyr, acc, mag=None, *, sampling_rate_hz: float, fsm: YunFsmParams = YunFsmParams(),
                         cf_params=None, realtime_gain: bool = True):
-    """Yun's full pipeline (Fig. 2): FSM → adaptive-gain CF (``estimators.orientation.yun_cf``) → ZVU.
+    """Yun's full pipeline (Fig. 2): FSM → adaptive-gain CF (``stridelab.estimators.orientation.yun_cf``) → ZVU.
 
     ``realtime_gain``: the gain follows the delayed real-time phase (paper); False uses the back-dated phase.
     Returns (ZvuResult, OrientationResult, YunPhases).
     """
-    from estimators.orientation import YunCFParams, yun_cf
+    from stridelab.estimators.orientation import YunCFParams, yun_cf
     ph = yun_stance_fsm(gyr, sampling_rate_hz=sampling_rate_hz, params=fsm)
     ori = yun_cf(gyr, acc, mag, sampling_rate_hz=sampling_rate_hz, params=cf_params or YunCFParams(),
                  stance=ph.phase if realtime_gain else ph.stance)

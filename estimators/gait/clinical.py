@@ -1,7 +1,7 @@
 """Clinical gait measures of one session from both feet: steps, phases, asymmetry, variability, uncertainty.
 
 What stroke-rehabilitation clinicians read (docs/clinical_measures.md has the definitions with references and
-normative bands). Everything is computed from the events and strides of :func:`estimators.gait.foot_kinematics`
+normative bands). Everything is computed from the events and strides of :func:`stridelab.estimators.gait.foot_kinematics`
 (times in seconds, positions in metres); no I/O.
 
 Per stride of foot X (previous IC ``a`` → TC_X → IC ``b``; the other foot Y):
@@ -324,7 +324,7 @@ def common_walking_frame(start_xy: np.ndarray, end_xy: np.ndarray, turning_deg: 
     """(2, 2) rotation that turns a foot's own horizontal frame into the walking frame (+x = initial walking
     direction), or None without a straight stride.
 
-    Each foot's trajectory (:func:`estimators.trajectory.eskf_trajectory`) has its own yaw and its origin at the
+    Each foot's trajectory (:func:`stridelab.estimators.trajectory.eskf_trajectory`) has its own yaw and its origin at the
     foot's first stance. Rotating both feet so that the displacement over their first ``n_strides`` straight
     strides points along +x puts them in one frame whose origins are the two feet at the start; with the feet
     side by side in the standing that starts a lab walk (the usual instruction), the anterior offset of the two
@@ -464,7 +464,7 @@ def walking_frame_xy(t_ns: np.ndarray, xy: np.ndarray, stance: np.ndarray, start
     starting at 0, up to the stride that first turns more than ``max_turn_deg``; NaN elsewhere and in stretches
     that do not start standing (``stance`` over the first ``min_stance_s``: the side-by-side start anchor) or have
     no straight stride. Returns the positions and a note per stretch left out."""
-    from estimators.timebase import contiguous_segments
+    from stridelab.estimators.timebase import contiguous_segments
     out = np.full_like(xy, np.nan)
     notes = []
     fs = 1e9 / float(np.median(np.diff(t_ns))) if len(t_ns) > 1 else 100.0

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.quaternion import quat_conj, quat_mul, quat_normalize
+from stridelab.estimators.quaternion import quat_conj, quat_mul, quat_normalize
 
 #: joint -> (proximal segment, distal segment)
 JOINTS = {"hip": ("pelvis", "thigh"), "knee": ("thigh", "shank"), "ankle": ("shank", "foot")}
@@ -144,7 +144,7 @@ def compute_joint_angles(quats: dict, calibration, *, standing: tuple[int, int] 
     """Hip, knee and ankle angles of both legs from sensor orientations and a session calibration.
 
     quats: placement -> (N, 4) sensor → ENU orientation of the trial (one time grid).
-    calibration: :class:`estimators.calibration.SessionCalibration` (a failed IMU calibration gives
+    calibration: :class:`stridelab.estimators.calibration.SessionCalibration` (a failed IMU calibration gives
     NaN angles and ``fail``). standing: ``[start, end)`` quiet standing at the start of the trial:
     its mean angle is removed (thesis ch. 8 step 4) and stored in ``offsets_deg``.
     """

@@ -1,6 +1,6 @@
 """Joint angles of one joint for a few samples at a time, compiled: the per-frame path of a live session.
 
-Same mathematics as :func:`estimators.joints.joint_angles_deg` applied to the calibrated segment orientations
+Same mathematics as :func:`stridelab.estimators.joints.joint_angles_deg` applied to the calibrated segment orientations
 (``segment_orientations``): ``q_AF = normalise(q_S ⊗ q_S←AF)`` (thesis Eq. 17), ``R_rel = R_P^T R_D``, Z–X–Y
 Cardan angles (spec §5.3) times the clinical sign table. The NumPy version costs about 0.3 ms per call
 whatever the number of samples (array set-up); a live session calls it once per frame and joint, so this
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from estimators.joints._jcs import sign_table
+from stridelab.estimators.joints._jcs import sign_table
 
 
 @njit(cache=True)

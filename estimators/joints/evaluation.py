@@ -44,9 +44,9 @@ def angle_errors(ref_deg: np.ndarray, est_deg: np.ndarray, *, standing: tuple[in
 def reference_angles_deg(q_prox: np.ndarray, q_dist: np.ndarray, *, joint: str, side: str,
                          standing: tuple[int, int] | None = None) -> np.ndarray:
     """(N, 3) reference joint angles from optical segment orientations (the IMU pipeline's joint coordinate
-    system, :func:`estimators.joints.joint_angles_deg`), with the same standing-offset removal as the IMU angles
+    system, :func:`stridelab.estimators.joints.joint_angles_deg`), with the same standing-offset removal as the IMU angles
     (thesis ch. 8: the mean over the quiet-standing window ``standing`` [start, stop) subtracted)."""
-    from estimators.joints._jcs import joint_angles_deg
+    from stridelab.estimators.joints._jcs import joint_angles_deg
     ref = joint_angles_deg(q_prox, q_dist, joint=joint, side=side)
     if standing is not None:
         ref = ref - np.nanmean(ref[standing[0]:standing[1]], axis=0)

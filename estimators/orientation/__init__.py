@@ -7,20 +7,20 @@ default parameters; the pipeline's orientation stage picks one by name (study ma
 """
 from __future__ import annotations
 
-from estimators.orientation._dcf import (DCFFilter, DCFOfflineParams, DCFParams, dcf, dcf_offline,
+from stridelab.estimators.orientation._dcf import (DCFFilter, DCFOfflineParams, DCFParams, dcf, dcf_offline,
                                         dcf_offline_from_online)
-from estimators.orientation._fqa import fqa
-from estimators.orientation._frames import Q_ENU_NED, enu_to_ned, ned_to_enu
-from estimators.orientation._fullstate import (FullStateLKFFilter, FullStateLKFParams, FullStateResult,
+from stridelab.estimators.orientation._fqa import fqa
+from stridelab.estimators.orientation._frames import Q_ENU_NED, enu_to_ned, ned_to_enu
+from stridelab.estimators.orientation._fullstate import (FullStateLKFFilter, FullStateLKFParams, FullStateResult,
                                                RobustEKFFilter, RobustEKFParams, full_state_lkf,
                                                full_state_lkf_literal, robust_ekf)
-from estimators.orientation._madgwick_mahony import (MADGWICK_BROAD_VST2, MAHONY_BROAD_VST2, MadgwickFilter,
+from stridelab.estimators.orientation._madgwick_mahony import (MADGWICK_BROAD_VST2, MAHONY_BROAD_VST2, MadgwickFilter,
                                                      MadgwickParams, MahonyFilter, MahonyParams, madgwick,
                                                      madgwick_tuned, mahony, mahony_tuned)
-from estimators.orientation._stillness import detect_rest
-from estimators.orientation._types import OrientationResult
-from estimators.orientation._vqf_adapter import vqf_orientation
-from estimators.orientation._yun_cf import YunCFFilter, YunCFParams, yun_cf
+from stridelab.estimators.orientation._stillness import detect_rest
+from stridelab.estimators.orientation._types import OrientationResult
+from stridelab.estimators.orientation._vqf_adapter import vqf_orientation
+from stridelab.estimators.orientation._yun_cf import YunCFFilter, YunCFParams, yun_cf
 
 
 def _vqf_offline(gyr, acc, mag=None, *, sampling_rate_hz):

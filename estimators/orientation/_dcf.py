@@ -37,10 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.orientation._dcf_kernel import STATE_LEN, dcf_series, initial_state, strapdown_series
-from estimators.orientation._types import OnlineFilter, OrientationResult
-from estimators.orientation._yun_cf import _check_inputs
-from estimators.quaternion import quat_conj, quat_mul, quat_normalize, quat_rotate
+from stridelab.estimators.orientation._dcf_kernel import STATE_LEN, dcf_series, initial_state, strapdown_series
+from stridelab.estimators.orientation._types import OnlineFilter, OrientationResult
+from stridelab.estimators.orientation._yun_cf import _check_inputs
+from stridelab.estimators.quaternion import quat_conj, quat_mul, quat_normalize, quat_rotate
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from estimators.orientation._frames import ned_to_enu
-from estimators.quaternion import quat_mul_1
+from stridelab.estimators.orientation._frames import ned_to_enu
+from stridelab.estimators.quaternion import quat_mul_1
 
 
 @njit(cache=True)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.quaternion import quat_mul
+from stridelab.estimators.quaternion import quat_mul
 
 SQRT_HALF = float(np.sqrt(0.5))
 #: rotates NED-frame vectors into ENU (180° about [1, 1, 0]/√2): x_E = y_N, y_E = x_N, z_E = -z_N

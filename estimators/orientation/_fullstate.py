@@ -35,11 +35,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from estimators.orientation._fqa import fqa
-from estimators.orientation._fullstate_kernel import I_FALLBACK, NX, STATE_LEN, ekf_series, lkf_series
-from estimators.orientation._types import OnlineFilter, OrientationResult
-from estimators.orientation._yun_cf import _check_inputs
-from estimators.quaternion import quat_rotate
+from stridelab.estimators.orientation._fqa import fqa
+from stridelab.estimators.orientation._fullstate_kernel import I_FALLBACK, NX, STATE_LEN, ekf_series, lkf_series
+from stridelab.estimators.orientation._types import OnlineFilter, OrientationResult
+from stridelab.estimators.orientation._yun_cf import _check_inputs
+from stridelab.estimators.quaternion import quat_rotate
 
 __all__ = ["RobustEKFParams", "FullStateLKFParams", "FullStateResult", "RobustEKFFilter", "FullStateLKFFilter",
            "robust_ekf", "full_state_lkf", "full_state_lkf_literal"]

@@ -29,11 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.orientation._dcf_kernel import _qmul, _qrot
-from estimators.orientation._fqa import fqa
-from estimators.orientation._fullstate_kernel import _level
-from estimators.orientation._types import OnlineFilter, OrientationResult
-from estimators.orientation._yun_cf import _check_inputs
+from stridelab.estimators.orientation._dcf_kernel import _qmul, _qrot
+from stridelab.estimators.orientation._fqa import fqa
+from stridelab.estimators.orientation._fullstate_kernel import _level
+from stridelab.estimators.orientation._types import OnlineFilter, OrientationResult
+from stridelab.estimators.orientation._yun_cf import _check_inputs
 
 G = 9.81
 

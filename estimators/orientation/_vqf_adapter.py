@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.orientation._types import OrientationResult
+from stridelab.estimators.orientation._types import OrientationResult
 
 
 def vqf_orientation(gyr, acc, mag=None, *, sampling_rate_hz: float, offline: bool = False,

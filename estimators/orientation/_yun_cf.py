@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.orientation._fqa import fqa_azimuth_1, fqa_tilt_1
-from estimators.orientation._frames import ned_to_enu
-from estimators.orientation._stillness import detect_rest, fsm_step
-from estimators.orientation._types import OnlineFilter, OrientationResult
-from estimators.quaternion import quat_exp_step_1, quat_mul_1
+from stridelab.estimators.orientation._fqa import fqa_azimuth_1, fqa_tilt_1
+from stridelab.estimators.orientation._frames import ned_to_enu
+from stridelab.estimators.orientation._stillness import detect_rest, fsm_step
+from stridelab.estimators.orientation._types import OnlineFilter, OrientationResult
+from stridelab.estimators.quaternion import quat_exp_step_1, quat_mul_1
 
 
 @dataclass(frozen=True)

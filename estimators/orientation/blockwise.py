@@ -16,8 +16,8 @@ from typing import Callable
 
 import numpy as np
 
-from estimators.orientation._dcf import _blend
-from estimators.orientation._types import OrientationResult
+from stridelab.estimators.orientation._dcf import _blend
+from stridelab.estimators.orientation._types import OrientationResult
 
 
 def blockwise(estimate: Callable[..., OrientationResult], gyr: np.ndarray, acc: np.ndarray,

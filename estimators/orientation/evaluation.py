@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_conj, quat_mul, quat_normalize
+from stridelab.estimators.quaternion import quat_conj, quat_mul, quat_normalize
 
 __all__ = ["OrientationError", "orientation_error_deg", "orientation_rmse_deg", "pooled_rmse", "segment_alignment",
            "align_reference"]

@@ -26,8 +26,8 @@ from typing import Callable, Sequence
 import numpy as np
 from numba import njit, prange
 
-from estimators.orientation._fullstate_kernel import ekf_series
-from estimators.orientation._madgwick_mahony import (MadgwickParams, MahonyParams, _series,
+from stridelab.estimators.orientation._fullstate_kernel import ekf_series
+from stridelab.estimators.orientation._madgwick_mahony import (MadgwickParams, MahonyParams, _series,
                                                      initial_state)
 
 __all__ = ["PSOResult", "pso_minimize", "SwitchingSpace", "SwarmData", "swarm_errors", "TuneResult", "tune_pso",
@@ -313,7 +313,7 @@ def ekf_bounds() -> tuple[np.ndarray, np.ndarray]:
 
 def ekf_decode(x: np.ndarray):
     """One position -> :class:`RobustEKFParams` (4 significant digits)."""
-    from estimators.orientation._fullstate import RobustEKFParams
+    from stridelab.estimators.orientation._fullstate import RobustEKFParams
     v = [float(f"{(10.0 ** u if b[3] else u):.4g}") for u, b in zip(np.asarray(x, float), EKF_SPACE)]
     return RobustEKFParams(sigma_gyr_rad_s=(v[0], v[1]), s_gyr_rad_s=(v[2],), sigma_acc_g=(v[3], v[4]),
                            s_acc_g=(v[5],), sigma_mag=(v[6], v[7]), s_mag=(v[8],), tau_ext_acc_s=v[9],
@@ -338,7 +338,7 @@ class EKFSwarmData:
 
     @classmethod
     def from_trials(cls, trials: Sequence, *, p0: float = 1e-3) -> "EKFSwarmData":
-        from estimators.orientation._fullstate import STATE_LEN as KS, RobustEKFFilter, RobustEKFParams
+        from stridelab.estimators.orientation._fullstate import STATE_LEN as KS, RobustEKFFilter, RobustEKFParams
         st, mr, accs, mags = [], [], [], []
         for t in trials:
             f = RobustEKFFilter(RobustEKFParams(p0=p0), sampling_rate_hz=t.sampling_rate_hz)

@@ -7,7 +7,7 @@ candidate chosen most often (ties: lowest error on all trials). ``tuned_gains.js
 records the result and how it was obtained.
 
 For more than one or two gains use the thesis' particle swarm (§4.8, §9.4 P3), vectorised over the swarm:
-:mod:`estimators.orientation.pso`, re-exported here (``tune_pso``, ``pso_leave_trials_out``, ``SwitchingSpace``,
+:mod:`stridelab.estimators.orientation.pso`, re-exported here (``tune_pso``, ``pso_leave_trials_out``, ``SwitchingSpace``,
 ``SwarmData``, ``pso_minimize``); with one gain a grid is exhaustive and cheaper.
 """
 from __future__ import annotations
@@ -19,8 +19,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from estimators.orientation.evaluation import orientation_rmse_deg
-from estimators.orientation.pso import (SwarmData, SwitchingSpace, pso_leave_trials_out, pso_minimize,
+from stridelab.estimators.orientation.evaluation import orientation_rmse_deg
+from stridelab.estimators.orientation.pso import (SwarmData, SwitchingSpace, pso_leave_trials_out, pso_minimize,
                                         swarm_errors, tune_pso)
 
 __all__ = ["CVResult", "score_grid", "leave_trials_out", "leave_groups_out", "trial_groups", "BROAD_GROUPS", "SwarmData", "SwitchingSpace", "pso_leave_trials_out",

@@ -4,9 +4,9 @@ Arrays in (gyr rad/s, acc m/s² specific force, sample rate keyword), frozen dat
 """
 from __future__ import annotations
 
-from estimators.trajectory._api import (EskfParams, TrajectoryResult, ZuptParams, check_foot_imu, detect_zupt,
+from stridelab.estimators.trajectory._api import (EskfParams, TrajectoryResult, ZuptParams, check_foot_imu, detect_zupt,
                                         eskf_trajectory, gait_cycle_period, sensor_gravity, stance_gyro_bias)
-from estimators.trajectory._duong_suh import (EQ24_GEOMETRY, TABLE1_GEOMETRY, DuongSuhParams, DuongSuhResult,
+from stridelab.estimators.trajectory._duong_suh import (EQ24_GEOMETRY, TABLE1_GEOMETRY, DuongSuhParams, DuongSuhResult,
                                               UNKNOWN_GEOMETRY_CALIB_VAR, RangeGeometry,
                                               duong_suh_params_from_dict, duong_suh_trajectory,
                                               geometry_from_stance)

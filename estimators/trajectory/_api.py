@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
-from estimators.trajectory._saturation import repair_gyro_saturation
+from stridelab.estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
+from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
 
 __all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
@@ -325,7 +325,7 @@ def _acc_clip_noise(acc: np.ndarray) -> np.ndarray:
     """(E4d) saturation term: an accelerometer axis on a plateau near full scale (``_saturation.plateau_runs``,
     the gyro rule S1–S2 applied to |f_j| with ω_min → 4 g) reads at most its range, the true value is unknown
     above it: σ += L_j (the size of the reading itself) on those samples; 0 elsewhere."""
-    from estimators.trajectory._saturation import N_MIN_RUNS, plateau_runs
+    from stridelab.estimators.trajectory._saturation import N_MIN_RUNS, plateau_runs
     out = np.zeros(acc.shape[0])
     for j in range(acc.shape[1]):
         a = np.abs(acc[:, j])

@@ -19,7 +19,7 @@ r̄_A 9:12, r̄_B 12:15, n̄_A 15:18, n̄_B 18:21 (the 9-state filter keeps 0:9,
     update    sequential scalar updates (independent noises), Joseph form, then inject and reset      (DS9, B6.5)
 
 Order per sample k: updates with the measurements of k, output, then propagate with the IMU sample k.
-Deviations: the ZUPT detector is :func:`estimators.trajectory.detect_zupt` (the paper's thresholds are not given,
+Deviations: the ZUPT detector is :func:`stridelab.estimators.trajectory.detect_zupt` (the paper's thresholds are not given,
 D3); the initial attitude covariance puts the Table-1 tilt variance on the two horizontal body axes found from
 gravity (the paper's body x points down; yaw variance 0), so any mounting works; n̂ is renormalised after each
 injection (D6); a 3σ innovation gate rejects a beam that hits the other foot or an obstacle (D12).
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
-from estimators.trajectory._api import ZuptParams
+from stridelab.estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
+from stridelab.estimators.trajectory._api import ZuptParams
 
 GRAVITY = 9.81
 
@@ -360,7 +360,7 @@ def ds_kernel(gyr, acc, rng, zupt, T, k0, q0, r0, ns, P0, qg, qa, var_d, var_z, 
 
 
 def _level_quat(f: np.ndarray) -> np.ndarray:
-    from estimators.trajectory._api import _level_quat as lq
+    from stridelab.estimators.trajectory._api import _level_quat as lq
     return lq(f)
 
 
@@ -377,7 +377,7 @@ def duong_suh_trajectory(gyr: np.ndarray, acc: np.ndarray, ranges: np.ndarray | 
     ``initial_quat`` is given, at height ``initial_height_m`` or else from the distance readings of that stance
     (B5 "Initialisation"), or 0 without any.
     """
-    from estimators.trajectory._api import check_foot_imu, detect_zupt
+    from stridelab.estimators.trajectory._api import check_foot_imu, detect_zupt
     gyr, acc = check_foot_imu(gyr, acc, sampling_rate_hz)
     n = gyr.shape[0]
     if ranges is None:
@@ -405,7 +405,7 @@ def duong_suh_trajectory(gyr: np.ndarray, acc: np.ndarray, ranges: np.ndarray | 
         k1 += 1
     q0 = np.asarray(initial_quat, float) if initial_quat is not None else _level_quat(acc[k0:k1].mean(axis=0))
     q0 = q0 / np.linalg.norm(q0)
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.quaternion import quat_to_matrix
     R0 = quat_to_matrix(q0)
     geom = geometry.as_array().copy()
     notes = []

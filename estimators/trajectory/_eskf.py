@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
+from stridelab.estimators.quaternion import quat_exp_step_1, quat_mul_1, quat_to_matrix_1
 
 GRAVITY = 9.81
 

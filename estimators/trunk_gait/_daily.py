@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.trunk_gait._types import DURATION_CLASSES_S, DailyOutcomes
+from stridelab.estimators.trunk_gait._types import DURATION_CLASSES_S, DailyOutcomes
 
 MIN_BOUT_S = 10.0
 

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import sosfiltfilt
 
-from estimators.trunk_gait._filters import butter_sos
-from estimators.trunk_gait._types import TrunkFrame
+from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._types import TrunkFrame
 
 G = 9.80665
 AXES = "xyz"

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d, uniform_filter1d
 from scipy.signal import find_peaks, sosfiltfilt
 
-from estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_sos
 
 
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,

@@ -38,7 +38,7 @@ from numba import njit
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import sosfiltfilt
 
-from estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_sos
 
 IONESCU_BAND_HZ = (0.15, 3.14)      # Paraschiv-Ionescu et al. 2020 pre-filter band
 IONESCU_SIGMA_S = 9 / 40 / np.sqrt(2)   # their gaus2 scale (9 samples at 40 Hz) as a Gaussian σ, Eq. (3): 0.159 s

@@ -9,16 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
-from estimators.trunk_gait._gsd import detect_gait_sequences
-from estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
-from estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
-from estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, turn_shortened,
+from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
+from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
+from stridelab.estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
+from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
+from stridelab.estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, turn_shortened,
                                             vertical_position)
-from estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
-from estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
+from stridelab.estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
+from stridelab.estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
-from estimators.trunk_gait._wba import assemble_bouts, strides_from_contacts
+from stridelab.estimators.trunk_gait._wba import assemble_bouts, strides_from_contacts
 
 LOW_FRAME_CONFIDENCE = 0.2
 
@@ -71,7 +71,7 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams,
 
 def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
                        params: TrunkGaitParams = TrunkGaitParams()) -> TrunkFrame:
-    """Sensor-to-body frame of a trunk sensor from its data (see ``estimators.trunk_gait._frame``).
+    """Sensor-to-body frame of a trunk sensor from its data (see ``stridelab.estimators.trunk_gait._frame``).
 
     acc (N, 3) m/s², gyr (N, 3) rad/s or None (not needed for the frame), fs_hz > 0. The body frame is ISB:
     x anterior, y up, z right; ``frame.R @ v_sensor`` gives body coordinates. Walking is found first (gait-sequence

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import sosfiltfilt
 
-from estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_sos
 
 
 def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.ndarray:

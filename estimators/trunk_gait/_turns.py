@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import sosfiltfilt
 
-from estimators.trunk_gait._filters import butter_sos
-from estimators.trunk_gait._types import Turns
+from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._types import Turns
 
 EMPTY_TURNS = Turns(start_s=np.empty(0), end_s=np.empty(0), angle_deg=np.empty(0), peak_rate_deg_s=np.empty(0))
 

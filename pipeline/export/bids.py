@@ -67,7 +67,7 @@ def export_bids(warehouse: str | Path, out: str | Path, *, study: str | None = N
     ``dataset_description.json``; ``keep_ids`` keeps the warehouse's
     pseudonyms as subject labels (letters and digits only) instead of renumbering. Raises ValueError (one line)
     on bad arguments, a non-empty ``out`` without ``overwrite``, or a warehouse with nothing to export."""
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     out = Path(out)
     bad = [k for k in kinds if k not in KINDS]
     if bad:
@@ -91,7 +91,7 @@ def export_bids(warehouse: str | Path, out: str | Path, *, study: str | None = N
 
 def _export(con, root, out, study, participants, kinds, keep_ids, subject_map, on_progress,
             description: dict) -> ExportSummary:
-    from warehouse.read import read_imu
+    from stridelab.warehouse.read import read_imu
     recs = con.execute("""
         SELECT s.study, s.participant_id, s.session_id, s.kind, s.start_ns, r.content_hash, r.trial, r.start_ns,
                r.metadata

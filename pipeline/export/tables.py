@@ -21,7 +21,7 @@ def export_table(warehouse: str | Path, name: str, out: str | Path) -> dict:
     suffix), atomically (a temporary file, then rename). Returns ``{"table", "rows", "columns", "path"}``.
 
     Raises ValueError (one line: what is wrong, what to do) for an unknown table or suffix."""
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     out = Path(out)
     if out.suffix.lower() not in FORMATS:
         raise ValueError(f"{out}: unknown output format '{out.suffix}'; name the file .csv or .parquet")

@@ -9,7 +9,7 @@ the copy to the reader can run (``perf`` over a 20-participant night: ``_copy_to
 cache").
 
 How: :class:`SequentialReader` asks the kernel which fraction of the file is in the page cache (``mincore`` over
-a mapping of the file; :func:`warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
+a mapping of the file; :func:`stridelab.warehouse.direct_io.cached_fraction`, shared with the warehouse's reads of series files).
 A file mostly cached (just copied into the inbox, just written by a bench) is read buffered, as before;
 otherwise an ``O_DIRECT`` descriptor is read in aligned blocks by one read-ahead thread, up to two blocks
 ahead of the consumer, so the disk works while the decoder does. Files under two blocks are always
@@ -26,7 +26,7 @@ import os
 import queue
 import threading
 
-from warehouse.direct_io import CACHED_FRACTION, cached_fraction
+from stridelab.warehouse.direct_io import CACHED_FRACTION, cached_fraction
 
 #: bytes per O_DIRECT read (a multiple of any block size); two such blocks are in flight
 BLOCK = 8 << 20

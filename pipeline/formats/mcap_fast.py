@@ -5,7 +5,7 @@ What most recordings are made of: chunks whose records are all Message records o
 ROS 2 types (``sensor_msgs/msg/Imu``, ``MagneticField``, ``geometry_msgs/msg/PoseStamped``), on channels StrideLab
 ignores, or on annotation and range channels (a few messages among the samples). For those, one pass of a numba
 kernel per chunk replaces the general path's record tables, per-chunk decoding and the join of the chunks' blocks
-(:func:`pipeline.formats.mcap_read._group_task`), in :class:`GroupDecoder`:
+(:func:`stridelab.pipeline.formats.mcap_read._group_task`), in :class:`GroupDecoder`:
 
 1. the group's arrays are allocated once, sized from the first chunk's messages per channel (counted by
    :func:`_count_kernel`) scaled to the group's declared bytes, with slack;
@@ -17,7 +17,7 @@ kernel per chunk replaces the general path's record tables, per-chunk decoding a
 A chunk the kernel refuses (any other record, a malformed record, a message that does not fit its schema, a
 channel out of room) sends the whole group to the general path, which raises the precise one-line error, so
 the fast path never decides what is an error. The decoded values are those of
-:func:`pipeline.formats.ros2_cdr.decode_doubles`, in file order per channel, each column contiguous.
+:func:`stridelab.pipeline.formats.ros2_cdr.decode_doubles`, in file order per channel, each column contiguous.
 """
 from __future__ import annotations
 

@@ -14,9 +14,9 @@ checked and decoded by a small thread pool (zstandard, lz4, the CRC and the numb
 GIL). Consecutive chunks (up to :data:`GROUP_BYTES`) form one task, so the consumer runs once per ~8 MiB
 whatever chunk size the writer chose. A group whose chunks hold only Message records of fixed-layout types
 (Imu, MagneticField, PoseStamped; annotations and ranges located for their own decoders) is decoded by
-:mod:`pipeline.formats.mcap_fast`, one kernel pass per chunk right after its decompression, straight into the
+:mod:`stridelab.pipeline.formats.mcap_fast`, one kernel pass per chunk right after its decompression, straight into the
 group's arrays; any other group (definitions inside a chunk, a message that does not fit its schema) takes
-the general path: record tables, the CDR decoders of :mod:`pipeline.formats.ros2_cdr` per channel and chunk,
+the general path: record tables, the CDR decoders of :mod:`stridelab.pipeline.formats.ros2_cdr` per channel and chunk,
 and a join of each channel's blocks, whose errors say what is wrong. Blocks are yielded
 in file order while at most a bounded number of chunks is in flight, so memory does not grow with the
 length of the recording. The file's SHA-256 and the data-section CRC
@@ -44,8 +44,8 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Metadata, Schema, Statistics
 from numba import njit
 
-from pipeline.formats import mcap_fast, ros2_cdr
-from pipeline.formats.direct_read import SequentialReader
+from stridelab.pipeline.formats import mcap_fast, ros2_cdr
+from stridelab.pipeline.formats.direct_read import SequentialReader
 
 try:                                   # ISA-L's CRC32 is ~4x faster than zlib's; same polynomial
     from isal.isal_zlib import crc32
@@ -65,7 +65,7 @@ MAX_IN_FLIGHT_BYTES = 96 << 20
 #: group leave as one block, so everything downstream runs in Python once per ~8 MiB instead of once per
 #: 1 MiB chunk (the default of the ROS 2 writers)
 GROUP_BYTES = 8 << 20
-#: decode groups of fixed-layout messages by :mod:`pipeline.formats.mcap_fast` (False: always the general path;
+#: decode groups of fixed-layout messages by :mod:`stridelab.pipeline.formats.mcap_fast` (False: always the general path;
 #: the tests compare the two)
 FAST_PATH = True
 
@@ -536,7 +536,7 @@ def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:
     """Decode consecutive chunks and join each channel's blocks across them.
 
     The common case (every record of every chunk a Message on a known channel of a fixed-layout type) takes
-    :mod:`pipeline.formats.mcap_fast`: two kernel passes per chunk straight into the group's arrays. Anything
+    :mod:`stridelab.pipeline.formats.mcap_fast`: two kernel passes per chunk straight into the group's arrays. Anything
     else (definitions or other records inside a chunk, annotations, ranges, a message that does not fit its
     schema) decodes each chunk as :func:`_chunk_task` does, whose errors name what is wrong; pieces that define
     schemas/channels or hold messages of a channel not known yet are then kept apart (and in order), so that

@@ -24,9 +24,9 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
                           Statistics, SummaryOffset)
 from numba import njit
 
-from estimators.recording import Recording
-from pipeline.formats import ros2_cdr
-from pipeline.formats.mcap_read import crc32
+from stridelab.estimators.recording import Recording
+from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats.mcap_read import crc32
 
 MAGIC = b"\x89MCAP0\r\n"
 _MSG_HEAD = 1 + 8 + 2 + 4 + 8 + 8   # opcode, length, channel_id, sequence, log_time, publish_time

@@ -1,6 +1,6 @@
 """rosbag2 bag directories (``metadata.yaml`` + one or more ``.mcap`` or ``.db3`` files) as one recording.
 
-MCAP storage is read file by file with the vectorised reader of :mod:`pipeline.formats.mcap_read`;
+MCAP storage is read file by file with the vectorised reader of :mod:`stridelab.pipeline.formats.mcap_read`;
 sqlite3 storage (``.db3``) and file-compressed bags go through ``rosbags`` (a maintained pure-Python
 rosbag2 reader), whose raw CDR messages are decoded in batches by the same vectorised decoders.
 The content hash of a bag is the SHA-256 of its data files' SHA-256 (in the order metadata.yaml lists
@@ -17,7 +17,7 @@ from typing import Iterator
 import numpy as np
 import yaml
 
-from pipeline.formats.mcap_read import (Block, McapFormatError, ReadResult, TopicInfo, _decode, _normalise_schema,
+from stridelab.pipeline.formats.mcap_read import (Block, McapFormatError, ReadResult, TopicInfo, _decode, _normalise_schema,
                                         SCHEMA_KINDS, iter_blocks)
 
 BATCH = 1 << 16           # messages per channel decoded at once from a .db3 bag

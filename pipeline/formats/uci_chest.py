@@ -18,7 +18,7 @@ import numpy as np
 __all__ = ["UciParticipant", "load_uci_participant", "load_uci_chest", "counts_to_m_s2", "SAMPLING_RATE_HZ", "LABEL_TO_CLASS"]
 
 SAMPLING_RATE_HZ = 52.0
-#: UCI label code -> index of estimators.activity.evaluation.SCORED_CLASSES (sitting, standing, walking, stairs);
+#: UCI label code -> index of stridelab.estimators.activity.evaluation.SCORED_CLASSES (sitting, standing, walking, stairs);
 #: 2 (mixed standing up / walking / stairs) and 0 (unlabelled) are not scored
 LABEL_TO_CLASS = {1: 0, 3: 1, 7: 1, 4: 2, 6: 2, 5: 3}
 ADC_MIDSCALE = 2048.0

@@ -2,7 +2,7 @@
 
 One pass of GIL-free numba kernels per block of decoded messages: finite values, unset stamps, order and repeats
 inside the block, the subsample for the unit and clock statistics, and the gyroscope-against-gravity sums of the
-units check (:func:`pipeline.ingest.check.check_units`). :class:`pipeline.ingest.series.TopicSeries` then only
+units check (:func:`stridelab.pipeline.ingest.check.check_units`). :class:`stridelab.pipeline.ingest.series.TopicSeries` then only
 compares block edges.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pipeline.formats.mcap_read import Block
+from stridelab.pipeline.formats.mcap_read import Block
 
 SUBSAMPLE = 61              # statistics on every 61st sample (prime: no aliasing with batches or chunks)
 

@@ -1,11 +1,11 @@
 """Ingest, phase 2 of 3: check. What decides whether a read recording may be stored, each refusal one line.
 
-:func:`check_recording` runs the checks of a whole recording after :mod:`pipeline.ingest.read` streamed it:
+:func:`check_recording` runs the checks of a whole recording after :mod:`stridelab.pipeline.ingest.read` streamed it:
 session metadata (:func:`check_session_metadata`: declared schema, pseudonyms, personal data by
-:mod:`pipeline.privacy`), topic placements and skips (nothing dropped without a record), units (m/s², rad/s:
+:mod:`stridelab.pipeline.privacy`), topic placements and skips (nothing dropped without a record), units (m/s², rad/s:
 :func:`check_units`, two independent deg/s checks), rates and clock offsets. The per-block checks (finite values,
-stamps, the unit statistics) run earlier, on the reader's threads (:func:`pipeline.ingest.series.check_block`);
-the clock policy is :mod:`pipeline.clock_policy`.
+stamps, the unit statistics) run earlier, on the reader's threads (:func:`stridelab.pipeline.ingest.series.check_block`);
+the clock policy is :mod:`stridelab.pipeline.clock_policy`.
 """
 from __future__ import annotations
 
@@ -14,17 +14,17 @@ import re
 import zoneinfo
 from pathlib import Path
 
-from estimators.recording import SESSION_BODY_RANGES, SESSION_KEYS_REQUIRED, SESSION_KINDS
-from pipeline import privacy
-from pipeline.formats.mcap_read import ReadResult, encoding_fix
-from pipeline.formats.rosbag2 import custom_data_of_mcap
-from pipeline.ingest.model import IngestOptions, IngestRejected, Prepared
-from pipeline.ingest.series import TopicSeries
-from pipeline.privacy import screen_session, study_policy
-from pipeline.pseudonym import SITE_KEYS, pseudonymise
-from pipeline.session_sources import NO_SESSION, gather_session, placement_for
-from studies.privacy import shown as _safe_shown
-from warehouse.store import check_identifier
+from stridelab.estimators.recording import SESSION_BODY_RANGES, SESSION_KEYS_REQUIRED, SESSION_KINDS
+from stridelab.pipeline import privacy
+from stridelab.pipeline.formats.mcap_read import ReadResult, encoding_fix
+from stridelab.pipeline.formats.rosbag2 import custom_data_of_mcap
+from stridelab.pipeline.ingest.model import IngestOptions, IngestRejected, Prepared
+from stridelab.pipeline.ingest.series import TopicSeries
+from stridelab.pipeline.privacy import screen_session, study_policy
+from stridelab.pipeline.pseudonym import SITE_KEYS, pseudonymise
+from stridelab.pipeline.session_sources import NO_SESSION, gather_session, placement_for
+from stridelab.studies.privacy import shown as _safe_shown
+from stridelab.warehouse.store import check_identifier
 
 
 def check_recording(path: Path, root, res: ReadResult, custom: dict | None, states: dict[str, TopicSeries],
@@ -321,6 +321,6 @@ def unique_events(events: list[dict], notes: list[dict]) -> list[dict]:
 
 def _manifest_topics(study: str) -> dict[str, str]:
     """The study manifest's ``[topics]`` table (topic -> placement), {} when there is none."""
-    from pipeline.config import study_manifest
+    from stridelab.pipeline.config import study_manifest
     t = study_manifest(study).get("topics", {})
     return {str(k): str(v) for k, v in t.items()} if isinstance(t, dict) else {}

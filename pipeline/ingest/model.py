@@ -13,8 +13,8 @@ class IngestRejected(ValueError):
 @dataclass
 class Prepared:
     """What a worker hands back to the writer for one file."""
-    source_path: str                         # stored: a keyed hash of the path (pipeline.privacy.stored_path)
-    file_name: str                           # stored: a keyed hash of the name (pipeline.privacy.stored_name)
+    source_path: str                         # stored: a keyed hash of the path (stridelab.pipeline.privacy.stored_path)
+    file_name: str                           # stored: a keyed hash of the name (stridelab.pipeline.privacy.stored_name)
     size_bytes: int
     mtime_ns: int
     content_hash: str = ""
@@ -58,7 +58,7 @@ class IngestOptions:
     #: warnings to record with every recording of the run (what ``--recover`` lost, pipeline/recover.py)
     notes: list[str] = field(default_factory=list)
     #: also compute the samples' SHA-256 identity that recordings ingested before the XXH3 one carry (set by
-    #: the coordinator, :func:`pipeline.runner.ingest_files`, when the warehouse holds any)
+    #: the coordinator, :func:`stridelab.pipeline.runner.ingest_files`, when the warehouse holds any)
     legacy_sample_hash: bool = False
 
 

@@ -1,13 +1,13 @@
 """Ingest, phase 1 of 3: read. A recording (MCAP file, rosbag2 bag directory) streamed once into per-topic series.
 
-One decode path per container: :func:`pipeline.formats.mcap_read.iter_blocks` for an MCAP file (CRCs and record
-structure verified on the way), :func:`pipeline.formats.rosbag2.iter_bag_blocks` for a bag (its MCAP or SQLite
+One decode path per container: :func:`stridelab.pipeline.formats.mcap_read.iter_blocks` for an MCAP file (CRCs and record
+structure verified on the way), :func:`stridelab.pipeline.formats.rosbag2.iter_bag_blocks` for a bag (its MCAP or SQLite
 storage files), and, for a file whose messages are compressed one by one, the rosbag2 reader's
-:func:`~pipeline.formats.rosbag2.iter_message_compressed_blocks`. The per-block checks
-(:func:`pipeline.ingest.series.check_block`) run on the reader's threads; every block goes to its topic's
-:class:`~pipeline.ingest.series.TopicSeries`, which applies the clock policy and streams the rows into a staging
+:func:`~stridelab.pipeline.formats.rosbag2.iter_message_compressed_blocks`. The per-block checks
+(:func:`stridelab.pipeline.ingest.series.check_block`) run on the reader's threads; every block goes to its topic's
+:class:`~stridelab.pipeline.ingest.series.TopicSeries`, which applies the clock policy and streams the rows into a staging
 Parquet file (memory stays bounded whatever the recording's length). Refusals of what cannot be read are
-:class:`~pipeline.ingest.model.IngestRejected` / ``McapFormatError`` / ``SeriesRejected`` with a one-line reason.
+:class:`~stridelab.pipeline.ingest.model.IngestRejected` / ``McapFormatError`` / ``SeriesRejected`` with a one-line reason.
 """
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ import hashlib
 from contextlib import contextmanager
 from pathlib import Path
 
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
-from pipeline.formats.rosbag2 import (bag_info, iter_bag_blocks, iter_message_compressed_blocks, message_compression,
+from stridelab.pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
+from stridelab.pipeline.formats.rosbag2 import (bag_info, iter_bag_blocks, iter_message_compressed_blocks, message_compression,
                                       split_bag_parts)
-from pipeline.ingest.model import IngestOptions, IngestRejected, Prepared
-from pipeline.ingest.block_checks import check_block
-from pipeline.ingest.series import TopicSeries
+from stridelab.pipeline.ingest.model import IngestOptions, IngestRejected, Prepared
+from stridelab.pipeline.ingest.block_checks import check_block
+from stridelab.pipeline.ingest.series import TopicSeries
 
 
 def read_recording(path: Path, res: ReadResult, out: Prepared, states: dict[str, TopicSeries],

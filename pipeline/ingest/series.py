@@ -5,13 +5,13 @@ Blocks arrive in file order (any order of messages, overlapping chunks); they ar
 :data:`HOLD_ROWS` so messages up to that many samples out of order still land in order. Memory per
 topic is therefore bounded whatever the recording's length.
 
-Where the work runs: :func:`pipeline.ingest.block_checks.check_block` (finite values, unset stamps, order and repeats inside the
+Where the work runs: :func:`stridelab.pipeline.ingest.block_checks.check_block` (finite values, unset stamps, order and repeats inside the
 block, the subsample for the unit and clock statistics) is one pass of a numba kernel that the MCAP
 reader calls on its chunk threads (``iter_blocks(on_block=...)``); :meth:`TopicSeries.add` then only
 compares block edges, and each slice (policy, hashes, Parquet encoding) is written on a thread of its
 own, in order, while the reader decodes the next chunks.
 
-Clock policy (docs/clocks.md; the time-base decisions in :mod:`pipeline.clock_policy`, order and repeats here),
+Clock policy (docs/clocks.md; the time-base decisions in :mod:`stridelab.pipeline.clock_policy`, order and repeats here),
 each case reported as a warning of the recording, never silently:
 
 - unset (zero) ``header.stamp``: the sample takes its ``log_time``;
@@ -35,10 +35,10 @@ import numpy as np
 import pyarrow as pa
 import xxhash
 
-from pipeline import clock_policy
-from pipeline.formats.mcap_read import Block
-from pipeline.ingest.block_checks import _stamp_flags, check_block  # noqa: F401 - check_block: a block not checked yet
-from warehouse.store import SeriesWriter
+from stridelab.pipeline import clock_policy
+from stridelab.pipeline.formats.mcap_read import Block
+from stridelab.pipeline.ingest.block_checks import _stamp_flags, check_block  # noqa: F401 - check_block: a block not checked yet
+from stridelab.warehouse.store import SeriesWriter
 
 GAP_WARN_S = 1.0            # gaps longer than this are recorded as warnings (the data are kept)
 FLUSH_ROWS = 1 << 19

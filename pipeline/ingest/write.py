@@ -3,7 +3,7 @@
 :func:`write_series` (in the worker) gives the series files their final paths and prepares the rows;
 :func:`commit` (in the single writing process) writes a prepared file's rows, idempotent by content hash and
 ingest settings: a re-export is recorded, not ingested again; ``--replace`` or other settings supersede the earlier
-ingest (:mod:`pipeline.supersede`); every topic of the file goes into the run's ingest ledger (``ingest_topics``).
+ingest (:mod:`stridelab.pipeline.supersede`); every topic of the file goes into the run's ingest ledger (``ingest_topics``).
 A file refused by any check is recorded as quarantined with its one-line reason and nothing else.
 """
 from __future__ import annotations
@@ -16,13 +16,13 @@ from pathlib import Path
 
 import xxhash
 
-from pipeline import privacy, supersede
-from pipeline.formats.mcap_read import ReadResult
-from pipeline.ingest.check import unique_events
-from pipeline.ingest.model import DEFAULT_SETTINGS_HASH, IngestOptions, Prepared
-from pipeline.ingest.read import stat_signature
-from warehouse.catalog import first, Warehouse
-from warehouse.store import commit_all, series_relpath
+from stridelab.pipeline import privacy, supersede
+from stridelab.pipeline.formats.mcap_read import ReadResult
+from stridelab.pipeline.ingest.check import unique_events
+from stridelab.pipeline.ingest.model import DEFAULT_SETTINGS_HASH, IngestOptions, Prepared
+from stridelab.pipeline.ingest.read import stat_signature
+from stridelab.warehouse.catalog import first, Warehouse
+from stridelab.warehouse.store import commit_all, series_relpath
 
 
 def write_series(out: Prepared, session: dict, mapped: dict, placement_of: dict, res: ReadResult,
@@ -163,7 +163,7 @@ def _integrity_columns(wh: Warehouse, p: Prepared) -> dict:
         return {}
     return {"crc_verified": p.crc_verified, "settings_hash": p.settings_hash or DEFAULT_SETTINGS_HASH,
             "ingest_settings": json.dumps(p.settings, sort_keys=True),
-            # topic names as the catalog may keep them (a non-standard topic may carry a name: pipeline.privacy)
+            # topic names as the catalog may keep them (a non-standard topic may carry a name: stridelab.pipeline.privacy)
             "skipped_topics": json.dumps([{**d, "topic": privacy.shown_topic(d["topic"])} for d in p.skipped_topics])
             if p.skipped_topics else None}
 

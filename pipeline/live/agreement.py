@@ -4,8 +4,8 @@ Reads the live outputs the recorder stored in the recording (``/live/joint_angle
 recomputes from the raw topics what the nightly computes: orientation by the nightly's offline estimator
 (``DEFAULT_OFFLINE``), joint angles as the joint-angle stage does (``compute_joint_angles`` with the first quiet
 standing of the trial), gait events as the gait stage does (``foot_kinematics``: ESKF + smoother, toe-off
-refinement). Scored with the project's scorers: ``estimators.joints.angle_errors`` (RMSE per plane) and
-``estimators.gait.evaluation.match_events`` (± ``EVENT_TOLERANCE_S``). ``stridelab live --compare REC``.
+refinement). Scored with the project's scorers: ``stridelab.estimators.joints.angle_errors`` (RMSE per plane) and
+``stridelab.estimators.gait.evaluation.match_events`` (± ``EVENT_TOLERANCE_S``). ``stridelab live --compare REC``.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ def read_live_outputs(path: str | Path) -> tuple[dict, list]:
     """(frame -> {joint: [FE, AA, IE]} as arrays per joint over frames, events) stored in a live recording."""
     from mcap.reader import make_reader
 
-    from pipeline.live.recorder import decode_string
+    from stridelab.pipeline.live.recorder import decode_string
     k, ang, events = [], {}, []
     with open(path, "rb") as fh:
         r = make_reader(fh)
@@ -43,13 +43,13 @@ def read_live_outputs(path: str | Path) -> tuple[dict, list]:
 
 def live_vs_offline(path: str | Path, calibration) -> dict:
     """Agreement per joint (RMSE per plane, degrees) and per foot (events matched, mean/SD of live − offline, ms)."""
-    from estimators.calibration import first_quiet_standing
-    from estimators.gait import foot_kinematics
-    from estimators.gait.evaluation import EVENT_TOLERANCE_S, match_events
-    from estimators.joints import angle_errors, compute_joint_angles
-    from estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
-    from pipeline.live.engine import LEG_PLACEMENTS
-    from pipeline.live.streams import read_streams
+    from stridelab.estimators.calibration import first_quiet_standing
+    from stridelab.estimators.gait import foot_kinematics
+    from stridelab.estimators.gait.evaluation import EVENT_TOLERANCE_S, match_events
+    from stridelab.estimators.joints import angle_errors, compute_joint_angles
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
+    from stridelab.pipeline.live.engine import LEG_PLACEMENTS
+    from stridelab.pipeline.live.streams import read_streams
     live_ang, live_ev = read_live_outputs(path)
     st = read_streams(path)
     fs = st.sampling_rate_hz

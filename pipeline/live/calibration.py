@@ -7,17 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.live.streams import read_streams
+from stridelab.pipeline.live.streams import read_streams
 
 
 def calibration_from_trial(path: str | Path, topic_map: dict[str, str] | None = None):
     """:class:`SessionCalibration` of a calibration-trial recording (MCAP or bag): the sensors' shared
     stamps as one grid, orientation by the nightly's offline estimator for the pelvis heading, then
-    ``calibrate_session`` with the stage's defaults (``pipeline.stages.calibration``)."""
-    from estimators.calibration import CalibrationParams, calibrate_session
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
-    from estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
-    from pipeline.stages.calibration import common_grid
+    ``calibrate_session`` with the stage's defaults (``stridelab.pipeline.stages.calibration``)."""
+    from stridelab.estimators.calibration import CalibrationParams, calibrate_session
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
+    from stridelab.pipeline.stages.calibration import common_grid
     st = read_streams(path, topic_map)
     sensors = {p: s for p, s in st.sensors.items() if p in DEFAULT_PLACEMENTS}
     if not sensors:
@@ -40,8 +40,8 @@ def calibration_from_trial(path: str | Path, topic_map: dict[str, str] | None = 
 def calibration_from_warehouse(root: str | Path, participant: str):
     """The newest stored calibration of ``participant`` that is not ``fail`` (a previous visit's), from the
     warehouse's published snapshot; ``ValueError`` saying what to do when there is none."""
-    from pipeline.stages.joint_angles import session_calibration
-    from warehouse.read import connect_snapshot
+    from stridelab.pipeline.stages.joint_angles import session_calibration
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(root)
     if con is None:
         raise ValueError(f"{root}: no published warehouse snapshot; run `stridelab run` first or give --calibration")

@@ -10,7 +10,7 @@ import signal
 import threading
 from pathlib import Path
 
-from pipeline.live.engine import LEG_PLACEMENTS, LiveParams
+from stridelab.pipeline.live.engine import LEG_PLACEMENTS, LiveParams
 
 _CUE = re.compile(r"^([a-z_]+):(-?[0-9.]+):(-?[0-9.]+)$")
 
@@ -38,12 +38,12 @@ def run_live(*, replay=None, speed="1", minutes=None, osc=(), osc_host="127.0.0.
              host="127.0.0.1", port=8765, serve=True, cue="stance_asymmetry_pct:0:10", audio=False, session_fields=None,
              bands=None, band_note="", duration_s=None, on_ready=None, speed_estimate=False) -> dict:
     """Run one live session; returns the session summary (also what ``--json`` prints)."""
-    from pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
-    from pipeline.live.recorder import McapRecorder
-    from pipeline.live.server import LiveServer
-    from pipeline.live.session import LiveSession
-    from pipeline.live.sources import NgimuUdpSource, ReplaySource
-    from pipeline.live.streams import read_streams
+    from stridelab.pipeline.live.calibration import calibration_from_trial, calibration_from_warehouse
+    from stridelab.pipeline.live.recorder import McapRecorder
+    from stridelab.pipeline.live.server import LiveServer
+    from stridelab.pipeline.live.session import LiveSession
+    from stridelab.pipeline.live.sources import NgimuUdpSource, ReplaySource
+    from stridelab.pipeline.live.streams import read_streams
     if (replay is None) == (not osc):
         raise ValueError("give either --replay FILE or --osc PLACEMENT=PORT (one or more)")
     cue_cfg = parse_cue(cue)

@@ -1,22 +1,22 @@
 """The causal per-frame computation of a live session: estimators only, no I/O.
 
-Per frame k (one sample of every sensor, :mod:`pipeline.live.align`):
+Per frame k (one sample of every sensor, :mod:`stridelab.pipeline.live.align`):
 
-1. orientation of every IMU by an online filter (``estimators.orientation``, default ``DEFAULT_ONLINE``) fed
+1. orientation of every IMU by an online filter (``stridelab.estimators.orientation``, default ``DEFAULT_ONLINE``) fed
    only the samples that arrived (a lost sample is skipped, not filled);
 2. anatomical frames ``q_AF = q_S ⊗ q_S←AF`` from the session calibration (thesis Eq. 17), hip, knee and
-   ankle angles of both legs by the joint coordinate system (``estimators.joints.joint_angles_deg``);
+   ankle angles of both legs by the joint coordinate system (``stridelab.estimators.joints.joint_angles_deg``);
 3. standing offsets (thesis ch. 8 step 4): every second during the first ``standing_search_s`` the frames
-   so far are searched for the first quiet standing (``estimators.calibration.first_quiet_standing``,
+   so far are searched for the first quiet standing (``stridelab.estimators.calibration.first_quiet_standing``,
    which sees only frames < k); once that standing has ended or lasted ``target_standing_s``, its mean
    angle is the offset subtracted from every later frame (earlier frames are published without offset,
    ``offset_ready`` False);
-4. gait events per foot by the streaming detector (``estimators.gait.GaitEventDetector``, thesis Algorithm
+4. gait events per foot by the streaming detector (``stridelab.estimators.gait.GaitEventDetector``, thesis Algorithm
    1) on s = −sin(foot pitch) (``pitch_signal``, anterior axis from the foot calibration, else sensor x):
    an event at extremum k−1 is known at k (look-ahead one sample, the thesis' documented latency);
 5. strides: at each initial contact, stride time, stance (IC→TC of the same foot) and step time (the
    other foot's last IC → this IC); asymmetry of the last ``n_strides`` strides per side as the symmetry
-   ratio larger/smaller mean (Patterson et al. 2010, as ``estimators.gait.clinical`` C9), shown as
+   ratio larger/smaller mean (Patterson et al. 2010, as ``stridelab.estimators.gait.clinical`` C9), shown as
    ``100 (SR − 1)`` %.
 
 Nothing looks ahead more than the one sample of step 4 (``LOOKAHEAD_FRAMES``); tests/live/test_causality.py
@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.calibration import CalibrationParams, first_quiet_standing
-from estimators.gait import GaitEventDetector, IcTcParams, pitch_signal
-from estimators.joints import JOINTS, calibrated_joint_angles_deg
-from estimators.orientation import DCFFilter, MadgwickFilter, MahonyFilter
-from pipeline.live.align import FrameBatch
+from stridelab.estimators.calibration import CalibrationParams, first_quiet_standing
+from stridelab.estimators.gait import GaitEventDetector, IcTcParams, pitch_signal
+from stridelab.estimators.joints import JOINTS, calibrated_joint_angles_deg
+from stridelab.estimators.orientation import DCFFilter, MadgwickFilter, MahonyFilter
+from stridelab.pipeline.live.align import FrameBatch
 
 #: gait events are known one frame after the extremum (thesis ch. 6); every other output at its own frame
 LOOKAHEAD_FRAMES = 1
@@ -95,7 +95,7 @@ def symmetry_pct(a: float, b: float) -> float:
 class LiveEngine:
     """Causal per-frame processing of one live session (see the module docstring).
 
-    placements: the IMUs present; calibration: :class:`estimators.calibration.SessionCalibration` or None
+    placements: the IMUs present; calibration: :class:`stridelab.estimators.calibration.SessionCalibration` or None
     (no joint angles then; events use sensor x as the foot's anterior axis).
     """
 

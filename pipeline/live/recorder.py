@@ -15,7 +15,7 @@ time, log time = host time), plus the live outputs as JSON for the nightly compa
 ``/live/events`` (one message per gait event), ``/live/calibration`` (once: the session calibration the live
 angles used, as the calibration stage's rows) and ``/live/standing`` (once, when found: the standing offsets
 subtracted from the live angles and the frame they apply from), each a ``std_msgs/msg/String`` holding JSON: any
-MCAP or ROS 2 tool reads them; the ingest stores them beside the raw data (:mod:`pipeline.live.stored`, table
+MCAP or ROS 2 tool reads them; the ingest stores them beside the raw data (:mod:`stridelab.pipeline.live.stored`, table
 ``live_outputs``) and the nightly ``live_agreement`` stage compares them with its own outputs.
 """
 from __future__ import annotations
@@ -32,9 +32,9 @@ from mcap.opcode import Opcode
 from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema,
                           Statistics)
 
-from pipeline.formats import ros2_cdr
-from pipeline.formats.mcap_read import crc32
-from pipeline.formats.mcap_write import (MAGIC, _gather, _message_index, _message_records, _record,
+from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats.mcap_read import crc32
+from stridelab.pipeline.formats.mcap_write import (MAGIC, _gather, _message_index, _message_records, _record,
                                          summary_and_footer)
 
 LIVE_DIR = ".live"
@@ -295,7 +295,7 @@ def recover(inbox: str | Path) -> list[tuple[Path, str]]:
     """Move recordings a crashed live session left in ``<inbox>/.live/`` into the inbox once the ingest's reader
     accepts them (a file cut mid-write is first :func:`repair` ed to its last complete chunk); returns (file,
     outcome) pairs. A file the reader still refuses stays where it is, with the reason."""
-    from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
+    from stridelab.pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
 
     def readable(p):
         try:

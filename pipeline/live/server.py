@@ -65,7 +65,7 @@ class _State(tornado.web.RequestHandler):
 
 
 class LiveServer:
-    """Serve ``hub`` (:class:`pipeline.live.session.Hub`) on ``host:port`` in a background thread.
+    """Serve ``hub`` (:class:`stridelab.pipeline.live.session.Hub`) on ``host:port`` in a background thread.
 
     config: sent to each page on connect (normative bands, cue measure and range, participant)."""
 
@@ -75,7 +75,7 @@ class LiveServer:
         self.config = config or {}
         self.summary = summary or (lambda: {})
         self.clients: set = set()
-        from pipeline.live.session import LatencyStats
+        from stridelab.pipeline.live.session import LatencyStats
         self.delivery = LatencyStats()      # event sample arrival -> event sent to the pages
         self.origins = {f"{host}:{port}", f"localhost:{port}", f"127.0.0.1:{port}"}
         self._loop = None

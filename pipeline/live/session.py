@@ -2,7 +2,7 @@
 
 Threads: the source's thread, which (``inline``, the default) aligns, computes and publishes its samples as they
 arrive (no hand-over to another thread whose wake-up would add to every latency); the recorder thread (the MCAP
-chunks, off the latency path); the web server (:mod:`pipeline.live.server`); ``run`` waits. With
+chunks, off the latency path); the web server (:mod:`stridelab.pipeline.live.server`); ``run`` waits. With
 ``inline=False`` samples go through a bounded queue (``queue_s`` of samples) to ``run``'s thread, and what does
 not fit is counted as dropped by the source.
 """
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.live.align import FrameAligner
-from pipeline.live.engine import LiveEngine, LiveParams, LiveOutput
+from stridelab.pipeline.live.align import FrameAligner
+from stridelab.pipeline.live.engine import LiveEngine, LiveParams, LiveOutput
 
 #: what a display frame carries per joint: the sagittal (FE) angle
 DISPLAY_JOINTS = ("hip_left", "hip_right", "knee_left", "knee_right", "ankle_left", "ankle_right")
@@ -27,7 +27,7 @@ DISPLAY_JOINTS = ("hip_left", "hip_right", "knee_left", "knee_right", "ankle_lef
 
 def calibration_rows(cal) -> list[dict]:
     """The session calibration as the calibration stage's catalog rows (what
-    ``pipeline.stages.joint_angles.session_calibration`` rebuilds it from): the recording carries the calibration
+    ``stridelab.pipeline.stages.joint_angles.session_calibration`` rebuilds it from): the recording carries the calibration
     the live angles were computed with, so the nightly compares like with like."""
     import dataclasses
     import json
@@ -119,8 +119,8 @@ class Hub:
 
 
 class LiveSession:
-    """Run one session: ``source`` (see :mod:`pipeline.live.sources`), ``placements`` computed, optional
-    ``recorder`` (:class:`pipeline.live.recorder.McapRecorder`)."""
+    """Run one session: ``source`` (see :mod:`stridelab.pipeline.live.sources`), ``placements`` computed, optional
+    ``recorder`` (:class:`stridelab.pipeline.live.recorder.McapRecorder`)."""
 
     def __init__(self, source, placements, *, sampling_rate_hz: float, calibration=None,
                  params: LiveParams = LiveParams(), recorder=None, clock: str = "shared", queue_s: float = 10.0,
@@ -149,10 +149,10 @@ class LiveSession:
         self._proc_lock = threading.Lock()
         self.cpu_s = 0.0
         self.wall_s = 0.0
-        self.speed = None           # walking speed for the speed-matched bands (pipeline.live.speed)
+        self.speed = None           # walking speed for the speed-matched bands (stridelab.pipeline.live.speed)
         sides = [sd for sd in ("left", "right") if f"foot_{sd}" in self.placements]
         if speed_estimate and sides:
-            from pipeline.live.speed import LiveSpeed
+            from stridelab.pipeline.live.speed import LiveSpeed
             self.speed = LiveSpeed(sides, sampling_rate_hz=self.fs, on_update=self._speed_update)
         self._warm_up(calibration, params)
         self.hub.state.update({"placements": list(self.placements), "sampling_rate_hz": self.fs,

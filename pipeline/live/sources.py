@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.live.osc import OscError, ngimu_samples
-from pipeline.live.streams import Streams, read_streams
+from stridelab.pipeline.live.osc import OscError, ngimu_samples
+from stridelab.pipeline.live.streams import Streams, read_streams
 
 
 class _ThreadedSource:
@@ -65,7 +65,7 @@ class ReplaySource(_ThreadedSource):
         self.fs = self.streams.sampling_rate_hz
         self.frames_per_put = frames_per_put or (1 if speed is not None else 20)
         self.sent = 0
-        from pipeline.live.session import LatencyStats
+        from stridelab.pipeline.live.session import LatencyStats
         self.wake_late = LatencyStats()     # how late this thread woke for a due frame: the scheduler's share
 
     def _run(self, sink) -> None:

@@ -1,7 +1,7 @@
 """Walking speed during a live session, for the speed-matched normative bands of the therapist's page.
 
 At each stride the live engine completes, the last ``window_s`` of that foot's samples go to the nightly's own
-foot kinematics (``estimators.gait.foot_kinematics``: ESKF with zero-velocity updates and RTS smoother, the gait
+foot kinematics (``stridelab.estimators.gait.foot_kinematics``: ESKF with zero-velocity updates and RTS smoother, the gait
 stage's stride speed) in a worker process; the speed of the last complete stride in the window joins the last
 ``n_strides`` estimates, whose median is the session's current speed. Only past samples are used (causal; the
 estimate lags the stride by up to one stride). The worker is a separate process because the compiled kernels hold
@@ -17,7 +17,7 @@ import numpy as np
 
 def last_stride_speed(gyr: np.ndarray, acc: np.ndarray, sampling_rate_hz: float) -> float:
     """Speed (m/s) of the last complete stride of a foot-IMU window by the gait stage's estimator; NaN if none."""
-    from estimators.gait import PARAM_COLUMNS, foot_kinematics
+    from stridelab.estimators.gait import PARAM_COLUMNS, foot_kinematics
     fk = foot_kinematics(gyr, acc, sampling_rate_hz=sampling_rate_hz)
     v = fk.strides.values[:, list(PARAM_COLUMNS).index("gait_speed_m_s")] if len(fk.strides.values) else []
     v = np.asarray(v, float)

@@ -1,6 +1,6 @@
 """The live outputs a `stridelab live` recording carries, stored by the ingest beside the raw data.
 
-The recorder (:mod:`pipeline.live.recorder`) writes what it computed live as ``std_msgs/msg/String`` JSON topics
+The recorder (:mod:`stridelab.pipeline.live.recorder`) writes what it computed live as ``std_msgs/msg/String`` JSON topics
 (docs/live.md "Recording"). At ingest they are decoded once into two Parquet series of the session and one
 catalog row each in ``live_outputs`` (migration 014): ``angles`` (one row per frame: ``k``, ``t_ns``,
 ``offset_ready`` and ``<joint>_<side>_<plane>_deg``) and ``events`` (``side``, ``type``, ``k``, ``k_detect``,
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from pipeline.live.recorder import JSON_TOPICS
-from warehouse.store import series_relpath, write_table
+from stridelab.pipeline.live.recorder import JSON_TOPICS
+from stridelab.warehouse.store import series_relpath, write_table
 
 PLANES = ("sagittal", "frontal", "transverse")
 
@@ -30,7 +30,7 @@ def read_live_topics(path: str | Path) -> dict:
     "standing": doc | None}. ``ValueError`` naming the file when a message is not the JSON the recorder writes."""
     from mcap.reader import make_reader
 
-    from pipeline.live.recorder import decode_string
+    from stridelab.pipeline.live.recorder import decode_string
     out = {"angles": [], "events": [], "calibration": None, "standing": None}
     with open(path, "rb") as fh:
         r = make_reader(fh)

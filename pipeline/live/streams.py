@@ -1,6 +1,6 @@
 """A recording (MCAP file or rosbag2 bag directory) as per-sensor arrays, for replay and calibration.
 
-Reuses the ingest's readers (``pipeline.formats.mcap_read.iter_blocks``, ``rosbag2.iter_bag_blocks``), so a
+Reuses the ingest's readers (``stridelab.pipeline.formats.mcap_read.iter_blocks``, ``rosbag2.iter_bag_blocks``), so a
 file the nightly run accepts is a file the live session can replay, and a corrupt one is refused with the
 same one-line reason.
 """
@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
-from pipeline.formats.rosbag2 import bag_info, is_bag, iter_bag_blocks
-from pipeline.session_sources import placement_for
+from stridelab.pipeline.formats.mcap_read import McapFormatError, ReadResult, iter_blocks
+from stridelab.pipeline.formats.rosbag2 import bag_info, is_bag, iter_bag_blocks
+from stridelab.pipeline.session_sources import placement_for
 
 
 @dataclass

@@ -70,7 +70,7 @@ class Stage:
     applies: Callable | None = None
     #: catalog tables written by the ingest (not by a stage) whose rows of the session the stage reads (upstream)
     reads: tuple[str, ...] = ()
-    #: the frozen parameter class of a stage in the shape of :mod:`pipeline.stages._shape` (None for a bare Stage)
+    #: the frozen parameter class of a stage in the shape of :mod:`stridelab.pipeline.stages._shape` (None for a bare Stage)
     params_cls: type | None = None
 
 
@@ -103,7 +103,7 @@ def scored_mask(events: list[dict], rec: dict, placement: str, t_ns: np.ndarray)
 
 def registry() -> list[Stage]:
     """All stages in topological order."""
-    from pipeline.stages import (activity, calibration, clinical, gait, joint_angles, live_agreement, orientation,
+    from stridelab.pipeline.stages import (activity, calibration, clinical, gait, joint_angles, live_agreement, orientation,
                                  trunk_gait)
     stages = [orientation.STAGE, gait.STAGE, clinical.STAGE, calibration.STAGE, joint_angles.STAGE, activity.STAGE,
               trunk_gait.STAGE, live_agreement.STAGE]

@@ -1,4 +1,4 @@
-"""Inputs of the clinical stage (:mod:`pipeline.stages.clinical`) from the gait stage's rows and series: each
+"""Inputs of the clinical stage (:mod:`stridelab.pipeline.stages.clinical`) from the gait stage's rows and series: each
 foot's strides and events as the estimator's :class:`FootStrides` / :class:`FootEvents`, its trajectory in the
 walking frame, and the paretic side."""
 from __future__ import annotations
@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from pipeline.stages._context import StageContext
+from stridelab.pipeline.stages._context import StageContext
 
 SIDES = ("left", "right")
 
@@ -20,7 +20,7 @@ def paretic_side(ctx: StageContext) -> tuple[str | None, str]:
         return sides.pop(), "session metadata"
     if len(sides) > 1:
         return None, "recordings disagree on paretic_side"
-    from pipeline.config import study_manifest
+    from stridelab.pipeline.config import study_manifest
     for p in study_manifest(ctx.session.get("study") or "").get("participants", []):
         if str(p.get("id")) == str(ctx.session.get("participant_id")) and p.get("paretic_side") in SIDES:
             return p["paretic_side"], "study manifest"
@@ -33,7 +33,7 @@ def _s(ns, t0: int) -> np.ndarray:
 
 def foot_inputs(strides: list[dict], events: list[dict], xy_at, t0: int):
     """(strides sorted by IC, FootStrides, FootEvents) of one foot of one recording; ``xy_at(ns list) -> (n, 2)``."""
-    from estimators.gait.clinical import FootEvents, FootStrides
+    from stridelab.estimators.gait.clinical import FootEvents, FootStrides
     strides = sorted(strides, key=lambda r: r["ic_ns"])
     mids = sorted({r["start_ns"] for r in strides} | {r["end_ns"] for r in strides})
     st = FootStrides(pre_ic_s=_s([r["pre_ic_ns"] for r in strides], t0), tc_s=_s([r["tc_ns"] for r in strides], t0),
@@ -49,7 +49,7 @@ def foot_inputs(strides: list[dict], events: list[dict], xy_at, t0: int):
 
 
 def concat_phases(parts: list):
-    from estimators.gait.clinical import StepPhases
+    from stridelab.estimators.gait.clinical import StepPhases
     if not parts:
         z = np.zeros(0)
         return StepPhases(*([z] * 12), used=np.zeros(0, bool), reason=np.zeros(0, str))
@@ -60,7 +60,7 @@ def concat_phases(parts: list):
 def foot_xy(ctx: StageContext, rec: dict, side: str, sd: list[dict], cp, k: dict, notes: list):
     """``xy_at`` of one foot (its trajectory in the walking frame, scaled by ``k[side]`` when called) and the
     lengths of its steady straight strides (:func:`equal_stride_scale`), or (NaN lookup, None) without one."""
-    from estimators.gait.clinical import positions_at, straight_stride_lengths, walking_frame_xy
+    from stridelab.estimators.gait.clinical import positions_at, straight_stride_lengths, walking_frame_xy
     tr = [r for r in ctx.upstream.get("foot_trajectories", []) if r["content_hash"] == rec["content_hash"]
           and r["side"] == side]
     if not tr:

@@ -1,4 +1,4 @@
-"""What a stage in the shape of :mod:`pipeline.stages._shape` sees and produces on one session: the inputs it
+"""What a stage in the shape of :mod:`stridelab.pipeline.stages._shape` sees and produces on one session: the inputs it
 declares (recordings, IMU samples of its placements, reference annotations, upstream rows, the warehouse series it
 reads) and the outputs it declares (rows of its tables, series files, notes). A stage's warehouse reading and
 writing goes through here, so the stage module itself only calls estimators and shapes rows."""
@@ -11,7 +11,7 @@ from typing import Iterator
 
 import numpy as np
 
-from pipeline.stages import SessionInput, StageOutput, canonical_json, params_hash
+from stridelab.pipeline.stages import SessionInput, StageOutput, canonical_json, params_hash
 
 __all__ = ["ImuInput", "StageContext"]
 
@@ -86,7 +86,7 @@ class StageContext:
         """Per recording the first declared placement it carries (in declaration order; ``placements`` overrides
         the declaration, ``recordings`` the session's), samples read whole, or (``read=False``) only its
         description: read rows with :meth:`read_imu` (a week need not be held at once)."""
-        from warehouse.read import series_rows
+        from stridelab.warehouse.read import series_rows
         for rec in self.recordings if recordings is None else recordings:
             for pl in self.placements if placements is None else placements:
                 imu = rec["sensors"].get(pl, {}).get("imu")
@@ -100,7 +100,7 @@ class StageContext:
 
     def read_imu(self, imu: ImuInput, start: int = 0, stop: int | None = None) -> ImuInput:
         """Rows [start, stop) of ``imu`` (t_ns, acc, gyr; gyr None for an accelerometer-only sensor)."""
-        from warehouse.read import read_column_range
+        from stridelab.warehouse.read import read_column_range
         root, path = self.inp.root, imu.series_path
         t = read_column_range(root, path, ("t_ns",), start, stop, dtype=np.int64)
         acc = read_column_range(root, path, ("acc_x", "acc_y", "acc_z"), start, stop)
@@ -112,9 +112,9 @@ class StageContext:
         return dataclasses.replace(imu, t_ns=t, acc=acc, gyr=gyr, n_samples=len(t))
 
     def read_imu_files(self, rec: dict, placement: str, with_mag: bool = False):
-        """:class:`warehouse.read.ImuSeries` of ``placement`` in ``rec`` (magnetometer on the IMU stamps when asked
+        """:class:`stridelab.warehouse.read.ImuSeries` of ``placement`` in ``rec`` (magnetometer on the IMU stamps when asked
         for and recorded), or None when it has no IMU."""
-        from warehouse.read import read_imu_files
+        from stridelab.warehouse.read import read_imu_files
         kinds = rec["sensors"].get(placement, {})
         imu = kinds.get("imu")
         if imu is None:
@@ -125,7 +125,7 @@ class StageContext:
 
     def read_table(self, path: str, columns: list[str] | None = None):
         """A series file of the warehouse (pyarrow table), checksums verified."""
-        from warehouse.store import read_table
+        from stridelab.warehouse.store import read_table
         return read_table(self.inp.root, path, columns=columns)
 
     def reference_pose(self, rec: dict, placement: str, columns: tuple[str, ...]):
@@ -138,13 +138,13 @@ class StageContext:
 
     def reference_orientation(self, rec: dict, placement: str, t_ns: np.ndarray) -> np.ndarray | None:
         """Optical segment orientation of ``placement`` at the stamps ``t_ns`` (NaN where none), or None."""
-        from warehouse.read import reference_orientation_on
+        from stridelab.warehouse.read import reference_orientation_on
         ref = rec["sensors"].get(placement, {}).get("reference_pose")
         return None if ref is None else reference_orientation_on(self.inp.root, ref["series_path"], t_ns)
 
     def write_series(self, placement: str, name: str, table) -> str:
         """Write ``table`` (pyarrow) as the series ``name`` of ``placement`` in this session; its relative path."""
-        from warehouse.store import series_relpath, write_table
+        from stridelab.warehouse.store import series_relpath, write_table
         s = self.session
         rel = series_relpath(s["study"], s["participant_id"], s["session_id"], placement, name)
         write_table(self.inp.root, rel, table)
@@ -152,12 +152,12 @@ class StageContext:
 
     def read_times(self, imu: ImuInput, start: int = 0, stop: int | None = None) -> np.ndarray:
         """int64 ns stamps of rows [start, stop) of ``imu``."""
-        from warehouse.read import read_column_range
+        from stridelab.warehouse.read import read_column_range
         return read_column_range(self.inp.root, imu.series_path, ("t_ns",), start, stop, dtype=np.int64)
 
     def read_acc(self, imu: ImuInput, start: int = 0, stop: int | None = None) -> np.ndarray:
         """(n, 3) m/s² accelerometer rows [start, stop) of ``imu`` (the gyroscope not read)."""
-        from warehouse.read import read_column_range
+        from stridelab.warehouse.read import read_column_range
         return read_column_range(self.inp.root, imu.series_path, ("acc_x", "acc_y", "acc_z"), start, stop)
 
     def events(self, type: str | None = None, label: str | None = None, rec: dict | None = None) -> list[dict]:

@@ -1,4 +1,4 @@
-"""The shoe distance sensors of the gait stage (:mod:`pipeline.stages.gait`): their readings on the IMU grid
+"""The shoe distance sensors of the gait stage (:mod:`stridelab.pipeline.stages.gait`): their readings on the IMU grid
 (:func:`read_ranges`) and the Duong & Suh filter with the configured or guessed sensor geometry
 (:func:`range_trajectory`)."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 
-from pipeline.stages._context import StageContext
+from stridelab.pipeline.stages._context import StageContext
 
 _RANGE_NAME = re.compile(r"range-([A-Za-z0-9]+)-")
 
@@ -20,7 +20,7 @@ def read_ranges(ctx: StageContext, rec: dict, placement: str, t_ns: np.ndarray) 
     keys = sorted(k for k in rec["sensors"].get(placement, {}) if k.startswith("range:"))
     if not keys or len(t_ns) < 2:
         return None
-    from estimators.sync import nearest_sample
+    from stridelab.estimators.sync import nearest_sample
     out = np.full((len(t_ns), 2), np.nan)
     for j, key in enumerate(keys[:2]):
         m = _RANGE_NAME.search(key)
@@ -33,8 +33,8 @@ def read_ranges(ctx: StageContext, rec: dict, placement: str, t_ns: np.ndarray) 
 
 def range_trajectory(gyr, acc, ranges, fs: float, placement: str, dp):
     """The Duong & Suh filter of one foot segment with the configured or guessed geometry; (result, source).
-    ``dp``: the stage's :class:`pipeline.stages.gait.DistanceSensorParams`."""
-    from estimators.trajectory import RangeGeometry, detect_zupt, duong_suh_trajectory, geometry_from_stance
+    ``dp``: the stage's :class:`stridelab.pipeline.stages.gait.DistanceSensorParams`."""
+    from stridelab.estimators.trajectory import RangeGeometry, detect_zupt, duong_suh_trajectory, geometry_from_stance
     fp, g = dp.filter, (dp.geometry or {}).get(placement)
     if g is not None:
         return duong_suh_trajectory(gyr, acc, ranges, sampling_rate_hz=fs, params=fp,

@@ -1,4 +1,4 @@
-"""Table rows of the gait stage (:mod:`pipeline.stages.gait`): estimator results -> catalog rows and the foot
+"""Table rows of the gait stage (:mod:`stridelab.pipeline.stages.gait`): estimator results -> catalog rows and the foot
 trajectory series. No estimation here; the only arithmetic is int64 ns <-> sample index (STYLE.md §4)."""
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def num(x) -> float | None:
 
 def foot_rows(sid: str, rec: dict, placement: str, side: str, t_ns: np.ndarray, fk) -> dict:
     """``gait_events`` and ``strides`` rows of one foot segment (events and strides in ns)."""
-    from estimators.gait import PARAM_COLUMNS
+    from stridelab.estimators.gait import PARAM_COLUMNS
     h, trial = rec["content_hash"], rec["trial"]
     ev = [{"session_id": sid, "content_hash": h, "trial": trial, "placement": placement, "side": side,
            "type": typ, "t_ns": int(t_ns[int(i)])} for typ, idx in (("IC", fk.events.ic_idx), ("TC", fk.events.tc_idx))

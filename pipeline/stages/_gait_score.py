@@ -1,13 +1,13 @@
-"""The score step of the gait stage (:mod:`pipeline.stages.gait`): its events, strides and foot trajectories
+"""The score step of the gait stage (:mod:`stridelab.pipeline.stages.gait`): its events, strides and foot trajectories
 against the session's references, each by the one scorer of its quantity (the one ``stridelab bench gait`` /
-``bench trajectory`` use): events :func:`estimators.gait.evaluation.event_accuracy`, stride lengths
-:func:`estimators.gait.evaluation.stride_length_reference` + :func:`~estimators.gait.evaluation.paired_errors`,
-trajectories :func:`estimators.trajectory.evaluation.armse_2d_aligned` / ``armse_3d_aligned``."""
+``bench trajectory`` use): events :func:`stridelab.estimators.gait.evaluation.event_accuracy`, stride lengths
+:func:`stridelab.estimators.gait.evaluation.stride_length_reference` + :func:`~stridelab.estimators.gait.evaluation.paired_errors`,
+trajectories :func:`stridelab.estimators.trajectory.evaluation.armse_2d_aligned` / ``armse_3d_aligned``."""
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.stages._gait_rows import SIDES, num
+from stridelab.pipeline.stages._gait_rows import SIDES, num
 
 ESTIMATOR = "eskf_zupt_rts+thesis_icd"
 
@@ -32,7 +32,7 @@ def event_side(e: dict) -> str:
 def stride_reference_lengths(mine: list[dict], ref, events: list[dict], rec: dict, side: str) -> None:
     """``stride_length_ref_m`` of the foot's stride rows ``mine`` from the optical foot positions ``ref``
     ((t_ns, (M, 3))), within the reference's labelled strides when it has them."""
-    from estimators.gait.evaluation import stride_length_reference
+    from stridelab.estimators.gait.evaluation import stride_length_reference
     if not mine:
         return
     t0 = int(ref[0][0]) if len(ref[0]) else 0
@@ -49,7 +49,7 @@ def event_rows(sid: str, det: dict, ref: dict, spans: dict, tol_s: float,
                origin_ns: int) -> tuple[list[dict], list[dict]]:
     """det/ref: (side, type) -> list over trials of int64 ns arrays; spans: side -> list over trials of the span
     the reference annotates ((lo, hi) ns, or None). Rows for accuracy_metrics/accuracy_pairs (``spans_s``)."""
-    from estimators.gait.evaluation import event_accuracy
+    from stridelab.estimators.gait.evaluation import event_accuracy
     metrics, pairs = [], []
     units = {"sensitivity": "fraction", "precision": "fraction", "timing_mae_ms": "ms", "timing_mean_ms": "ms"}
     sec = lambda x: (np.asarray(x, np.int64) - origin_ns) / 1e9          # noqa: E731
@@ -84,7 +84,7 @@ def trajectory_rows(sid: str, placement: str, t_ns: np.ndarray, fks: list, ref, 
     """Foot trajectory vs the optical foot position (PyShoe's Vicon): 2-D Euclidean ARMSE after PyShoe's alignment
     (the scorer of ``stridelab bench trajectory --pyshoe``), per segment with a reference on at least half its
     samples, pooled weighted by length; and the 3-D error after the same alignment (metric ``armse_3d_m``)."""
-    from estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
     rt, rp = ref
     if len(rt) < 2:
         return []
@@ -120,7 +120,7 @@ def trajectory_rows(sid: str, placement: str, t_ns: np.ndarray, fks: list, ref, 
 
 def stride_rows(sid: str, strides: list[dict]) -> list[dict]:
     """Stride length against the optical reference per foot and both: MAE, mean error, RMSE."""
-    from estimators.gait.evaluation import paired_errors
+    from stridelab.estimators.gait.evaluation import paired_errors
     rows = []
     for placement, sides in (("foot_left", ("left",)), ("foot_right", ("right",)), ("both", SIDES)):
         sel = [r for r in strides if r["side"] in sides and r["stride_length_ref_m"] is not None

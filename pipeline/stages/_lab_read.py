@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.sync import clock_fit, common_grid, interp_columns, nlerp, to_clock_of
-from pipeline.stages._context import StageContext
+from stridelab.estimators.sync import clock_fit, common_grid, interp_columns, nlerp, to_clock_of
+from stridelab.pipeline.stages._context import StageContext
 
 CALIBRATION_TRIAL = "calibration"
 #: when the stamps shared by every sensor are fewer than this share of the shortest sensor's, the
@@ -26,7 +26,7 @@ def read_recording(ctx: StageContext, rec: dict, orientation_rows: list[dict], p
     Sensors sharing one clock meet on the stamps they all have (no interpolation). Sensors on
     independent clocks (offsets up to seconds, jitter, slightly different rates: the shared stamps are
     fewer than :data:`EXACT_GRID_SHARE` of the shortest sensor's) are aligned through the host clock
-    (:func:`estimators.sync.clock_fit`), which maps every stamp into the clock of the first placement, and the
+    (:func:`stridelab.estimators.sync.clock_fit`), which maps every stamp into the clock of the first placement, and the
     others are interpolated (linearly; the orientation by nlerp) onto that sensor's stamps where all overlap.
     ``resampled`` tells which case applied; the grid is empty when the sensors do not overlap.
     """
@@ -88,8 +88,8 @@ def session_calibration(rows: list[dict]):
     """:class:`SessionCalibration` rebuilt from the calibration stage's rows (None when there are none)."""
     import json
 
-    from estimators.calibration import CalibrationParams, CalibrationWindows, ImuCalibration, SessionCalibration
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.calibration import CalibrationParams, CalibrationWindows, ImuCalibration, SessionCalibration
+    from stridelab.estimators.quaternion import quat_to_matrix
     if not rows:
         return None
     imus = {}

@@ -19,12 +19,12 @@ A stage in this shape is one small module::
     STAGE = shaped_stage("my_stage", "1", MyParams, compute, score=score, placements=("lower_back",),
                          tables=("my_table", "accuracy_metrics"), session_kinds=("lab",))
 
-:func:`shaped_stage` adapts it onto the runner's :class:`pipeline.stages.Stage` (``compute(SessionInput, dict)
+:func:`shaped_stage` adapts it onto the runner's :class:`stridelab.pipeline.stages.Stage` (``compute(SessionInput, dict)
 -> StageOutput``; parameters as a JSON dict so the stamp and the ledger are unchanged): the dict is turned into
 the frozen parameter class (nested dataclasses included; an unknown key refused naming its place), a session
 without the declared placements is ``skipped`` with a note naming what it has (a stage without declared
 placements decides itself: ``ctx.skip(why)``), and a row for a table the stage did not declare is refused. Every
-stage of :func:`pipeline.stages.registry` is written this way (docs/architecture.md).
+stage of :func:`stridelab.pipeline.stages.registry` is written this way (docs/architecture.md).
 """
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ import dataclasses
 import json
 from typing import Callable
 
-from pipeline.stages import SessionInput, Stage, StageOutput
-from pipeline.stages._context import ImuInput, StageContext
+from stridelab.pipeline.stages import SessionInput, Stage, StageOutput
+from stridelab.pipeline.stages._context import ImuInput, StageContext
 
 __all__ = ["ImuInput", "StageContext", "params_from_dict", "params_to_dict", "shaped_stage"]
 
@@ -77,7 +77,7 @@ def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageCo
     ``placements`` a session none of whose recordings has an IMU there is skipped before ``compute``; without,
     the stage decides (:meth:`StageContext.skip`). ``score`` runs after ``compute`` unless that skipped, then
     ``finish`` (rows of the whole session that carry the notes of both steps, e.g. the gait summary).
-    ``applies`` / ``reads``: as :class:`pipeline.stages.Stage` (sessions the stage is about; ingest tables it reads)."""
+    ``applies`` / ``reads``: as :class:`stridelab.pipeline.stages.Stage` (sessions the stage is about; ingest tables it reads)."""
 
     def run(inp: SessionInput, params: dict) -> StageOutput:
         p = params_from_dict(params_cls, params)

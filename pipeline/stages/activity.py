@@ -1,4 +1,4 @@
-"""Daily activity for every free-living chest recording: warehouse -> estimators.activity -> warehouse.
+"""Daily activity for every free-living chest recording: warehouse -> stridelab.estimators.activity -> warehouse.
 
 ``compute``: only the accelerometer is read (the method ignores the gyroscope). A recording longer than
 ``DAY_PIECES_ABOVE_S`` (a week-long free-living recording: 60 M samples) is classified one local calendar
@@ -6,7 +6,7 @@ day at a time (midnight to midnight, the days the daily summaries report), so a 
 samples, never the week; the per-second classes of the days are joined before the bouts are cut, so a bout
 crossing midnight stays one bout. Recordings up to that length are classified in one piece.
 ``score`` (separate step): window accuracy against the recording's labelled ``activity`` intervals by the one
-scorer :func:`estimators.activity.evaluation.window_confusion` that ``stridelab bench activity`` uses.
+scorer :func:`stridelab.estimators.activity.evaluation.window_confusion` that ``stridelab bench activity`` uses.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("activity_bouts", "activity_transitions", "activity_daily", "accuracy_metrics")
 #: longer recordings are classified per local day (bounded memory); a 24-25 h day stays one piece
@@ -25,9 +25,9 @@ SCORE_SLICE_SAMPLES = 1 << 23
 
 @dataclass(frozen=True)
 class ActivityParams:
-    """preset: name in :data:`estimators.activity.PRESETS`. placement: the IMU classified.
+    """preset: name in :data:`stridelab.estimators.activity.PRESETS`. placement: the IMU classified.
     window_model: "default" = the shipped UCI-fitted window model refines the rule timeline
-    (pipeline.activity_model; docs/activity.md); None = rules only."""
+    (stridelab.pipeline.activity_model; docs/activity.md); None = rules only."""
     preset: str = "default"
     placement: str = "chest"
     window_model: str | None = "default"
@@ -43,7 +43,7 @@ def _runs(classes: np.ndarray) -> list[tuple[int, int]]:
 
 def _day_pieces(ctx: StageContext, imu, tz: str) -> list[tuple[int, int]]:
     """[start, stop) sample ranges: the whole recording, or its local calendar days when it is long."""
-    from estimators.activity._daily import local_midnights_ns
+    from stridelab.estimators.activity._daily import local_midnights_ns
     n = imu.n_samples
     if n / imu.fs_hz <= DAY_PIECES_ABOVE_S:
         return [(0, n)]
@@ -55,9 +55,9 @@ def _day_pieces(ctx: StageContext, imu, tz: str) -> list[tuple[int, int]]:
 
 def compute(ctx: StageContext, p: ActivityParams) -> None:
     # imported here, in the worker: the coordinator reads the stage's declaration only (this module is in its
-    # registry), and estimators.activity brings SciPy's signal package (~0.7 CPU-s of imports per run)
-    from estimators.activity import CLASSES, PRESETS, TRANSITIONS, daily_summaries
-    from pipeline.activity_model import classify_recording
+    # registry), and stridelab.estimators.activity brings SciPy's signal package (~0.7 CPU-s of imports per run)
+    from stridelab.estimators.activity import CLASSES, PRESETS, TRANSITIONS, daily_summaries
+    from stridelab.pipeline.activity_model import classify_recording
     if p.preset not in PRESETS:
         raise ValueError(f"unknown activity preset '{p.preset}'; choose one of {', '.join(PRESETS)}")
     if all(p.placement not in r["sensors"] for r in ctx.recordings):
@@ -105,8 +105,8 @@ def compute(ctx: StageContext, p: ActivityParams) -> None:
 
 def score(ctx: StageContext, p: ActivityParams) -> None:
     """Per recording with labelled ``activity`` intervals (each annotation one label run; labels outside
-    :data:`estimators.activity.evaluation.SCORED_CLASSES` not scored): balanced accuracy and accuracy of windows."""
-    from estimators.activity.evaluation import SCORED_CLASSES, scores, window_confusion, window_samples
+    :data:`stridelab.estimators.activity.evaluation.SCORED_CLASSES` not scored): balanced accuracy and accuracy of windows."""
+    from stridelab.estimators.activity.evaluation import SCORED_CLASSES, scores, window_confusion, window_samples
     est = f"activity:{p.preset}" + (f"+window_model:{p.window_model}" if p.window_model else "")
     for rec, imu, sec, sec_t in ctx.found:
         act = [e for e in ctx.inp.events if e.get("type") == "activity" and e.get("end_ns") is not None

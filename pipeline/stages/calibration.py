@@ -1,12 +1,12 @@
-"""Sensor-to-segment calibration per lab session: warehouse -> estimators.calibration -> warehouse.
+"""Sensor-to-segment calibration per lab session: warehouse -> stridelab.estimators.calibration -> warehouse.
 
 ``compute``: the session's calibration trial (recording whose trial is ``calibration``) is read with the sensor
-orientations of the orientation stage (:func:`pipeline.stages._lab_read.read_recording`);
-:func:`estimators.calibration.calibrate_session` finds the windows (or takes them from the study manifest,
+orientations of the orientation stage (:func:`stridelab.pipeline.stages._lab_read.read_recording`);
+:func:`stridelab.estimators.calibration.calibrate_session` finds the windows (or takes them from the study manifest,
 ``[stages.calibration.windows]``) and returns one calibration and QC status per IMU. A session without a
 calibration trial gets a ``fail`` row per lower-limb IMU ("calibration trial missing"), never an exception:
 joint angles then carry that status. ``score`` (separate step): the calibration error against the optical
-reference (:func:`estimators.calibration.evaluation.helical_angle_deg`).
+reference (:func:`stridelab.estimators.calibration.evaluation.helical_angle_deg`).
 
 Manifest form (seconds from the start of the calibration trial; a table keyed by a session id
 applies to that session only)::
@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.calibration import CalibrationParams
-from estimators.sync import common_grid  # noqa: F401  (pipeline.live.calibration reads it from here)
-from pipeline.stages import canonical_json
-from pipeline.stages._lab_read import CALIBRATION_TRIAL, find_calibration_recording, read_recording  # noqa: F401
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.estimators.calibration import CalibrationParams
+from stridelab.estimators.sync import common_grid  # noqa: F401  (stridelab.pipeline.live.calibration reads it from here)
+from stridelab.pipeline.stages import canonical_json
+from stridelab.pipeline.stages._lab_read import CALIBRATION_TRIAL, find_calibration_recording, read_recording  # noqa: F401
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("calibration", "accuracy_metrics")
 WINDOW_KEYS = ("standing", "hip_fe", "walking")
@@ -38,7 +38,7 @@ WINDOW_KEYS = ("standing", "hip_fe", "walking")
 
 @dataclass(frozen=True)
 class CalibrationStageParams(CalibrationParams):
-    """The estimator's :class:`estimators.calibration.CalibrationParams` (units in their names) and ``windows``:
+    """The estimator's :class:`stridelab.estimators.calibration.CalibrationParams` (units in their names) and ``windows``:
     the calibration windows in seconds from the start of the calibration trial ({} = detected), or per session id
     a table of them (see the module docstring)."""
     windows: dict = field(default_factory=dict)
@@ -51,7 +51,7 @@ def calibration_params(p: CalibrationStageParams) -> CalibrationParams:
 
 def manual_windows(p: CalibrationStageParams, session_id: str, sampling_rate_hz: float):
     """CalibrationWindows from the manifest (``None`` = detect automatically)."""
-    from estimators.calibration import CalibrationWindows
+    from stridelab.estimators.calibration import CalibrationWindows
     w = p.windows or {}
     if session_id in w:
         w = w[session_id]
@@ -90,8 +90,8 @@ def calibration_rows(ctx: StageContext, content_hash: str | None, cal, fs: float
 
 
 def compute(ctx: StageContext, p: CalibrationStageParams) -> None:
-    from estimators.calibration import calibrate_session, missing_calibration
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.calibration import calibrate_session, missing_calibration
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
     cp = calibration_params(p)
     have = {pl for r in ctx.recordings for pl, kinds in r["sensors"].items() if "imu" in kinds}
     if not have & (set(DEFAULT_PLACEMENTS) - {"foot_left", "foot_right"}):
@@ -123,10 +123,10 @@ def score(ctx: StageContext, p: CalibrationStageParams) -> None:
     """Calibration error (thesis Eq. 19, helical angle) against the optical reference, per IMU with a segment
     pose in the calibration trial: the reference sensor-to-segment rotation is the constant rotation between
     the IMU orientation and the optical segment orientation over the trial
-    (:func:`estimators.orientation.evaluation.segment_alignment`), so it carries the orientation error too."""
-    from estimators.calibration.evaluation import helical_angle_deg
-    from estimators.orientation.evaluation import segment_alignment
-    from estimators.quaternion import quat_to_matrix
+    (:func:`stridelab.estimators.orientation.evaluation.segment_alignment`), so it carries the orientation error too."""
+    from stridelab.estimators.calibration.evaluation import helical_angle_deg
+    from stridelab.estimators.orientation.evaluation import segment_alignment
+    from stridelab.estimators.quaternion import quat_to_matrix
     ori = ctx.upstream.get("orientation", [])
     estimator = ori[0]["estimator"] if ori else None
     for rec, data, cal in ctx.found:

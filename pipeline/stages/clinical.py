@@ -1,14 +1,14 @@
 """Clinical gait measures of every lab session: the gait stage's events, strides and foot trajectories ->
-estimators.gait.clinical -> warehouse.
+stridelab.estimators.gait.clinical -> warehouse.
 
 A stage of its own after ``gait`` (it reads only the gait stage's outputs): the clinical definitions can change
 and be recomputed without rerunning the foot filters. ``compute``: per walking recording, the step and phase
 measures of each stride come from the other foot's events (``clinical_steps``, one row per stride of ``strides``);
 the session table ``clinical_measures`` holds both sides, the paretic / non-paretic ratio, the symmetry ratio and
 the within-session uncertainty. Step lengths need the two feet in one frame: each foot's trajectory is turned to
-the initial walking direction and both start side by side (:func:`estimators.gait.clinical.walking_frame_xy`).
+the initial walking direction and both start side by side (:func:`stridelab.estimators.gait.clinical.walking_frame_xy`).
 ``score`` (separate step): where the optical reference of both feet exists, the same step lengths from it are
-stored (``step_length_ref_m``) and scored (``accuracy_metrics``, :func:`estimators.gait.evaluation.paired_errors`).
+stored (``step_length_ref_m``) and scored (``accuracy_metrics``, :func:`stridelab.estimators.gait.evaluation.paired_errors`).
 
 The paretic side comes from the recordings' session metadata (``paretic_side``), else from the study manifest's
 participant entry; unknown = no paretic ratios (symmetry ratios still).
@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.gait.clinical import ClinicalParams   # the stage's parameters are the estimator's (units in names)
-from pipeline.stages._clinical_inputs import SIDES, concat_phases, foot_inputs, foot_xy, paretic_side
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.estimators.gait.clinical import ClinicalParams   # the stage's parameters are the estimator's (units in names)
+from stridelab.pipeline.stages._clinical_inputs import SIDES, concat_phases, foot_inputs, foot_xy, paretic_side
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("clinical_steps", "clinical_measures", "accuracy_metrics")
 ESTIMATOR = "clinical_v1"
@@ -33,7 +33,7 @@ def _num(x):
 
 
 def compute(ctx: StageContext, cp: ClinicalParams) -> None:
-    from estimators.gait.clinical import clinical_summary, equal_stride_scale, step_phases
+    from stridelab.estimators.gait.clinical import clinical_summary, equal_stride_scale, step_phases
     sid, up = ctx.session_id, ctx.upstream
     if not up.get("strides"):
         return ctx.skip("clinical skipped: the gait stage found no strides in this session")
@@ -91,8 +91,8 @@ def compute(ctx: StageContext, cp: ClinicalParams) -> None:
 
 def score(ctx: StageContext, cp: ClinicalParams) -> None:
     """Step lengths from the optical positions of both feet (same definitions, C6) beside the IMU ones."""
-    from estimators.gait.clinical import positions_at, step_phases
-    from estimators.gait.evaluation import paired_errors
+    from stridelab.estimators.gait.clinical import positions_at, step_phases
+    from stridelab.estimators.gait.evaluation import paired_errors
     pairs, refs = [], {}
     for rec, side, t0, sd, ev, ph, rows in ctx.found:
         if rec["content_hash"] not in refs:

@@ -1,12 +1,12 @@
 """Gait events, strides, foot trajectories and the session gait summary of every lab session:
-warehouse -> estimators.gait -> warehouse.
+warehouse -> stridelab.estimators.gait -> warehouse.
 
 ``compute``: for each walking trial (recording whose trial is not ``calibration``) and each foot IMU
-(``foot_left``, ``foot_right``), :func:`estimators.gait.foot_kinematics` per contiguous segment of samples; when
+(``foot_left``, ``foot_right``), :func:`stridelab.estimators.gait.foot_kinematics` per contiguous segment of samples; when
 the recording carries the shoe distance sensors (``/range/<foot>/<A|B>``) and ``distance_sensors.use`` is on, the
-foot's vertical trajectory from the Duong & Suh filter (:func:`estimators.trajectory.duong_suh_trajectory`);
-:func:`estimators.gait.gait_session_pooled` over the whole session. ``score`` (separate step,
-:mod:`pipeline.stages._gait_score`): events, stride lengths and trajectories against the session's references.
+foot's vertical trajectory from the Duong & Suh filter (:func:`stridelab.estimators.trajectory.duong_suh_trajectory`);
+:func:`stridelab.estimators.gait.gait_session_pooled` over the whole session. ``score`` (separate step,
+:mod:`stridelab.pipeline.stages._gait_score`): events, stride lengths and trajectories against the session's references.
 ``finish``: the session summary (``gait_summary``), whose note carries the notes of both steps.
 
 Tables (migration 004): ``gait_events``, ``strides``, ``gait_summary``, ``foot_trajectories`` (+ Parquet
@@ -19,14 +19,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from estimators.gait import FootParams
-from estimators.gait.evaluation import EVENT_TOLERANCE_S
-from estimators.timebase import contiguous_segments
-from estimators.trajectory import UNKNOWN_GEOMETRY_CALIB_VAR, DuongSuhParams
-from pipeline.stages import _gait_score as sc
-from pipeline.stages._gait_ranges import range_trajectory, read_ranges
-from pipeline.stages._gait_rows import SIDES, foot_rows, num, session_status, summary_rows, trajectory_table
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.estimators.gait import FootParams
+from stridelab.estimators.gait.evaluation import EVENT_TOLERANCE_S
+from stridelab.estimators.timebase import contiguous_segments
+from stridelab.estimators.trajectory import UNKNOWN_GEOMETRY_CALIB_VAR, DuongSuhParams
+from stridelab.pipeline.stages import _gait_score as sc
+from stridelab.pipeline.stages._gait_ranges import range_trajectory, read_ranges
+from stridelab.pipeline.stages._gait_rows import SIDES, foot_rows, num, session_status, summary_rows, trajectory_table
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 CALIBRATION_TRIAL = "calibration"
 ESTIMATOR = sc.ESTIMATOR
@@ -37,7 +37,7 @@ TABLES = ("gait_events", "strides", "gait_summary", "foot_trajectories", "accura
 class DistanceSensorParams:
     """use: run the Duong & Suh filter where the shoes carry distance sensors. filter: its parameters (no ruler
     baseline: unknown for a study). geometry: {placement: {r_a, r_b, n_a, n_b}} in IMU coordinates (m, unit
-    vectors) when measured, else guessed from the first stance (:func:`estimators.trajectory.geometry_from_stance`)
+    vectors) when measured, else guessed from the first stance (:func:`stridelab.estimators.trajectory.geometry_from_stance`)
     with the calibration-state variance ``unknown_geometry_calib_var``."""
     use: bool = True
     filter: DuongSuhParams = field(default_factory=lambda: DuongSuhParams(baseline_m=None))
@@ -47,7 +47,7 @@ class DistanceSensorParams:
 
 @dataclass(frozen=True)
 class GaitParams:
-    """foot: :class:`estimators.gait.FootParams`. event_tolerance_s: detected and reference events further apart
+    """foot: :class:`stridelab.estimators.gait.FootParams`. event_tolerance_s: detected and reference events further apart
     than this (s) do not match (scoring). min_segment_s: stretches of samples shorter than this (s) are not
     analysed. distance_sensors: :class:`DistanceSensorParams`."""
     foot: FootParams = field(default_factory=FootParams)
@@ -70,7 +70,7 @@ def walking_recordings(recordings: list[dict]) -> list[dict]:
 
 
 def compute(ctx: StageContext, p: GaitParams) -> None:
-    from estimators.gait import foot_kinematics, gait_session_pooled
+    from stridelab.estimators.gait import foot_kinematics, gait_session_pooled
     sid, f, pairs = ctx.session_id, _Found(), []
     notes, dp = f.notes, p.distance_sensors
     recs = walking_recordings(ctx.recordings)

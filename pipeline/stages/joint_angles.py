@@ -1,19 +1,19 @@
 """Clinical joint angles per walking trial, gait-cycle curves and ROM per session:
-warehouse (orientation, calibration[, gait_events]) -> estimators.joints -> warehouse.
+warehouse (orientation, calibration[, gait_events]) -> stridelab.estimators.joints -> warehouse.
 
 ``compute``: every recording of a lab session except the calibration trial is a walking trial. Its sensor
 orientations (orientation stage) and the session's calibration rows (calibration stage) go to
-:func:`estimators.joints.compute_joint_angles` with the quiet standing at the start of the trial
-(:func:`estimators.calibration.first_quiet_standing`) for the offset removal of thesis ch. 8. The
+:func:`stridelab.estimators.joints.compute_joint_angles` with the quiet standing at the start of the trial
+(:func:`stridelab.estimators.calibration.first_quiet_standing`) for the offset removal of thesis ch. 8. The
 status of each joint is the worse calibration of its two segments: a failed calibration gives
 ``fail`` (and NaN angles when no rotation exists), never silently produced angles, and no curves.
 Gait-cycle curves need initial contacts: the upstream ``gait_events`` cut the cycles
-(:func:`pipeline.stages._lab_read.ic_times_by_side`); without them the curves are left empty with a note.
+(:func:`stridelab.pipeline.stages._lab_read.ic_times_by_side`); without them the curves are left empty with a note.
 Reference events (the truth) are never used.
 
 ``score`` (separate step): when the trial carries optical segment poses (``reference_pose``) for both segments of
 a joint, the reference joint angles (same joint coordinate system and standing-offset removal,
-:func:`estimators.joints.evaluation.reference_angles_deg`) give the session's RMSE per plane (pooled over its
+:func:`stridelab.estimators.joints.evaluation.reference_angles_deg`) give the session's RMSE per plane (pooled over its
 walking trials) in ``accuracy_metrics`` and each trial's range of motion (IMU vs reference) in ``accuracy_pairs``.
 """
 from __future__ import annotations
@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-from pipeline.stages import canonical_json
-from pipeline.stages._lab_read import (find_calibration_recording, ic_times_by_side, read_recording,  # noqa: F401
+from stridelab.pipeline.stages import canonical_json
+from stridelab.pipeline.stages._lab_read import (find_calibration_recording, ic_times_by_side, read_recording,  # noqa: F401
                                        session_calibration)
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("joint_angles", "joint_angle_curves", "joint_rom", "accuracy_metrics", "accuracy_pairs")
 PLANES = ("sagittal", "frontal", "transverse")
@@ -52,9 +52,9 @@ def _opt(x) -> float | None:
 
 
 def compute(ctx: StageContext, p: JointAnglesParams) -> None:
-    from estimators.calibration import first_quiet_standing
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
-    from estimators.joints import ANGLE_NAMES, JOINTS, compute_joint_angles, pool_cycles, session_gait_curves
+    from stridelab.estimators.calibration import first_quiet_standing
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.joints import ANGLE_NAMES, JOINTS, compute_joint_angles, pool_cycles, session_gait_curves
     sid, cal_rows = ctx.session_id, ctx.upstream.get("calibration", [])
     have = {pl for r in ctx.recordings for pl, k in r["sensors"].items() if "imu" in k}
     cal = session_calibration(cal_rows)
@@ -136,9 +136,9 @@ def compute(ctx: StageContext, p: JointAnglesParams) -> None:
 
 
 def score(ctx: StageContext, p: JointAnglesParams) -> None:
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
-    from estimators.joints import JOINTS, angle_errors
-    from estimators.joints.evaluation import pooled_rmse_deg, reference_angles_deg
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.joints import JOINTS, angle_errors
+    from stridelab.estimators.joints.evaluation import pooled_rmse_deg, reference_angles_deg
     ori_rows = ctx.upstream.get("orientation", [])
     estimator = ori_rows[0]["estimator"] if ori_rows else None
     base = {"session_id": ctx.session_id, "stage": "joint_angles", "estimator": estimator}

@@ -1,6 +1,6 @@
 """Live outputs beside the nightly's: how a `stridelab live` session's computations agree with the offline ones.
 
-Runs on sessions holding a live recording (``live_outputs`` rows, stored by the ingest: :mod:`pipeline.live.stored`).
+Runs on sessions holding a live recording (``live_outputs`` rows, stored by the ingest: :mod:`stridelab.pipeline.live.stored`).
 The live angles and events are compared with two offline computations on the same raw samples (the warehouse's)
 and the same calibration (the one the recording carries, i.e. the one the live angles used):
 
@@ -14,8 +14,8 @@ and the same calibration (the one the recording carries, i.e. the one the live a
 
 Per stride (live IC to the next, per side) and joint plane: max |live − each|, RMSE vs offline
 (``live_agreement_strides``); per live event: the matching event of each (one-to-one, ± 0.5 s,
-``estimators.gait.evaluation.match_events``) (``live_agreement_events``); per recording: the summary
-(``live_agreement``). Scorers: ``estimators.joints.angle_errors``, ``match_events``.
+``stridelab.estimators.gait.evaluation.match_events``) (``live_agreement_events``); per recording: the summary
+(``live_agreement``). Scorers: ``stridelab.estimators.joints.angle_errors``, ``match_events``.
 """
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.stages._lab_read import read_recording, session_calibration
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.pipeline.stages._lab_read import read_recording, session_calibration
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 PLANES = ("sagittal", "frontal", "transverse")
 TABLES = ("live_agreement", "live_agreement_strides", "live_agreement_events")
@@ -43,7 +43,7 @@ def _applies(con, session_id: str) -> bool:
 
 def _sensor_data(ctx: StageContext, rec: dict, ori_rows: list[dict]) -> dict:
     """Raw acc/gyr/mag and offline orientation of the leg IMUs on the recording's common grid."""
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
     data = read_recording(ctx, rec, ori_rows, DEFAULT_PLACEMENTS)
     data["mag"] = {}
     for p in data["acc"]:
@@ -66,11 +66,11 @@ def _num(x) -> float | None:
 
 def compare_recording(ctx: StageContext, rec: dict, live_rows: list[dict], params: LiveAgreementParams) -> dict:
     """The three tables' rows for one live recording."""
-    from estimators.calibration import first_quiet_standing
-    from estimators.gait import IcTcParams, detect_ic_tc, pitch_signal
-    from estimators.gait.evaluation import match_events
-    from estimators.joints import JOINTS, angle_errors, calibrated_joint_angles_deg, compute_joint_angles
-    from pipeline.live.engine import ONLINE_FILTERS
+    from stridelab.estimators.calibration import first_quiet_standing
+    from stridelab.estimators.gait import IcTcParams, detect_ic_tc, pitch_signal
+    from stridelab.estimators.gait.evaluation import match_events
+    from stridelab.estimators.joints import JOINTS, angle_errors, calibrated_joint_angles_deg, compute_joint_angles
+    from stridelab.pipeline.live.engine import ONLINE_FILTERS
     sid, h = ctx.session_id, rec["content_hash"]
     by_kind = {r["kind"]: r for r in live_rows}
     meta = json.loads(by_kind["angles"]["meta"]) if "angles" in by_kind and by_kind["angles"]["meta"] else {}

@@ -1,10 +1,10 @@
-"""Orientation for every IMU of every session: warehouse -> estimators.orientation -> warehouse.
+"""Orientation for every IMU of every session: warehouse -> stridelab.estimators.orientation -> warehouse.
 
 ``compute``: each IMU with a gyroscope of each recording, per contiguous stretch of samples, through the chosen
-offline estimator (:data:`estimators.orientation.ESTIMATORS`) in blocks (:func:`estimators.orientation.blockwise.
+offline estimator (:data:`stridelab.estimators.orientation.ESTIMATORS`) in blocks (:func:`stridelab.estimators.orientation.blockwise.
 blockwise`: bounded memory per worker on long recordings); one ``orientation`` row and one quaternion series each.
 ``score`` (separate step): where the recording holds an optical pose of that segment, the RMS errors by the
-scorer of ``stridelab bench orientation`` (:mod:`estimators.orientation.evaluation`) into ``accuracy_metrics``.
+scorer of ``stridelab bench orientation`` (:mod:`stridelab.estimators.orientation.evaluation`) into ``accuracy_metrics``.
 """
 from __future__ import annotations
 
@@ -13,23 +13,23 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-from estimators.orientation.blockwise import blockwise
-from estimators.orientation.evaluation import align_reference, orientation_rmse_deg, pooled_rmse
-from estimators.timebase import contiguous_segments
-from pipeline.stages import scored_mask
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.estimators.orientation.blockwise import blockwise
+from stridelab.estimators.orientation.evaluation import align_reference, orientation_rmse_deg, pooled_rmse
+from stridelab.estimators.timebase import contiguous_segments
+from stridelab.pipeline.stages import scored_mask
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("orientation", "accuracy_metrics")
 
 
 def _default_estimator() -> str:
-    from estimators.orientation import DEFAULT_OFFLINE
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE
     return DEFAULT_OFFLINE
 
 
 @dataclass(frozen=True)
 class OrientationParams:
-    """estimator: name in :data:`estimators.orientation.ESTIMATORS` (default the shipped offline one).
+    """estimator: name in :data:`stridelab.estimators.orientation.ESTIMATORS` (default the shipped offline one).
     use_magnetometer: fuse the magnetometer when the recording has one.
     block_s: long recordings are estimated in blocks of this many seconds (0 = each recording in one piece).
     block_margin_s: seconds of context each side of a block (the fade between blocks is min(60 s, this))."""
@@ -40,7 +40,7 @@ class OrientationParams:
 
 
 def compute(ctx: StageContext, p: OrientationParams) -> None:
-    from estimators.orientation import ESTIMATORS
+    from stridelab.estimators.orientation import ESTIMATORS
     if p.estimator not in ESTIMATORS:
         raise ValueError(f"unknown orientation estimator '{p.estimator}'; choose one of {', '.join(sorted(ESTIMATORS))}")
     estimate, notes = ESTIMATORS[p.estimator], []

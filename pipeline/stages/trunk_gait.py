@@ -1,18 +1,18 @@
 """Walking bouts and daily gait outcomes from one trunk sensor (``lower_back`` or ``chest``): warehouse ->
-estimators.trunk_gait -> warehouse, the first stage in the shape of :mod:`pipeline.stages._shape`.
+stridelab.estimators.trunk_gait -> warehouse, the first stage in the shape of :mod:`stridelab.pipeline.stages._shape`.
 
 ``compute``: per recording the first trunk placement it carries (lower_back before chest) is read, cut into local
 calendar days when longer than ``day_pieces_above_s``, and handed to
-:func:`estimators.trunk_gait.analyse_trunk_gait` with the session's ``height_m`` / ``leg_length_m`` (documented
+:func:`stridelab.estimators.trunk_gait.analyse_trunk_gait` with the session's ``height_m`` / ``leg_length_m`` (documented
 defaults when unknown: the bouts say so in ``height_source`` and the ``default_height`` flag). The warnings of the
-sensor frame the estimators detect from the data (:func:`estimators.trunk_gait.detect_trunk_frame`) become flags on
+sensor frame the estimators detect from the data (:func:`stridelab.estimators.trunk_gait.detect_trunk_frame`) become flags on
 every bout of that piece (:data:`FRAME_FLAGS`: ``wrong_placement`` when no stable vertical axis is found,
 ``upside_down`` (corrected), ``anterior_uncertain``) and go into the run's note. On free-living sessions the bouts of each local day give one
-``daily_gait_outcomes`` row (:func:`estimators.trunk_gait.daily_outcomes`).
+``daily_gait_outcomes`` row (:func:`stridelab.estimators.trunk_gait.daily_outcomes`).
 
 ``score`` (separate step): where the session holds reference walking bouts and initial contacts (Mobilise-D INDIP
 annotations, ``label`` = ``reference_system``), initial contacts and per-bout cadence, stride length and walking
-speed are scored by the one scorer :mod:`estimators.trunk_gait.evaluation` into ``accuracy_metrics`` /
+speed are scored by the one scorer :mod:`stridelab.estimators.trunk_gait.evaluation` into ``accuracy_metrics`` /
 ``accuracy_pairs`` (the dashboard's Accuracy page); contacts inside the reference walking bouts ± the tolerance, as
 ``stridelab bench trunk-gait`` scores them (the whole recording where the reference has contacts but no bouts).
 """
@@ -23,17 +23,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from estimators.recording import TRUNK_PLACEMENTS
-from pipeline.stages._shape import StageContext, shaped_stage
+from stridelab.estimators.recording import TRUNK_PLACEMENTS
+from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 if TYPE_CHECKING:
-    from estimators.trunk_gait import TrunkGaitParams
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
 
 
 def _estimator_defaults() -> "TrunkGaitParams":
-    # imported when the parameters are made, not with the registry: estimators.trunk_gait brings SciPy's signal
+    # imported when the parameters are made, not with the registry: stridelab.estimators.trunk_gait brings SciPy's signal
     # package, which the coordinator and every worker would otherwise import for every stage
-    from estimators.trunk_gait import TrunkGaitParams
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
     return TrunkGaitParams()
 
 TABLES = ("walking_bouts", "daily_gait_outcomes", "accuracy_metrics", "accuracy_pairs")
@@ -74,14 +74,14 @@ def _body(rec: dict, key: str) -> float | None:
 
 def _pieces(t_ns: np.ndarray, tz: str) -> list[tuple[int, int]]:
     """[start, stop) rows of each local calendar day touched by the stamps ``t_ns``."""
-    from estimators.activity._daily import local_midnights_ns
+    from stridelab.estimators.activity._daily import local_midnights_ns
     cuts = [int(np.searchsorted(t_ns, b)) for _, _, b in local_midnights_ns(int(t_ns[0]), int(t_ns[-1]), tz)[:-1]]
     edges = [0] + [c for c in cuts if 0 < c < len(t_ns)] + [len(t_ns)]
     return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
 def compute(ctx: StageContext, p: TrunkGaitStageParams) -> None:
-    from estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
+    from stridelab.estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
     tz = ctx.session.get("timezone") or "UTC"
     free_living = ctx.session.get("kind") == "free_living"
     for desc in ctx.imus(read=False):
@@ -124,7 +124,7 @@ def compute(ctx: StageContext, p: TrunkGaitStageParams) -> None:
 def _days(day_bouts: dict, res, t: np.ndarray, fs: float, tz: str) -> None:
     """Split one analysed piece into local days: per day the bouts (by their start) and strides, and the
     seconds of that day the piece covers."""
-    from estimators.activity._daily import local_midnights_ns
+    from stridelab.estimators.activity._daily import local_midnights_ns
     t0 = int(t[0])
     bs = t0 + np.round(res.bouts.start_s * 1e9).astype(np.int64)
     for date, lo, hi in local_midnights_ns(int(t[0]), int(t[-1]), tz):
@@ -162,8 +162,8 @@ def _day_row(ctx: StageContext, date: str, placement: str, parts: list[dict], da
 
 def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
     """Initial contacts and per-bout parameters against the session's reference (``reference_system``), pooled
-    over the session's recordings, with the one scorer (``estimators.trunk_gait.evaluation``)."""
-    from estimators.trunk_gait.evaluation import (bout_errors, ic_metrics, match_bouts, match_initial_contacts,
+    over the session's recordings, with the one scorer (``stridelab.estimators.trunk_gait.evaluation``)."""
+    from stridelab.estimators.trunk_gait.evaluation import (bout_errors, ic_metrics, match_bouts, match_initial_contacts,
                                                   summarise_bout_errors)
     tp = fp = fn = 0
     errs, abs_err, pairs, placements = [], [], [], set()

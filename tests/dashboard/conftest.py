@@ -9,7 +9,7 @@
   every stage by the real pipeline — what a newcomer's ``stridelab demo`` shows;
 * ``full_wh``: ``ingested_wh`` plus a free-living session and the results later stages will write
   (strides, calibration QC, joint-angle cycles, activity bouts with reference labels, accuracy,
-  foot trajectories), added through the pipeline's writer by ``validation.bench.dashboard``.
+  foot trajectories), added through the pipeline's writer by ``stridelab.validation.bench.dashboard``.
 """
 from __future__ import annotations
 
@@ -26,9 +26,9 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import T0_NS, small_recording
-from warehouse.catalog import Warehouse
+from stridelab.warehouse.catalog import Warehouse
 
 APP = Path(__file__).resolve().parents[2] / "dashboard" / "app.py"
 PAGES = ("overview", "accuracy", "participant", "programme", "activity", "runs")
@@ -80,7 +80,7 @@ def serve_dashboard(wh: Path):
 
 
 def _ingest(root: Path, inbox: Path) -> None:
-    from pipeline import runner
+    from stridelab.pipeline import runner
     inbox.mkdir(parents=True, exist_ok=True)
     files = []
     for i, (pid, ses) in enumerate((("P001", "S01"), ("P001", "S02"), ("P002", "S03"))):
@@ -114,7 +114,7 @@ def ingested_wh(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def full_wh(tmp_path_factory, ingested_wh) -> Path:
-    from validation.bench.dashboard import add_synthetic_results
+    from stridelab.validation.bench.dashboard import add_synthetic_results
     root = tmp_path_factory.mktemp("full") / "warehouse"
     shutil.copytree(ingested_wh, root)
     day = 86_400 * 10**9
@@ -137,8 +137,8 @@ def full_wh(tmp_path_factory, ingested_wh) -> Path:
 
 @pytest.fixture(scope="session")
 def demo_wh(tmp_path_factory) -> Path:
-    from pipeline import runner
-    from validation.simulate import simulate_to_dir
+    from stridelab.pipeline import runner
+    from stridelab.validation.simulate import simulate_to_dir
     base = tmp_path_factory.mktemp("demo")
     simulate_to_dir(base / "inbox", participants=2, hours=0.1, jobs=2)
     summary = runner.run(base / "warehouse", base / "inbox", jobs=2, command="run")
@@ -162,9 +162,9 @@ def app_env(monkeypatch):
 def public_wh(tmp_path_factory) -> Path:
     """The small simulated demo study and the public study side by side: one recording of every public dataset
     in ../shared/data imported by ``import_public`` (skips when the data are absent), run by the real pipeline."""
-    from pipeline import runner
-    from pipeline.importers import import_public
-    from validation.simulate import simulate_to_dir
+    from stridelab.pipeline import runner
+    from stridelab.pipeline.importers import import_public
+    from stridelab.validation.simulate import simulate_to_dir
     from tests.conftest import SHARED_DATA
     if not SHARED_DATA.is_dir():
         pytest.skip(f"public data not found at {SHARED_DATA} (needs ../shared/data)")

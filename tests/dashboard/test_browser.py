@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.privacy import stored_name
+from stridelab.pipeline.privacy import stored_name
 from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]

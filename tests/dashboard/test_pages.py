@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 from streamlit.testing.v1 import AppTest
 
-from pipeline.privacy import stored_name
+from stridelab.pipeline.privacy import stored_name
 from tests.dashboard.conftest import APP, PAGES
 
 TITLES = {"overview": "StrideLab overview", "accuracy": "Accuracy against references", "participant": "Participant",
@@ -123,7 +123,7 @@ def test_hostile_query_parameter_is_harmless(app_env, full_wh):
 
 def test_new_snapshot_is_picked_up(app_env, tmp_path, ingested_wh):
     import shutil
-    from warehouse.catalog import Warehouse
+    from stridelab.warehouse.catalog import Warehouse
     root = tmp_path / "wh"
     shutil.copytree(ingested_wh, root)
     app_env(root)

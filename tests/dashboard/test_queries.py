@@ -5,8 +5,8 @@ import duckdb
 import numpy as np
 import pytest
 
-from warehouse import queries as Q
-from warehouse.read import connect_snapshot
+from stridelab.warehouse import queries as Q
+from stridelab.warehouse.read import connect_snapshot
 
 HOSTILE = ["x' OR '1'='1", "'; DROP TABLE sessions; --", "P001\" OR 1=1 --", "%", "*", "P001'/*", "\x00"]
 

@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from reports.participant import TITLES, build_report
+from stridelab.reports.participant import TITLES, build_report
 
 pytestmark = pytest.mark.slow
 
@@ -106,7 +106,7 @@ def test_table_headers_wrap_instead_of_being_cut(tmp_path):
     import pandas as pd
     from reportlab.pdfbase.pdfmetrics import stringWidth
 
-    from reports.render_pdf import BOLD, column_widths, render_pdf
+    from stridelab.reports.render_pdf import BOLD, column_widths, render_pdf
     cols = ["Measure", "Latest visit", "Previous visit", "Change", "MDC95 of the change", "Beyond noise?",
             "Reference band (source)"]
     cols = cols + [f"{c} at visit 2" for c in cols[1:4]]                           # 10 columns
@@ -129,7 +129,7 @@ def test_long_table_continues_on_new_pages_and_keeps_every_row(tmp_path):
     """A page whose content does not fit goes on over continuation sheets: every row of a 150-row table is in
     the PDF (the renderer used to stop drawing a page at its bottom and drop the rest)."""
     import pandas as pd
-    from reports.participant import render_pdf
+    from stridelab.reports.participant import render_pdf
     rows = pd.DataFrame({"Stride": [f"S{i:03d}" for i in range(150)], "Length m": [1.0 + i / 1000 for i in range(150)]})
     pages = {n: [] for n in TITLES}
     pages[2] = [("text", "before the table"), ("table", "Every stride", rows), ("note", "after the table")]
@@ -149,7 +149,7 @@ def test_participant_with_a_long_stride_table_keeps_every_row(tmp_path):
     import numpy as np
     import pandas as pd
 
-    from reports.render_pdf import render_pdf
+    from stridelab.reports.render_pdf import render_pdf
     rng = np.random.default_rng(7)
     n = 2400
     strides = pd.DataFrame({"Stride": [f"ST{i:05d}" for i in range(n)],

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.recording import ImuData, Recording
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
+from stridelab.estimators.recording import ImuData, Recording
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.pipeline._lab import df
 
 pytestmark = pytest.mark.slow        # six sessions through every stage, reports and five pages: ~2.5 min on 2 cores

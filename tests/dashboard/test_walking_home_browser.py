@@ -15,7 +15,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 def test_walking_at_home_page_in_chromium(demo_wh, tmp_path_factory):
     from playwright.sync_api import sync_playwright
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(demo_wh)
     try:
         n_days = con.execute("SELECT count(*) FROM daily_gait_outcomes d JOIN sessions s USING (session_id) "

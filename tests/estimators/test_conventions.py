@@ -1,7 +1,7 @@
 """Quaternion convention of DESIGN.md: Hamilton, [w x y z], q rotates sensor -> ENU."""
 import numpy as np
 
-from estimators.quaternion import (quat_conj, quat_exp_step_1, quat_from_axis_angle, quat_from_matrix,
+from stridelab.estimators.quaternion import (quat_conj, quat_exp_step_1, quat_from_axis_angle, quat_from_matrix,
                                    quat_from_rotvec, quat_mul, quat_rotate, quat_to_matrix, quat_to_rotvec)
 
 
@@ -39,7 +39,7 @@ def test_body_rate_integration_uses_right_multiplication():
 
 
 def test_numba_matrix_kernel_equals_quat_to_matrix():
-    from estimators.quaternion import quat_from_axis_angle, quat_to_matrix, quat_to_matrix_1
+    from stridelab.estimators.quaternion import quat_from_axis_angle, quat_to_matrix, quat_to_matrix_1
     q = quat_from_axis_angle([0.3, -1.0, 0.5], 1.2)
     R = np.empty((3, 3))
     quat_to_matrix_1(q, R)

@@ -1,11 +1,11 @@
-"""estimators.sync (sensors on one time grid) and the walking-frame helpers of estimators.gait.clinical, moved out
+"""stridelab.estimators.sync (sensors on one time grid) and the walking-frame helpers of stridelab.estimators.gait.clinical, moved out
 of the calibration / gait / clinical stages (issue #45): checked against constructed truths."""
 from __future__ import annotations
 
 import numpy as np
 
-from estimators.gait.clinical import positions_at, straight_stride_lengths, walking_frame_xy
-from estimators.sync import clock_fit, common_grid, interp_columns, nearest_sample, nlerp, to_clock_of
+from stridelab.estimators.gait.clinical import positions_at, straight_stride_lengths, walking_frame_xy
+from stridelab.estimators.sync import clock_fit, common_grid, interp_columns, nearest_sample, nlerp, to_clock_of
 
 
 def test_common_grid_is_the_stamps_every_sensor_has():

@@ -16,11 +16,11 @@ def lab_files(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def lab_calibration(lab_files):
-    from pipeline.live.calibration import calibration_from_trial
+    from stridelab.pipeline.live.calibration import calibration_from_trial
     return calibration_from_trial(lab_files[0])
 
 
 @pytest.fixture(scope="session")
 def lab_streams(lab_files):
-    from pipeline.live.streams import read_streams
+    from stridelab.pipeline.live.streams import read_streams
     return read_streams(lab_files[1])

@@ -81,7 +81,7 @@ def test_live_replay_in_chromium(lab_files, tmp_path_factory):
                 page.wait_for_timeout(600)
                 note = page.locator("#bandnote").inner_text()
                 assert "0.40 m/s (entered on this page" in note, note
-                from reports.normative import speed_matched_band
+                from stridelab.reports.normative import speed_matched_band
                 for v in (0.4, live_v, 1.3):
                     page.fill("#walk-speed", str(v))
                     js = page.evaluate("speedBand('knee')")

@@ -10,8 +10,8 @@ import pytest
 @pytest.mark.slow
 def test_stored_calibration_of_a_previous_visit_is_the_one_the_nightly_computed(tmp_path, lab_files,
                                                                                 lab_calibration):
-    from pipeline.live.calibration import calibration_from_warehouse
-    from pipeline.stages import calibration as cal_stage
+    from stridelab.pipeline.live.calibration import calibration_from_warehouse
+    from stridelab.pipeline.stages import calibration as cal_stage
     from tests.pipeline._lab import run_with
     mp = pytest.MonkeyPatch()
     root = tmp_path / "wh"

@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from pipeline.live.align import FrameAligner
-from pipeline.live.engine import LEG_PLACEMENTS, LOOKAHEAD_FRAMES, LiveEngine
+from stridelab.pipeline.live.align import FrameAligner
+from stridelab.pipeline.live.engine import LEG_PLACEMENTS, LOOKAHEAD_FRAMES, LiveEngine
 
 
 def _run(streams, cal, n=None, drop=None, burst=1):
@@ -37,9 +37,9 @@ def _cat(outs, what, key):
 
 
 def test_live_equals_the_online_estimators_run_over_the_whole_recording(lab_streams, lab_calibration):
-    from estimators.gait import detect_ic_tc, pitch_signal
-    from estimators.joints import joint_angles_deg, segment_orientations
-    from estimators.orientation import dcf
+    from stridelab.estimators.gait import detect_ic_tc, pitch_signal
+    from stridelab.estimators.joints import joint_angles_deg, segment_orientations
+    from stridelab.estimators.orientation import dcf
     eng, al, outs = _run(lab_streams, lab_calibration, burst=7)
     fs = lab_streams.sampling_rate_hz
     whole = {}
@@ -140,8 +140,8 @@ def test_a_stalled_sensor_holds_the_others_only_max_wait_ms():
 
 def test_inline_and_queued_sessions_publish_the_same(lab_streams, lab_calibration):
     """The source's thread computing (default) and a queue to run()'s thread: same frames, events, metrics."""
-    from pipeline.live.session import LiveSession
-    from pipeline.live.sources import ReplaySource
+    from stridelab.pipeline.live.session import LiveSession
+    from stridelab.pipeline.live.sources import ReplaySource
     pl = [p for p in LEG_PLACEMENTS if p in lab_streams.sensors]
     res = {}
     for inline in (True, False):

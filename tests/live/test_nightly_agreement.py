@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from stridelab.cli import main
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 @pytest.mark.slow

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from pipeline.live.osc import (OscError, ngimu_samples, ngimu_sensors_bundle, ns_to_timetag, parse_packet,
+from stridelab.pipeline.live.osc import (OscError, ngimu_samples, ngimu_sensors_bundle, ns_to_timetag, parse_packet,
                                timetag_to_ns)
 
 
@@ -46,9 +46,9 @@ def test_ngimus_streaming_over_loopback_udp_are_seen_live(lab_streams, lab_calib
     """Seven NGIMUs (one UDP port each, their own clocks) send the hemiparetic walk as /sensors bundles over
     127.0.0.1; two packets are lost on purpose and one is garbage. The session sees every sample, counts the
     losses, skips the garbage and finds the gait events."""
-    from pipeline.live.engine import LEG_PLACEMENTS
-    from pipeline.live.session import LiveSession
-    from pipeline.live.sources import NgimuUdpSource
+    from stridelab.pipeline.live.engine import LEG_PLACEMENTS
+    from stridelab.pipeline.live.session import LiveSession
+    from stridelab.pipeline.live.sources import NgimuUdpSource
     pl = [p for p in LEG_PLACEMENTS if p in lab_streams.sensors]
     src = NgimuUdpSource({p: 0 for p in pl}, host="127.0.0.1", timeout_s=3.0)
     ports = src.bound_ports
@@ -97,8 +97,8 @@ def test_a_drifting_ngimu_clock_is_corrected_over_loopback_udp():
     exact, the other runs 2000 ppm fast (exaggerated: what 50 ppm does in 40 s of session it does here in 1 s).
     Taken at face value its stamps slide past the other's by a frame every 0.5 s; with the drift correction the
     two meet on the same frame once the rate is known (3 s), and the estimate is the simulated rate."""
-    from pipeline.live.align import FrameAligner
-    from pipeline.live.sources import NgimuUdpSource
+    from stridelab.pipeline.live.align import FrameAligner
+    from stridelab.pipeline.live.sources import NgimuUdpSource
     fs, n, drift = 100.0, 800, 2000e-6
     pl = ("pelvis", "foot_left")
     src = NgimuUdpSource({p: 0 for p in pl}, host="127.0.0.1", timeout_s=2.0)

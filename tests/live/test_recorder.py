@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from pipeline.formats.mcap_read import ReadResult, iter_blocks
+from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
 from stridelab.cli import main
 
 
@@ -131,7 +131,7 @@ def test_a_torn_file_is_refused_by_recover_and_left_in_place(tmp_path):
     live = tmp_path / "inbox" / ".live"
     live.mkdir(parents=True)
     (live / "torn.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\x01" * 40)
-    from pipeline.live.recorder import recover
+    from stridelab.pipeline.live.recorder import recover
     [(p, outcome)] = recover(tmp_path / "inbox")
     assert p == live / "torn.mcap" and outcome.startswith("left in place") and p.exists()
 
@@ -139,7 +139,7 @@ def test_a_torn_file_is_refused_by_recover_and_left_in_place(tmp_path):
 def test_a_file_cut_mid_chunk_is_repaired_to_its_last_complete_chunk(tmp_path):
     """What a short write at a kill could leave: half of a new chunk over the old tail. recover() cuts it off,
     closes the file and moves it in, with every sample of the complete chunks."""
-    from pipeline.live.recorder import McapRecorder, recover
+    from stridelab.pipeline.live.recorder import McapRecorder, recover
     rec = McapRecorder(tmp_path / "inbox", "torn", ["pelvis"], {"study": "demo", "participant": "P001",
                                                                  "session": "P001-live-x", "kind": "lab"})
     t0 = 1_772_611_310_000_000_000

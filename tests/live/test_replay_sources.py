@@ -13,9 +13,9 @@ from stridelab.cli import main
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_a_rosbag2_bag_replays_like_the_mcap_file(tmp_path, lab_streams, storage):
-    from estimators.recording import ImuData, Recording
-    from pipeline.formats.mcap_write import write_recording
-    from pipeline.live.streams import read_streams
+    from stridelab.estimators.recording import ImuData, Recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.live.streams import read_streams
     from tests.pipeline._interop import rosbags_write
     n = 800                                       # 8 s of the walk, 7 IMUs
     rec = Recording(dict(lab_streams.metadata), imu={

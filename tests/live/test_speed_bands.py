@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reports._schwartz2008 import CATEGORIES, DATA, RANGES
-from reports.normative import dimensionless_speed, speed_category_centres, speed_matched_band
+from stridelab.reports._schwartz2008 import CATEGORIES, DATA, RANGES
+from stridelab.reports.normative import dimensionless_speed, speed_category_centres, speed_matched_band
 
 G = 9.80665
 
@@ -48,10 +48,10 @@ def test_the_transcribed_data_behave_as_the_paper_reports():
 def test_live_walking_speed_is_the_gait_stage_speed_of_the_last_strides(lab_streams, lab_calibration):
     """The live estimate (foot kinematics of the gait stage on the last 6 s at each stride, in a worker process)
     against the same estimator over the whole walk: the median stride speeds agree within 10 %."""
-    from estimators.gait import PARAM_COLUMNS, foot_kinematics
-    from pipeline.live.engine import LEG_PLACEMENTS
-    from pipeline.live.session import LiveSession
-    from pipeline.live.sources import ReplaySource
+    from stridelab.estimators.gait import PARAM_COLUMNS, foot_kinematics
+    from stridelab.pipeline.live.engine import LEG_PLACEMENTS
+    from stridelab.pipeline.live.session import LiveSession
+    from stridelab.pipeline.live.sources import ReplaySource
     pl = [p for p in LEG_PLACEMENTS if p in lab_streams.sensors]
     fs = lab_streams.sampling_rate_hz
     session = LiveSession(ReplaySource(lab_streams, pl, speed=None), pl, sampling_rate_hz=fs,

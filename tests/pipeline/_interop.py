@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats import ros2_cdr
 
 IMU_DEF = ros2_cdr.SCHEMAS["sensor_msgs/msg/Imu"]
 MAG_DEF = ros2_cdr.SCHEMAS["sensor_msgs/msg/MagneticField"]
@@ -152,7 +152,7 @@ def rewrite_with_mcap(src: Path, dst: Path, *, compression="lz4", chunked=True, 
 
 def stored(wh: Path, placement: str, kind: str = "imu"):
     """The Parquet table the catalog points to for one placement and kind (single recording)."""
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
         rows = con.execute("SELECT series_path FROM sensors WHERE placement = ? AND kind = ?", [placement, kind]).fetchall()

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from pipeline import runner, stages
-from warehouse.read import connect_snapshot
+from stridelab.pipeline import runner, stages
+from stridelab.warehouse.read import connect_snapshot
 
 
 def write_lab_session(directory, *, distance_sensors: bool, optical_reference: bool, participant: int = 0,
                       walking_trials: int = 1):
     """A demo-manifest participant (default the first; 2 = the hemiparetic P003): calibration trial + walking
     trials of 30 s, written as MCAP files into ``directory``. Returns (files, truths) in recording order."""
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_lab_session, study_participants
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=walking_trials, distance_sensors=distance_sensors,
                                optical_reference=optical_reference))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 #: columns that differ between two runs of identical code (run ids, wall clock, CPU time, file stamps)
 RUN_COLUMNS = {"run_id", "started_at", "finished_at", "created_at", "ingested_at", "applied_at", "cpu_s", "wall_s",

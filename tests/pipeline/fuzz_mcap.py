@@ -2,7 +2,7 @@
 
 Run by ``tests/pipeline/test_fuzz.py`` in a fresh process (its peak memory is the figure reported):
 ``python -m tests.pipeline.fuzz_mcap --seed 17 --out DIR`` prints one JSON object with the outcome counts
-per kind of mutation. Each mutant goes through :func:`pipeline.ingest.prepare`, the worker-side half of
+per kind of mutation. Each mutant goes through :func:`stridelab.pipeline.ingest.prepare`, the worker-side half of
 ingest that decodes, validates and writes the series; what it would hand to the catalog (session
 metadata, sensors, events, ignored topics and the decoded series) is compared with the original's.
 
@@ -48,7 +48,7 @@ def _controls(d: Path, orig: Path) -> list[tuple[str, bytes]]:
     """Valid files whose expected outcome is known: the comparison must call a real change 'different'
     and a mere re-chunking 'same' (else the campaign could not fail)."""
     from dataclasses import replace
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
     from tests.corpus import small_recording
     rec = small_recording(seconds=3.0, seed=0, session="P001-lab-1", participant="P001", trial="walk-1",
                           placements=("pelvis", "thigh_left", "shank_left"))
@@ -67,7 +67,7 @@ def originals(d: Path) -> list[Path]:
     """Three recordings of the recording format (IMU + magnetometer + pose + events, session numbers),
     written by the project's writer in small chunks so that a file has many of them."""
     from dataclasses import replace
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
     from tests.corpus import small_recording
     d.mkdir(parents=True, exist_ok=True)
     specs = [dict(seconds=3.0, seed=0, session="P001-lab-1", participant="P001", trial="walk-1",
@@ -128,7 +128,7 @@ def _special_mutants(d: Path, orig: Path, rng) -> list[tuple[str, bytes]]:
     import zstandard
     from mcap.records import Chunk, DataEnd
     from mcap.writer import Writer
-    from pipeline.formats import ros2_cdr
+    from stridelab.pipeline.formats import ros2_cdr
     from tests.corpus import small_recording
     from tests.pipeline.test_mcap_corruption import _records, _schema_channel
     buf = orig.read_bytes()
@@ -239,7 +239,7 @@ def _alarm(signum, frame):
 
 
 def campaign(out_dir: Path, seed: int, per_file: dict[str, int]) -> dict:
-    from pipeline.ingest import prepare
+    from stridelab.pipeline.ingest import prepare
     out_dir = Path(out_dir)
     origs = originals(out_dir / "originals")
     ref_root = out_dir / "ref"

@@ -5,12 +5,12 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline import runner, stages
-from pipeline.formats.mcap_write import write_recording
-from pipeline.stages import Stage, StageOutput
-from pipeline.stages import orientation as orientation_stage
+from stridelab.pipeline import runner, stages
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.stages import Stage, StageOutput
+from stridelab.pipeline.stages import orientation as orientation_stage
 from tests.corpus import small_recording
-from warehouse.catalog import Warehouse
+from stridelab.warehouse.catalog import Warehouse
 
 
 def _count_rows(inp, params):

@@ -6,9 +6,9 @@ import json
 import pytest
 
 from tests.pipeline.test_runner import cli
-from studies.manifest import DEFAULT_MANIFEST, load_manifest
-from warehouse.catalog import first
-from warehouse.read import connect_snapshot
+from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+from stridelab.warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot
 
 
 @pytest.mark.slow

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline import runner
-from pipeline.clock_policy import EARLIEST_NS
+from stridelab.pipeline import runner
+from stridelab.pipeline.clock_policy import EARLIEST_NS
 from tests.corpus import T0_NS, small_recording
 from tests.pipeline._interop import IMU_DEF, imu_dict, stored
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _write(path, rec, stamps, log):

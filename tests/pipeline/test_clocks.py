@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline import runner
-from pipeline.formats import ros2_cdr
-from pipeline.formats.mcap_write import ChannelData, recording_channels, write_mcap
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats.mcap_write import ChannelData, recording_channels, write_mcap
 from tests.corpus import small_recording
 from tests.pipeline._interop import stored
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _imu_channel(topic, stamps, log, acc, gyr):
@@ -117,8 +117,8 @@ def _independent_clock_files(directory: Path, files: list[Path], clocks=CLOCKS, 
     """Rewrite a lab session so that thigh_left and shank_left each stamp with their own clock
     (offset, rate error, 0.2 ms jitter) while log_time is the host's (true time + 0-2 ms delay)."""
     from mcap.reader import make_reader
-    from pipeline.formats.mcap_read import ReadResult, iter_blocks
-    from estimators.recording import ImuData, Recording
+    from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
+    from stridelab.estimators.recording import ImuData, Recording
     rng = np.random.default_rng(7)
     out = []
     for f in files:

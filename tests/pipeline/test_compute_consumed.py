@@ -6,18 +6,18 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline import config, runner
-from pipeline.formats.mcap_write import write_recording
-from pipeline.stages import registry
+from stridelab.pipeline import config, runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.stages import registry
 from tests.pipeline._lab import df
-from warehouse.catalog import first
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot
 
 
 @pytest.fixture
 def free_living_file(tmp_path):
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_chest_day, study_participants
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, study_participants
     m = replace(load_manifest(DEFAULT_MANIFEST), name="optin").with_free_living_hours(0.05)
     rec, _ = simulate_chest_day(m, study_participants(m, 1)[0], 0)
     return write_recording(rec, tmp_path / f"{rec.name}.mcap")
@@ -74,9 +74,9 @@ def test_a_bad_compute_table_is_refused_with_the_study_named(studies_dir):
 def test_a_long_recording_is_classified_day_by_day(tmp_path, monkeypatch):
     """Above ``DAY_PIECES_ABOVE_S`` the activity stage holds one local day of samples at a time; the
     per-second timeline still covers every second once and a bout crossing midnight stays one bout."""
-    from pipeline.stages import activity
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_chest_day, study_participants
+    from stridelab.pipeline.stages import activity
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, free_living=replace(m.free_living, hours=0.4, start_local="23:48"))
     rec, _ = simulate_chest_day(m, study_participants(m, 1)[0], 0)
@@ -97,7 +97,7 @@ def test_read_column_range_is_a_slice_of_the_whole_column(tmp_path):
     import numpy as np
     import pyarrow as pa
     import pyarrow.parquet as pq
-    from warehouse.read import read_column_range
+    from stridelab.warehouse.read import read_column_range
     x = np.random.default_rng(0).normal(size=(2500, 2))
     pq.write_table(pa.table({"t_ns": np.arange(2500), "a": x[:, 0], "b": x[:, 1]}), tmp_path / "s.parquet",
                    row_group_size=700)

@@ -69,7 +69,7 @@ def test_the_demo_starts_the_warm_up_only_when_needed(monkeypatch):
 
 
 def test_the_report_builder_pickles_for_the_worker_processes(tmp_path):
-    from pipeline.reports import _picklable
+    from stridelab.pipeline.reports import _picklable
     from stridelab.cli import _report_builder
     b = _report_builder(tmp_path / "wh")
     assert _picklable(b) and pickle.loads(pickle.dumps(b)).args == (tmp_path / "wh",)

@@ -12,8 +12,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from warehouse import direct_io, read
-from warehouse.direct_io import ALIGN, DirectFile, DirectWriteFile, cached_fraction, open_for_read
+from stridelab.warehouse import direct_io, read
+from stridelab.warehouse.direct_io import ALIGN, DirectFile, DirectWriteFile, cached_fraction, open_for_read
 from tests.pipeline._page_cache import uncache as _uncache
 
 pytestmark = pytest.mark.skipif(not getattr(os, "O_DIRECT", 0), reason="the platform has no O_DIRECT")
@@ -128,7 +128,7 @@ def test_a_series_read_direct_equals_the_buffered_read(tmp_path, monkeypatch):
     assert all(s.closed for s in opened if isinstance(s, DirectFile))
 
 
-# ---- writes past the page cache (DirectWriteFile, used by warehouse.store.SeriesWriter) -------------------------
+# ---- writes past the page cache (DirectWriteFile, used by stridelab.warehouse.store.SeriesWriter) -------------------------
 
 def _pieces(data: bytes, rng) -> list[bytes]:
     """``data`` cut at random places (pieces of 1 byte to 3 blocks), as a writer hands it over."""
@@ -246,7 +246,7 @@ def test_a_disk_that_stops_taking_blocks_sends_the_rest_of_the_file_through_the_
 def test_a_series_file_written_direct_is_the_file_arrow_writes(tmp_path, monkeypatch):
     """SeriesWriter's output is byte for byte the file pyarrow writes to a path with the same settings, and a
     failed direct write (disk full) fails the write and leaves no file behind."""
-    from warehouse import store
+    from stridelab.warehouse import store
     monkeypatch.setattr(direct_io, "WRITE_BLOCK", 16 * ALIGN)
     rng = np.random.default_rng(8)
     n = 200_000

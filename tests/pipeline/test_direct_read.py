@@ -11,12 +11,12 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
-from pipeline import ingest
-from pipeline.formats import direct_read
-from pipeline.formats.direct_read import SequentialReader, cached_fraction
-from pipeline.formats.mcap_read import ReadResult, iter_blocks
-from pipeline.formats.mcap_write import write_recording
-from warehouse import store
+from stridelab.pipeline import ingest
+from stridelab.pipeline.formats import direct_read
+from stridelab.pipeline.formats.direct_read import SequentialReader, cached_fraction
+from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.warehouse import store
 from tests.corpus import small_recording
 from tests.pipeline._page_cache import uncache as _uncache
 

@@ -6,12 +6,12 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
-from pipeline.privacy import stored_name as N     # the catalog keeps a keyed hash of each file name
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.privacy import stored_name as N     # the catalog keeps a keyed hash of each file name
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _q(root, sql, params=()):
@@ -119,8 +119,8 @@ LEGACY_SAMPLE_HASH_4S = "7c0fe591af53942146044943e42f8948fbe68059cd791161b7157a5
 
 
 def test_re_exports_of_recordings_hashed_before_xxh3_are_still_found_and_replaceable(tmp_path):
-    from pipeline import ingest
-    from warehouse.catalog import Warehouse
+    from stridelab.pipeline import ingest
+    from stridelab.warehouse.catalog import Warehouse
     rec = small_recording(seconds=4)
     a = write_recording(rec, tmp_path / "a.mcap")
     b = write_recording(replace(rec, metadata=dict(rec.metadata, protocol="test-v2")), tmp_path / "b.mcap")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.engines import DaskEngine, LocalEngine
+from stridelab.pipeline.engines import DaskEngine, LocalEngine
 
 
 def _mark(path: str) -> str:

@@ -5,11 +5,11 @@ import re
 
 import pytest
 
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.conftest import PROJECT_ROOT
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
-from warehouse.lock import RunLock
+from stridelab.warehouse.lock import RunLock
 
 
 def _inbox(d, study="testing", n=1, seconds=5.0):

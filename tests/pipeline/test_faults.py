@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from pipeline import runner
+from stridelab.pipeline import runner
 from tests.corpus import small_recording
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.pipeline.test_runner import cli, make_inbox, snapshot_fingerprint
-from warehouse.catalog import first
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _namespace_available() -> bool:
@@ -39,7 +39,7 @@ FAULT_PLUGIN = {"PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).p
                                                            os.environ.get("PYTHONPATH")]))}
 
 
-READ_COUNT = f"{sys.executable} -c \"import sys; from warehouse.read import connect_snapshot; " \
+READ_COUNT = f"{sys.executable} -c \"import sys; from stridelab.warehouse.read import connect_snapshot; " \
              f"c = connect_snapshot(sys.argv[1]); print('RECORDINGS', c.execute('SELECT count(*) FROM recordings').fetchall()[0][0])\""
 
 
@@ -57,7 +57,7 @@ def _ingest_on_small_tmpfs(tmp_path: Path, break_fs: str, new_seconds: float) ->
         cp -a {tmp_path / "wh"} {mnt}/wh
         {break_fs.replace("MNT", str(mnt))}
         set +e
-        cd {os.getcwd()} && {sys.executable} -m pipeline ingest {new} --warehouse {mnt}/wh
+        cd {os.getcwd()} && {sys.executable} -m stridelab ingest {new} --warehouse {mnt}/wh
         echo "EXIT $?"
         {READ_COUNT} {mnt}/wh
     """))
@@ -139,7 +139,7 @@ def test_coordinator_killed_mid_commit_then_rerun_equals_a_clean_run(tmp_path):
 
 
 def test_series_writer_flushes_in_the_background_and_a_failed_flush_fails_the_write(tmp_path, monkeypatch):
-    """warehouse.store.SeriesWriter pushes written rows to the disk every WRITEBACK_BYTES on a thread of
+    """stridelab.warehouse.store.SeriesWriter pushes written rows to the disk every WRITEBACK_BYTES on a thread of
     its own; the file reads back whole, and an error of such a flush (disk full) fails the write and
     leaves no file behind."""
     import errno
@@ -148,7 +148,7 @@ def test_series_writer_flushes_in_the_background_and_a_failed_flush_fails_the_wr
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from warehouse import store
+    from stridelab.warehouse import store
     monkeypatch.setattr(store, "WRITEBACK_BYTES", 1 << 16)
     tab = pa.table({"t_ns": np.arange(20_000, dtype=np.int64), "x": np.random.default_rng(0).normal(size=20_000)})
     flushes = []
@@ -181,7 +181,7 @@ def test_series_writer_flushes_in_the_background_and_a_failed_flush_fails_the_wr
 
 def test_series_of_one_recording_are_flushed_together_and_placed_only_when_all_flushes_succeeded(tmp_path,
                                                                                                  monkeypatch):
-    """warehouse.store.commit_all: every file is fsync'ed before any is moved into place, the flushes run side by
+    """stridelab.warehouse.store.commit_all: every file is fsync'ed before any is moved into place, the flushes run side by
     side (up to FLUSH_THREADS at once), and one failed flush (disk full) places none of them."""
     import errno
     import threading
@@ -190,7 +190,7 @@ def test_series_of_one_recording_are_flushed_together_and_placed_only_when_all_f
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from warehouse import store
+    from stridelab.warehouse import store
     tab = pa.table({"t_ns": np.arange(1000, dtype=np.int64), "x": np.random.default_rng(1).normal(size=1000)})
     rels = [f"series/p/imu-{k}.parquet" for k in range(5)]
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.io as sio
 
-from pipeline.formats.mobilised import find_mobilised_files, read_mobilised
+from stridelab.pipeline.formats.mobilised import find_mobilised_files, read_mobilised
 from tests.conftest import shared_data
 
 

@@ -1,4 +1,4 @@
-"""The PyShoe .mat and Xsens MT / Voisard readers (pipeline.formats.pyshoe, .xsens_mt) on files written here from
+"""The PyShoe .mat and Xsens MT / Voisard readers (stridelab.pipeline.formats.pyshoe, .xsens_mt) on files written here from
 the documented layouts, bad files refused with one line naming the file, and the public files when present."""
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.formats.pyshoe import load_pyshoe_dir, load_pyshoe_trial
-from pipeline.formats.xsens_mt import load_voisard_dir, load_voisard_json, load_xsens_mt_txt
+from stridelab.pipeline.formats.pyshoe import load_pyshoe_dir, load_pyshoe_trial
+from stridelab.pipeline.formats.xsens_mt import load_voisard_dir, load_voisard_json, load_xsens_mt_txt
 from tests.conftest import shared_data
 
 
@@ -66,7 +66,7 @@ def test_xsens_columns_by_name_rate_and_dropped_packets(tmp_path):
 
 
 def test_on_packet_grid_fills_dropped_packets_and_unwraps(tmp_path):
-    from pipeline.formats.xsens_mt import on_packet_grid
+    from stridelab.pipeline.formats.xsens_mt import on_packet_grid
     _write_xsens(tmp_path / "x.txt", drop=(10, 11, 30))
     g = on_packet_grid(load_xsens_mt_txt(tmp_path / "x.txt"))
     assert g.acc.shape == (50, 3) and g.filled.sum() == 3 and list(np.flatnonzero(g.filled)) == [10, 11, 30]
@@ -131,7 +131,7 @@ def test_public_pyshoe_trials():
 @pytest.mark.realdata
 def test_public_voisard_trial():
     d = shared_data("voisard_gait")
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     raw = load_voisard_trial(d, "1-1", packet_grid=False)
     assert raw.left.acc.shape[0] == raw.right.acc.shape[0] and raw.left.n_dropped > 0      # rows as exported
     tr = load_voisard_trial(d, "1-1")

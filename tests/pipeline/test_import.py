@@ -11,9 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 from stridelab.cli import main
-from pipeline.privacy import name_token as T
-from pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
-from pipeline.importers import import_paths
+from stridelab.pipeline.privacy import name_token as T
+from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks, read_metadata
+from stridelab.pipeline.importers import import_paths
 from tests.conftest import shared_data
 
 G0 = 9.80665
@@ -132,7 +132,7 @@ def test_gaitmap_folder_feet_markers_and_events(tmp_path):
 @pytest.mark.realdata
 def test_gaitmap_public_example(tmp_path):
     d = shared_data("gaitmap_example")
-    from pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
     ex = load_gaitmap_example(d)
     res = import_paths("gaitmap", [d], tmp_path / "inbox")
     topics, events, _ = read_mcap(res.written[0])
@@ -439,8 +439,8 @@ def test_xsens_single_file_placement_from_the_name(tmp_path):
 
 @pytest.mark.realdata
 def test_public_voisard_and_pyshoe_files(tmp_path):
-    from pipeline.formats.pyshoe import load_pyshoe_trial
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.pipeline.formats.pyshoe import load_pyshoe_trial
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     vd, pd_ = shared_data("voisard_gait"), shared_data("pyshoe_vicon")
     res = import_paths("voisard", [vd / "2-3.json"], tmp_path / "inbox")
     tr = load_voisard_trial(vd, "2-3", packet_grid=False)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from estimators.recording import ImuData, Recording
+from stridelab.estimators.recording import ImuData, Recording
 from stridelab.cli import main
-from pipeline.privacy import name_token as T
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.privacy import name_token as T
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.conftest import shared_data
 from tests.pipeline.test_import import read_mcap
 
@@ -78,7 +78,7 @@ def test_c3d_markers_become_reference_poses_on_the_recording_clock(tmp_path):
     t, v = topics["/reference/pose/foot_left"]
     np.testing.assert_array_equal(t, T0 + 500_000_000 + np.arange(n) * 10_000_000)      # first IMU + offset + i/rate
     np.testing.assert_allclose(v[:, :3], xyz[:, 0] / 1000.0, atol=1e-6)                  # heel, mm -> m
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.quaternion import quat_to_matrix
     ok = np.isfinite(v[:, 3])
     assert ok.sum() == n - 1 and not ok[7]                          # the occluded toe frame: no orientation
     # cluster frame: x = heel->toe, z = x × heel->5th metatarsal (down here: the 5th metatarsal is at -y), y = z × x
@@ -138,9 +138,9 @@ def test_gait_stage_scores_c3d_markers_as_it_scores_the_gaitmap_markers(tmp_path
     """The gaitmap walk twice: as ``import gaitmap`` writes it (markers from mocap_sample.csv), and as its IMUs alone
     plus the same markers written to a C3D in mm and imported with ``import c3d``: the orientation and gait stages'
     accuracy (foot orientation, stride length, trajectory) is the same."""
-    from pipeline.formats.gaitmap import load_gaitmap_example
-    from pipeline.importers import import_paths
-    from pipeline.stages import gait, orientation
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.pipeline.importers import import_paths
+    from stridelab.pipeline.stages import gait, orientation
     from tests.pipeline._lab import df, run_with
     src = shared_data("gaitmap_example")
     ex = load_gaitmap_example(src)
@@ -179,9 +179,9 @@ def test_gait_stage_scores_c3d_markers_as_it_scores_the_gaitmap_markers(tmp_path
 def test_reference_text_of_many_segments_fits_the_screened_label():
     """Seven segments' marker lists would pass the 120 characters of a screened label (the recording would be
     refused at ingest): the text then gives the marker count and the placements, or their number."""
-    from pipeline.c3d_reference import Segment, reference_text
-    from pipeline.privacy import screen_session
-    from studies.privacy import PrivacyPolicy
+    from stridelab.pipeline.c3d_reference import Segment, reference_text
+    from stridelab.pipeline.privacy import screen_session
+    from stridelab.studies.privacy import PrivacyPolicy
     one = reference_text([Segment("foot_left", ("LHEE", "LTOE", "LMT5"))], "mm", 100.0, 0.5)
     assert one == "C3D markers (foot_left = LHEE/LTOE/LMT5; mm -> m, 100 Hz, offset 0.5 s)"
     pls = ("pelvis", "thigh_left", "thigh_right", "shank_left", "shank_right", "foot_left", "foot_right")

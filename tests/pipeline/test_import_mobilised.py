@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from pipeline.formats.mobilised import read_mobilised
-from pipeline.importers import import_paths
+from stridelab.pipeline.formats.mobilised import read_mobilised
+from stridelab.pipeline.importers import import_paths
 from tests.conftest import shared_data
 from tests.pipeline._lab import df as _df
 from tests.pipeline.test_formats_mobilised import _trial, _write
@@ -45,7 +45,7 @@ def test_bad_file_one_line_nothing_written(tmp_path):
 @pytest.mark.realdata
 @pytest.mark.slow
 def test_real_sample_import_ingest_run(tmp_path, monkeypatch):
-    from pipeline.stages import trunk_gait
+    from stridelab.pipeline.stages import trunk_gait
     from tests.pipeline._lab import run_with
     root = shared_data("mobilised_lab")
     res = import_paths("mobilised", [root], tmp_path / "inbox", study="mobilised")
@@ -72,8 +72,8 @@ def test_real_sample_import_ingest_run(tmp_path, monkeypatch):
     # the dashboard's figures and the bench's agree: the stage scores the contacts as `stridelab bench trunk-gait`
     # does (inside the INDIP bouts ± 0.25 s, the one scorer), so its counts pooled over the sessions equal the bench's
     # shipped-defaults counts on the same trials
-    from estimators.trunk_gait import TrunkGaitParams
-    from validation.bench.trunk_gait import load_mobilised, run_ours, score
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
+    from stridelab.validation.bench.trunk_gait import load_mobilised, run_ours, score
     recs = load_mobilised(root, [])
     bench = score(recs, [run_ours(r, TrunkGaitParams()) for r in recs])
     tp = (got["ic_sensitivity"] * got["n_reference_ic"]).round()
@@ -86,7 +86,7 @@ def test_real_sample_import_ingest_run(tmp_path, monkeypatch):
                                               ("leg_length_m", "0.9", True), ("leg_length_m", "tall", False),
                                               ("walking_aid", "1", True), ("repeat_baseline", "2", False)])
 def test_body_and_design_fields_checked_at_ingest(field, value, ok):
-    from pipeline.ingest import IngestRejected, check_session_metadata
+    from stridelab.pipeline.ingest import IngestRejected, check_session_metadata
     s = {"study": "mob", "participant": "HA-001", "session": "HA-001-t", "kind": "lab", field: value}
     if ok:
         assert check_session_metadata({"session": s})[field] == value        # kept (not dropped as free text)

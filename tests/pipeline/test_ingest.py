@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from dataclasses import replace
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
-from pipeline.privacy import stored_name
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.privacy import stored_name
 from tests.corpus import build_bad_corpus, gap_recording, small_recording
-from warehouse.read import connect_snapshot, read_imu
-from warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot, read_imu
+from stridelab.warehouse.catalog import first
 
 
 def _ingest(root, files):
@@ -131,7 +131,7 @@ def test_hostile_file_names_are_stored_as_data(tmp_path):
     s = _ingest(tmp_path / "wh", files)
     assert sorted(s.ingested) == sorted(names) and not s.quarantined
     con = connect_snapshot(tmp_path / "wh")
-    # stored under a keyed hash of the name (pipeline.privacy.stored_name), never the name itself
+    # stored under a keyed hash of the name (stridelab.pipeline.privacy.stored_name), never the name itself
     assert sorted(r[0] for r in con.execute("SELECT file_name FROM recordings").fetchall()) == \
         sorted(stored_name(n) for n in names)
     root = (tmp_path / "wh").resolve()

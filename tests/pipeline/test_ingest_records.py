@@ -8,11 +8,11 @@ import numpy as np
 
 import pytest
 
-from pipeline.privacy import shown_topic, stored_name as N    # what the catalog keeps of a topic / a file name
+from stridelab.pipeline.privacy import shown_topic, stored_name as N    # what the catalog keeps of a topic / a file name
 from tests.corpus import small_recording
 from tests.pipeline._interop import IMU_DEF, MAG_DEF, imu_dict, mag_dict
 from tests.pipeline.test_runner import cli
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def write_ros2(path, rec, topics: dict[str, tuple[str, str]], *, crcs: bool = True, chunk_size=64 * 1024):
@@ -87,7 +87,7 @@ def test_an_unmapped_imu_topic_refuses_the_file_unless_skipped_on_request(tmp_pa
     assert "/spare/imu: skipped on request" in r.stderr
     (skipped,) = _rows(wh, "SELECT skipped_topics FROM recordings WHERE status = 'ingested'")[0]
     assert json.loads(skipped) == [{"topic": shown_topic("/spare/imu"), "reason": "skipped on request (--skip-topic)"}]
-    from warehouse import queries as Q                  # what the dashboard's runs page lists
+    from stridelab.warehouse import queries as Q                  # what the dashboard's runs page lists
     con = connect_snapshot(wh)
     page = Q.skipped_topics(con)
     con.close()
@@ -102,7 +102,7 @@ def test_a_magnetometer_mapped_to_a_placement_without_imu_is_an_error(tmp_path):
     r = cli("ingest", f, "--warehouse", tmp_path / "wh", "--topic-map", "/foot/mag=foot_right")
     assert r.returncode == 1 and "has no IMU" in r.stderr, r.stderr
     assert _series_files(tmp_path / "wh") == []
-    # a typo of a placement is refused first by the placement vocabulary (pipeline.privacy), naming the fix
+    # a typo of a placement is refused first by the placement vocabulary (stridelab.pipeline.privacy), naming the fix
     r = cli("ingest", f, "--warehouse", tmp_path / "wh2", "--topic-map", "/foot/mag=foot_rigth")
     assert r.returncode == 1 and "not in the study's vocabulary" in r.stderr and "--topic-map" in r.stderr, r.stderr
     assert _series_files(tmp_path / "wh2") == []
@@ -132,7 +132,7 @@ def test_files_without_crcs_are_marked_unverified_and_refused_on_request(tmp_pat
     assert r.returncode == 0, r.stderr
     assert dict(_rows(wh, "SELECT file_name, crc_verified FROM recordings")) == {N("a.mcap"): True,
                                                                                   N("b.mcap"): False}
-    from warehouse import queries as Q                  # the dashboard's recordings table flags it
+    from stridelab.warehouse import queries as Q                  # the dashboard's recordings table flags it
     con = connect_snapshot(wh)
     page = Q.recordings(con, "P001")
     con.close()
@@ -147,7 +147,7 @@ def test_reference_events_written_twice_are_stored_once(tmp_path):
     and so are the reference events (they were stored twice)."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
     (tmp_path / "in").mkdir()
     src = write_recording(small_recording(seconds=5.0), tmp_path / "in" / "src.mcap")
     with open(src, "rb") as f:
@@ -245,7 +245,7 @@ def test_every_topic_of_every_file_is_in_the_ingest_ledger_with_its_outcome(tmp_
                            (shown_topic("/spare/imu"), "skipped", None, None, "skipped on request (--skip-topic)")])
     nocrc = [x[1:] for x in ledger if x[0] == N("nocrc.mcap")]
     assert [x[:2] for x in nocrc] == [("/imu/foot_left", "quarantined")] and "--require-crc" in nocrc[0][4]
-    from warehouse import queries as Q                  # what the dashboard's runs page lists
+    from stridelab.warehouse import queries as Q                  # what the dashboard's runs page lists
     con = connect_snapshot(wh)
     try:
         page = Q.skipped_topics(con)

@@ -8,15 +8,15 @@ import json
 import numpy as np
 import pytest
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
-from pipeline.privacy import stored_name
-from pipeline.verify import verify
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.privacy import stored_name
+from stridelab.pipeline.verify import verify
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
-from warehouse.catalog import first
-from warehouse.read import connect_snapshot, read_imu
-from warehouse.store import SeriesDamaged, read_table
+from stridelab.warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot, read_imu
+from stridelab.warehouse.store import SeriesDamaged, read_table
 
 
 def flip_data_bytes(path, n: int = 16, seed: int = 0) -> None:
@@ -75,7 +75,7 @@ def test_a_damaged_series_whose_recording_is_gone_is_reported_not_repaired(tmp_p
 
 
 def test_a_damaged_stage_output_is_recomputed_by_the_next_run(tmp_path, monkeypatch):
-    from pipeline.stages import orientation
+    from stridelab.pipeline.stages import orientation
     from tests.pipeline._lab import use_registry
     use_registry(monkeypatch, [orientation.STAGE])
     (tmp_path / "in").mkdir()
@@ -103,7 +103,7 @@ def test_a_run_whose_final_snapshot_fails_is_not_recorded_ok(tmp_path, monkeypat
 
     import duckdb
 
-    from warehouse.catalog import Warehouse
+    from stridelab.warehouse.catalog import Warehouse
     (tmp_path / "in").mkdir()
     f = write_recording(small_recording(), tmp_path / "in" / "a.mcap")
     calls = {"n": 0}
@@ -168,7 +168,7 @@ def test_a_corrupt_catalog_names_the_file_and_is_rebuilt_from_the_newest_snapsho
 
 @pytest.mark.slow
 def test_a_corrupt_newest_snapshot_falls_back_to_the_previous_one_with_a_message(tmp_path):
-    from warehouse.read import latest_snapshot, snapshot_status
+    from stridelab.warehouse.read import latest_snapshot, snapshot_status
     wh = _two_runs(tmp_path)
     snaps = sorted((wh / "snapshots").glob("catalog-*.duckdb"))
     assert len(snaps) >= 2

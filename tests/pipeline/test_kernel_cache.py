@@ -12,14 +12,14 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.stages import registry
+from stridelab.pipeline.stages import registry
 
 ROOT = Path(__file__).resolve().parents[2]
 
 KERNEL = """
 import json, numpy as np
-from estimators._numba_cache import CACHE_DIR
-from estimators.activity._kernels import second_sums
+from stridelab.estimators._numba_cache import CACHE_DIR
+from stridelab.estimators.activity._kernels import second_sums
 second_sums(np.ones((500, 3)), 100, 5)
 st = second_sums.stats
 print(json.dumps({"cache_dir": CACHE_DIR, "misses": sum(st.cache_misses.values()),
@@ -47,7 +47,7 @@ def test_a_second_fresh_process_loads_the_kernel_instead_of_compiling(tmp_path):
 
 def test_the_package_points_numba_at_the_venv_cache():
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    r = subprocess.run([sys.executable, "-c", "import os, pipeline, numba; "
+    r = subprocess.run([sys.executable, "-c", "import os, stridelab.pipeline, numba; "
                         "print(os.environ.get('NUMBA_CACHE_DIR')); print(numba.config.CACHE_DIR)"],
                        capture_output=True, text=True, env={**env, "PYTHONPATH": str(ROOT)}, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -64,7 +64,7 @@ def test_after_warm_kernels_every_stage_runs_without_compiling(tmp_path):
     every stage in a fresh process: nothing is compiled there."""
     cache = tmp_path / "numba-cache"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
-    r = subprocess.run([sys.executable, "-m", "pipeline", "warm-kernels", "--json"], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", "stridelab", "warm-kernels", "--json"], capture_output=True, text=True,
                        env=env, cwd=ROOT, timeout=1800)
     assert r.returncode == 0, r.stderr
     warm = json.loads(r.stdout)

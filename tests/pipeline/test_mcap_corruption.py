@@ -11,10 +11,10 @@ import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Metadata, Schema
 
-from pipeline import runner
-from pipeline.formats import ros2_cdr
-from pipeline.formats.mcap_read import MAGIC, McapFormatError, ReadResult, iter_blocks
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.formats.mcap_read import MAGIC, McapFormatError, ReadResult, iter_blocks
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import small_recording
 
 ACTION = re.compile(r"(copy|export|re-export|rewrite|fix|convert|try|map|sort|name them|add)", re.I)

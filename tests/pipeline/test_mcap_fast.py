@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.formats import mcap_fast, mcap_read
+from stridelab.pipeline.formats import mcap_fast, mcap_read
 from tests.corpus import small_recording
 from tests.pipeline._interop import write_mcap_ros2
 from tests.pipeline._lab import write_lab_session

@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import small_recording
 from tests.pipeline._interop import (assert_bit_equal, rewrite_with_mcap, rosbags_write, stored, write_mcap_ros2)
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _ingest(wh: Path, files, **kw):
@@ -42,7 +42,7 @@ def test_chunks_decoded_in_groups_keep_order_and_channels_defined_mid_file(tmp_p
     (mcap_read.GROUP_BYTES); a channel whose Channel record sits in a chunk in the middle of such a run
     (its first message comes 6 s into the file) and the run boundaries keep every sample, in order."""
     from dataclasses import replace
-    from pipeline.formats import mcap_read
+    from stridelab.pipeline.formats import mcap_read
     monkeypatch.setattr(mcap_read, "GROUP_BYTES", group_bytes)
     seen = []
     task = mcap_read._group_task
@@ -140,7 +140,7 @@ def test_every_file_simulate_writes_opens_in_rosbags_and_mcap_ros2(tmp_path):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
-    from validation.simulate import simulate_to_dir
+    from stridelab.validation.simulate import simulate_to_dir
     files = simulate_to_dir(tmp_path / "inbox", participants=1, hours=0.05)
     mcaps = [Path(f) for f in files if str(f).endswith(".mcap")]
     assert mcaps

@@ -7,11 +7,11 @@ import os
 
 import pytest
 
-from pipeline.formats.mcap_write import write_recording
-from pipeline.privacy import stored_name
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.privacy import stored_name
 from tests.corpus import small_recording
 from tests.pipeline.test_runner import cli
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 FORGED = "evil\nrun 20990101T000000Z-abcdef: 99 ingested\x1b[2J"
 
@@ -58,7 +58,7 @@ def test_odd_inbox_entries_are_listed_with_the_reason_and_odd_names_forge_nothin
 def test_our_writer_takes_output_names_up_to_255_bytes(tmp_path):
     """``write_mcap`` writes a temporary file beside the output first: its name must not pass 255 bytes when the
     output's does not (issue #47: names above ~240 bytes failed with 'File name too long')."""
-    from pipeline.formats.mcap_read import ReadResult, iter_blocks
+    from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
     for name in ("Ł" * 120 + ".mcap", "L" * 250 + ".mcap"):          # 245 and 255 bytes
         assert len(os.fsencode(name)) <= 255
         out = write_recording(small_recording(seconds=2.0), tmp_path / name)

@@ -8,17 +8,17 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
-from studies.manifest import load_manifest
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.studies.manifest import load_manifest
 from tests.corpus import small_recording
-from warehouse.read import connect_snapshot
-from warehouse.store import check_identifier
+from stridelab.warehouse.read import connect_snapshot
+from stridelab.warehouse.store import check_identifier
 
 
 @pytest.fixture(autouse=True)
 def _fresh_manifests():
-    from pipeline import config
+    from stridelab.pipeline import config
     config.study_manifest.cache_clear()        # the study manifests some tests write must not leak
     yield
     config.study_manifest.cache_clear()
@@ -94,7 +94,7 @@ def test_check_identifier_refuses_a_trailing_newline_and_does_not_echo():
 
 
 def _study(tmp_path, monkeypatch, privacy: str):
-    from pipeline import config
+    from stridelab.pipeline import config
     d = tmp_path / "studies" / "testing"
     d.mkdir(parents=True)
     (d / "study.toml").write_text(f"[privacy]\n{privacy}\n")

@@ -5,12 +5,12 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline import runner
-from pipeline.formats.mcap_write import write_recording
-from pipeline.pseudonym import create_key
+from stridelab.pipeline import runner
+from stridelab.pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.pseudonym import create_key
 from tests.corpus import small_recording
-from warehouse.catalog import first
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.catalog import first
+from stridelab.warehouse.read import connect_snapshot
 
 
 def test_site_identifier_becomes_a_keyed_pseudonym(tmp_path, monkeypatch):
@@ -61,7 +61,7 @@ def test_stage_fields_are_kept_and_checked():
     """``reference_frame`` and ``accelerometer_only`` are read by the orientation stage: stored as given (a dropped
     ``reference_frame`` once made the stage align BROAD's sensor-frame reference and score 1.263° vs the bench's
     1.329°), and refused with one line when they hold anything but their closed values."""
-    from pipeline.ingest import IngestRejected, check_session_metadata
+    from stridelab.pipeline.ingest import IngestRejected, check_session_metadata
     base = {"study": "public", "participant": "broad01", "session": "s1", "kind": "lab"}
     s = check_session_metadata({"session": {**base, "reference_frame": "sensor_enu", "accelerometer_only": "chest"}})
     assert s["reference_frame"] == "sensor_enu" and s["accelerometer_only"] == "chest"

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimators.recording import ImuData, Recording
-from pipeline.formats.mcap_write import write_recording
+from stridelab.estimators.recording import ImuData, Recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import small_recording
 
-PYTHON = [sys.executable, "-m", "pipeline"]
+PYTHON = [sys.executable, "-m", "stridelab"]
 STUDY_TOML = """[privacy]
 # the one free-text field of the corpus study: stored only after the screen
 free_text_fields = ["comment"]
@@ -303,7 +303,7 @@ def audit(home: Path, inbox: Path, variants: list[Variant]) -> list[dict]:
     """Per variant: stored (where), refused, dropped."""
     import duckdb
     try:
-        from pipeline.privacy import stored_name
+        from stridelab.pipeline.privacy import stored_name
     except ImportError:                     # a StrideLab that stores file names as given (to check the test fails)
         def stored_name(f):
             return f
@@ -347,7 +347,7 @@ def corpus(tmp_path_factory):
     from tests.pipeline.test_runner import cli
     root = tmp_path_factory.mktemp("privacy_corpus")
     key = root / "keys" / "pseudonym.key"
-    from pipeline.pseudonym import create_key
+    from stridelab.pipeline.pseudonym import create_key
     create_key(key)
     old = {k: os.environ.get(k) for k in ("STRIDELAB_HOME", "STRIDELAB_STUDIES", "STRIDELAB_PSEUDONYM_KEY")}
     try:
@@ -397,7 +397,7 @@ def test_the_audit_finds_a_value_that_is_stored(corpus):
 if __name__ == "__main__":
     from tests.pipeline.test_runner import cli as _cli
     base = Path(sys.argv[1])
-    from pipeline.pseudonym import create_key
+    from stridelab.pipeline.pseudonym import create_key
     if not (base / "keys" / "pseudonym.key").exists():
         create_key(base / "keys" / "pseudonym.key")
     h, vs = run_corpus(base, _cli)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.privacy import screen_events, screen_session, shown_topic, stored_name, stored_path
-from studies.privacy import PrivacyPolicy, privacy_policy, value_problem
+from stridelab.pipeline.privacy import screen_events, screen_session, shown_topic, stored_name, stored_path
+from stridelab.studies.privacy import PrivacyPolicy, privacy_policy, value_problem
 
 BASE = {"study": "testing", "participant": "P001", "session": "S01", "kind": "lab", "trial": "walk-1",
         "timezone": "UTC"}
@@ -145,7 +145,7 @@ def test_stored_names_are_keyed_hashes_stable_per_name(tmp_path, monkeypatch):
     assert stored_name(tmp_path / "hans_mueller_bag") .startswith("rec-")
     p = stored_path(tmp_path / "Jane_Doe_1951-03-12.mcap")
     assert "Jane" not in p and p != stored_path(tmp_path / "x" / "Jane_Doe_1951-03-12.mcap")
-    from pipeline.pseudonym import create_key
+    from stridelab.pipeline.pseudonym import create_key
     create_key(tmp_path / "k.key")
     monkeypatch.setenv("STRIDELAB_PSEUDONYM_KEY", str(tmp_path / "k.key"))
     assert stored_name("Jane_Doe_1951-03-12.mcap") != a          # with the key, a guess cannot be confirmed

@@ -12,7 +12,7 @@ import pytest
 from tests.corpus import small_recording
 from tests.pipeline._interop import IMU_DEF, imu_dict
 from tests.pipeline.test_runner import cli
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 def _write(path, rec, *, chunk_size=16 * 1024):
@@ -64,7 +64,7 @@ def recording(tmp_path_factory):
 
 
 def test_truncated_files_at_20_offsets_keep_every_complete_chunk(recording, tmp_path):
-    from pipeline.recover import recover
+    from stridelab.pipeline.recover import recover
     f, chunks = recording
     data = f.read_bytes()
     assert len(chunks) >= 10
@@ -82,7 +82,7 @@ def test_truncated_files_at_20_offsets_keep_every_complete_chunk(recording, tmp_
 
 
 def test_a_chunk_with_a_bad_crc_is_skipped_and_the_rest_kept(recording, tmp_path):
-    from pipeline.recover import recover
+    from stridelab.pipeline.recover import recover
     f, chunks = recording
     b = bytearray(f.read_bytes())
     end3, n3 = chunks[3]

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.pipeline.test_runner import STRIDELAB, cli, make_inbox
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 
 STUDIES = ("a", "b", "c")

@@ -12,13 +12,13 @@ from pathlib import Path
 import duckdb
 import pytest
 
-from pipeline.formats.mcap_write import write_recording
+from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import small_recording
-from warehouse.catalog import Warehouse, first, fingerprint
-from warehouse.lock import RunLock
-from warehouse.read import connect_snapshot, latest_snapshot
+from stridelab.warehouse.catalog import Warehouse, first, fingerprint
+from stridelab.warehouse.lock import RunLock
+from stridelab.warehouse.read import connect_snapshot, latest_snapshot
 
-STRIDELAB = [sys.executable, "-m", "pipeline"]
+STRIDELAB = [sys.executable, "-m", "stridelab"]
 
 
 def cli(*args, env=None, **kw):
@@ -173,7 +173,7 @@ def test_an_older_warehouse_is_upgraded_in_place(tmp_path):
     with Warehouse.open(tmp_path / "wh", migrate_upto=1) as wh:
         assert first(wh.con.execute("SELECT max(version) FROM schema_migrations"))[0] == 1
         assert not wh.con.execute("SELECT * FROM information_schema.tables WHERE table_name = 'orientation'").fetchall()
-    from pipeline import ingest
+    from stridelab.pipeline import ingest
     with Warehouse.open(tmp_path / "wh", migrate_upto=1) as wh:
         ingest.commit(wh, ingest.prepare(f, wh.root))
     r = cli("run", "--inbox", tmp_path / "none", "--warehouse", tmp_path / "wh", "-j", "1")
@@ -187,7 +187,7 @@ def test_snapshots_are_published_at_most_once_per_interval_and_at_each_phase_end
     """Commits publish a snapshot only when PUBLISH_INTERVAL_S has passed since the last one; a phase end
     (``flush``) publishes what is still unpublished, and nothing when all is published; 0 (or the env
     variable) publishes after every commit."""
-    from pipeline import runner
+    from stridelab.pipeline import runner
 
     class FakeWarehouse:
         published = 0

@@ -7,11 +7,11 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from pipeline import runner
+from stridelab.pipeline import runner
 from stridelab.cli import main
 from tests.corpus import small_recording
 from tests.pipeline._interop import assert_bit_equal, rosbags_write, stored, write_mcap_ros2
-from warehouse.read import connect_snapshot
+from stridelab.warehouse.read import connect_snapshot
 
 ROS_TOPICS = {"/imu/foot_left": "/foot_left/imu/data_raw", "/mag/foot_left": "/foot_left/imu/mag"}
 
@@ -91,7 +91,7 @@ def test_topic_map_from_the_command_line_and_refusal_listing_topics(tmp_path):
 
 
 def test_topic_map_from_the_study_manifest(tmp_path, monkeypatch):
-    from pipeline import config
+    from stridelab.pipeline import config
     rec = small_recording(seconds=5.0, placements=("foot_left",), study="mapped")
     studies = tmp_path / "studies"
     (studies / "mapped").mkdir(parents=True)
@@ -124,7 +124,7 @@ def test_cli_session_and_topic_map_options(tmp_path):
 
 
 def test_manifest_topics_table_is_validated(tmp_path):
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     text = DEFAULT_MANIFEST.read_text()
     p = tmp_path / "study.toml"
     p.write_text(text + '\n[topics]\n"/foot_left/imu/data_raw" = "foot_left"\n')

@@ -5,7 +5,7 @@ import hashlib
 
 import pytest
 
-from validation.simulate import simulate_to_dir
+from stridelab.validation.simulate import simulate_to_dir
 
 
 def _digests(files):

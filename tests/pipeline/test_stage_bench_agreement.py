@@ -7,8 +7,8 @@ import dataclasses
 
 import pytest
 
-from pipeline.importers import import_paths
-from pipeline.stages import activity, orientation
+from stridelab.pipeline.importers import import_paths
+from stridelab.pipeline.stages import activity, orientation
 from tests.conftest import shared_data
 from tests.pipeline._lab import df, run_with
 
@@ -16,8 +16,8 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 
 def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
-    from estimators.orientation import DEFAULT_OFFLINE
-    from validation.bench.orientation import run_benchmark
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE
+    from stridelab.validation.bench.orientation import run_benchmark
     trial = shared_data("broad") / "07_undisturbed_fast_rotation_B.hdf5"
     res = import_paths("broad", [trial], tmp_path / "inbox", study="public")
     run_with(monkeypatch, tmp_path / "wh", res.written, [orientation.STAGE])
@@ -33,7 +33,7 @@ def test_orientation_stage_equals_bench_on_a_broad_trial(tmp_path, monkeypatch):
 def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch, score_slice):
     """... also when the stage scores the recording in slices of 20,000 samples (a week-long recording is
     scored about a day at a time)."""
-    from validation.bench.activity import run_benchmark
+    from stridelab.validation.bench.activity import run_benchmark
     if score_slice:
         monkeypatch.setattr(activity, "SCORE_SLICE_SAMPLES", score_slice)
     src = shared_data("uci_chest")
@@ -57,8 +57,8 @@ def test_activity_stage_equals_bench_on_a_uci_participant(tmp_path, monkeypatch,
 
 
 def test_foot_trajectory_stage_equals_bench_on_a_pyshoe_trial(tmp_path, monkeypatch):
-    from validation.bench.trajectory import pyshoe_benchmark
-    from pipeline.stages import gait
+    from stridelab.validation.bench.trajectory import pyshoe_benchmark
+    from stridelab.pipeline.stages import gait
     src = sorted(shared_data("pyshoe_vicon").glob("*.mat"))[0]
     d = tmp_path / "pyshoe"
     d.mkdir()
@@ -83,8 +83,8 @@ def _gait_metrics(root, stage):
 def test_gait_events_stage_equals_bench_on_a_voisard_trial(tmp_path, monkeypatch):
     """IC/TC vs Voisard's annotations inside TrialBoundaries at the bench's ±100 ms, the shipped FootParams (the
     bench's ``shipped_defaults``); trial 3-1: no dropped packet on the left foot, one on the right."""
-    from validation.bench.gait import VOISARD_TOL_S, voisard_benchmark
-    from pipeline.stages import gait
+    from stridelab.validation.bench.gait import VOISARD_TOL_S, voisard_benchmark
+    from stridelab.pipeline.stages import gait
     src = shared_data("voisard_gait")
     d = tmp_path / "voisard"
     d.mkdir()
@@ -105,8 +105,8 @@ def test_gait_events_and_stride_lengths_stage_equals_bench_on_the_gaitmap_walk(t
     """IC/TC vs the mocap events inside the labelled strides (±0.5 s) and stride length vs the heel marker on the
     labelled strides; the stage's precision counts every unmatched detection, as the bench's ``precision_strict``
     (the bench's ``precision`` also forgives detections in marker-verified unlabelled steps)."""
-    from validation.bench.gait import run_benchmark
-    from pipeline.stages import gait
+    from stridelab.validation.bench.gait import run_benchmark
+    from stridelab.pipeline.stages import gait
     src = shared_data("gaitmap_example")
     res = import_paths("gaitmap", [src], tmp_path / "inbox", study="public")
     run_with(monkeypatch, tmp_path / "wh", res.written, [gait.STAGE])

@@ -8,15 +8,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline import runner, stages
-from pipeline.stages import Stage, StageOutput
-from pipeline.stages import calibration as cal_stage
-from pipeline.stages import joint_angles as ja_stage
-from pipeline.stages import orientation as ori_stage
-from studies.manifest import DEFAULT_MANIFEST, load_manifest
-from warehouse.catalog import Warehouse, first
-from warehouse.read import connect_snapshot, read_imu, read_orientation
-from warehouse.store import read_table
+from stridelab.pipeline import runner, stages
+from stridelab.pipeline.stages import Stage, StageOutput
+from stridelab.pipeline.stages import calibration as cal_stage
+from stridelab.pipeline.stages import joint_angles as ja_stage
+from stridelab.pipeline.stages import orientation as ori_stage
+from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+from stridelab.warehouse.catalog import Warehouse, first
+from stridelab.warehouse.read import connect_snapshot, read_imu, read_orientation
+from stridelab.warehouse.store import read_table
 
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with, use_registry, write_lab_session
@@ -68,8 +68,8 @@ def warehouse(lab_files, tmp_path_factory):
 
 
 def test_calibration_rows_equal_the_estimator_on_the_same_arrays(warehouse):
-    from estimators.calibration import calibrate_session
-    from estimators.calibration._session import DEFAULT_PLACEMENTS
+    from stridelab.estimators.calibration import calibrate_session
+    from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
     rows = _df(warehouse, "SELECT * FROM calibration ORDER BY placement")
     assert set(rows["placement"]) == LOWER
     h = rows["content_hash"].iloc[0]
@@ -92,8 +92,8 @@ def test_calibration_rows_equal_the_estimator_on_the_same_arrays(warehouse):
 
 
 def test_joint_angles_equal_the_estimator_on_the_same_arrays(warehouse):
-    from estimators.calibration import first_quiet_standing
-    from estimators.joints import compute_joint_angles
+    from stridelab.estimators.calibration import first_quiet_standing
+    from stridelab.estimators.joints import compute_joint_angles
     rows = _df(warehouse, "SELECT * FROM joint_angles ORDER BY joint, side")
     assert len(rows) == 6 and set(rows["trial"]) == {"walk-1"} and (rows["status"] != "fail").all()
     h = rows["content_hash"].iloc[0]
@@ -121,7 +121,7 @@ def test_joint_angles_equal_the_estimator_on_the_same_arrays(warehouse):
 
 def test_joint_angles_are_close_to_the_simulated_truth(warehouse, lab_files):
     """Sanity, not the benchmark: sagittal knee RMSE after offset removal within a few degrees."""
-    from estimators.joints import remove_standing_offset
+    from stridelab.estimators.joints import remove_standing_offset
     truth = lab_files[1][1]
     rows = _df(warehouse, "SELECT * FROM joint_angles WHERE joint = 'knee'")
     for _, r in rows.iterrows():

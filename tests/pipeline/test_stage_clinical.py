@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline import runner
-from pipeline.stages import clinical as clinical_stage
-from pipeline.stages import gait as gait_stage
-from pipeline.stages import orientation as ori_stage
+from stridelab.pipeline import runner
+from stridelab.pipeline.stages import clinical as clinical_stage
+from stridelab.pipeline.stages import gait as gait_stage
+from stridelab.pipeline.stages import orientation as ori_stage
 
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with, use_registry, write_lab_session

@@ -8,13 +8,13 @@ import os
 import numpy as np
 import pytest
 
-from pipeline import runner, stages
-from pipeline.stages import gait as gait_stage
-from pipeline.stages import orientation as ori_stage
-from studies.manifest import DEFAULT_MANIFEST, load_manifest
-from warehouse.catalog import Warehouse
-from warehouse.read import connect_snapshot, read_imu
-from warehouse.store import read_table
+from stridelab.pipeline import runner, stages
+from stridelab.pipeline.stages import gait as gait_stage
+from stridelab.pipeline.stages import orientation as ori_stage
+from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+from stridelab.warehouse.catalog import Warehouse
+from stridelab.warehouse.read import connect_snapshot, read_imu
+from stridelab.warehouse.store import read_table
 
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with, use_registry, write_lab_session
@@ -49,7 +49,7 @@ def warehouse(lab_files, tmp_path_factory):
 
 
 def test_rows_equal_the_estimator_on_the_same_arrays(warehouse):
-    from estimators.gait import foot_kinematics, foot_params_from_dict
+    from stridelab.estimators.gait import foot_kinematics, foot_params_from_dict
     params = gait_stage.STAGE.default_params()
     traj = _df(warehouse, "SELECT * FROM foot_trajectories ORDER BY placement")
     assert list(traj["placement"]) == ["foot_left", "foot_right"] and set(traj["trial"]) == {"walk-1"}
@@ -123,7 +123,7 @@ def _session(sid="S-1", kind="lab"):
 
 def _write_imu(root, gyr, acc, fs=100.0, placement="foot_left", t0=0):
     import pyarrow as pa
-    from warehouse.store import write_table
+    from stridelab.warehouse.store import write_table
     n = len(gyr)
     t = t0 + np.round(np.arange(n) * 1e9 / fs).astype(np.int64)
     rel = f"series/imu-{placement}-{n}.parquet"
@@ -133,7 +133,7 @@ def _write_imu(root, gyr, acc, fs=100.0, placement="foot_left", t0=0):
 
 
 def test_no_stance_and_no_walking_trial_give_a_clear_status(tmp_path):
-    from pipeline.stages import SessionInput
+    from stridelab.pipeline.stages import SessionInput
     rng = np.random.default_rng(0)
     n = 3000
     gyr = rng.normal(0, 3.0, (n, 3))                   # never still: running / sensor on a swinging segment
@@ -155,7 +155,7 @@ def test_no_stance_and_no_walking_trial_give_a_clear_status(tmp_path):
 
 
 def test_standing_still_gives_no_strides(tmp_path):
-    from pipeline.stages import SessionInput
+    from stridelab.pipeline.stages import SessionInput
     rng = np.random.default_rng(1)
     n = 2000
     gyr = rng.normal(0, 0.005, (n, 3))
@@ -182,8 +182,8 @@ def test_cli_simulate_then_run_fills_the_gait_tables(tmp_path):
         site = tmp_path / "site"
         site.mkdir()
         (site / "sitecustomize.py").write_text(
-            "import pipeline.stages as S\n_base = S.registry\n"
-            "def _reg():\n    from pipeline.stages import gait\n    b = _base()\n    return [b[0], gait.STAGE] + b[1:]\n"
+            "import stridelab.pipeline.stages as S\n_base = S.registry\n"
+            "def _reg():\n    from stridelab.pipeline.stages import gait\n    b = _base()\n    return [b[0], gait.STAGE] + b[1:]\n"
             "S.registry = _reg\n")
         env = {"PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
     r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--json", "--no-reports", env=env)
@@ -199,7 +199,7 @@ def test_cli_simulate_then_run_fills_the_gait_tables(tmp_path):
 
 def test_distance_sensors_feed_the_duong_suh_height(warehouse):
     """The stage's pz_floor equals the Duong & Suh filter called directly on the same arrays (geometry guessed)."""
-    from pipeline.stages import SessionInput
+    from stridelab.pipeline.stages import SessionInput
     traj = _df(warehouse, "SELECT * FROM foot_trajectories ORDER BY placement")
     assert set(traj["range_estimator"]) == {"duong_suh_21"} and set(traj["range_status"]) == {"ok"}
     assert set(traj["range_geometry"]) == {"guessed"} and (traj["range_used_fraction"] > 0.5).all()
@@ -216,7 +216,7 @@ def test_distance_sensors_feed_the_duong_suh_height(warehouse):
     finally:
         con.close()
     rec = {"content_hash": r["content_hash"], "trial": "walk-1", "sensors": sensors}
-    from pipeline.stages._shape import StageContext
+    from stridelab.pipeline.stages._shape import StageContext
     ctx = StageContext(SessionInput(root=str(warehouse), session={}, recordings=[rec]), gait_stage.TABLES, ())
     ranges = gait_stage.read_ranges(ctx, rec, r["placement"], s.t_ns)
     assert ranges.shape == (len(s.t_ns), 2) and 0.3 < np.isfinite(ranges).mean() < 0.34     # 33.3 of 100 Hz
@@ -229,9 +229,9 @@ def test_distance_sensors_feed_the_duong_suh_height(warehouse):
 
 def test_saturated_distance_sensors_give_a_clear_status(tmp_path):
     import pyarrow as pa
-    from validation.simulator.duong_suh_walk import simulate_ds_walk
-    from pipeline.stages import SessionInput
-    from warehouse.store import write_table
+    from stridelab.validation.simulator.duong_suh_walk import simulate_ds_walk
+    from stridelab.pipeline.stages import SessionInput
+    from stridelab.warehouse.store import write_table
     w = simulate_ds_walk(0, n_strides=4)
     imu, t = _write_imu(tmp_path, w.gyr, w.acc)
     sensors = {"imu": imu}

@@ -10,10 +10,10 @@ import importlib
 import numpy as np
 import pytest
 
-from pipeline import runner
-from pipeline.stages import SessionInput, canonical_json, params_hash, registry
-from pipeline.stages._shape import params_from_dict, params_to_dict, shaped_stage
-from warehouse.catalog import Warehouse
+from stridelab.pipeline import runner
+from stridelab.pipeline.stages import SessionInput, canonical_json, params_hash, registry
+from stridelab.pipeline.stages._shape import params_from_dict, params_to_dict, shaped_stage
+from stridelab.warehouse.catalog import Warehouse
 
 from tests.pipeline._lab import run_with, write_lab_session
 
@@ -35,12 +35,12 @@ def test_every_stage_has_a_frozen_params_class_giving_its_stamped_defaults(stage
 
 
 def test_the_defaults_are_the_estimators_own():
-    from estimators.calibration import CalibrationParams
-    from estimators.gait import FootParams
-    from estimators.gait.clinical import ClinicalParams
-    from estimators.gait.evaluation import EVENT_TOLERANCE_S
-    from estimators.orientation import DEFAULT_OFFLINE
-    from estimators.trajectory import DuongSuhParams
+    from stridelab.estimators.calibration import CalibrationParams
+    from stridelab.estimators.gait import FootParams
+    from stridelab.estimators.gait.clinical import ClinicalParams
+    from stridelab.estimators.gait.evaluation import EVENT_TOLERANCE_S
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE
+    from stridelab.estimators.trajectory import DuongSuhParams
     st = {s.name: s.default_params() for s in registry()}
     asdict = lambda p: params_to_dict(p)          # noqa: E731  (tuples as lists, as stamped)
     assert st["gait"]["foot"] == asdict(FootParams()) and st["gait"]["event_tolerance_s"] == EVENT_TOLERANCE_S
@@ -51,7 +51,7 @@ def test_the_defaults_are_the_estimators_own():
 
 
 def test_a_nested_unknown_key_is_refused_naming_its_place():
-    from pipeline.stages.gait import GaitParams
+    from stridelab.pipeline.stages.gait import GaitParams
     with pytest.raises(ValueError, match=r"GaitParams\.foot\.trajectory: unknown parameter\(s\) nope; known: .*zupt"):
         params_from_dict(GaitParams, {"foot": {"trajectory": {"nope": 1}}})
     p = params_from_dict(GaitParams, {"distance_sensors": {"use": False}, "min_segment_s": 3})
@@ -80,7 +80,7 @@ def test_the_score_step_changes_no_estimate(lab, name):
     """The same stage without its score step: every estimate row and note equal, no accuracy rows."""
     root, sid = lab
     stage = next(s for s in registry() if s.name == name)
-    mod = importlib.import_module(f"pipeline.stages.{name}")
+    mod = importlib.import_module(f"stridelab.pipeline.stages.{name}")
     bare = shaped_stage(name, stage.version, stage.params_cls, mod.compute, finish=getattr(mod, "finish", None),
                         tables=stage.tables, session_kinds=stage.session_kinds, needs=stage.needs)
     with Warehouse.open(root) as wh:
@@ -103,7 +103,7 @@ def test_series_keys_and_params_columns_come_from_the_stamped_dict(lab):
     """An int where the default is a float (a manifest's ``block_s = 3600``): the stored params and the series key
     are those of the dict the runner stamped, as before the stage shape."""
     root, sid = lab
-    from pipeline.stages import orientation
+    from stridelab.pipeline.stages import orientation
     with Warehouse.open(root) as wh:
         inp = runner._session_inputs(wh, sid, orientation.STAGE)
     params = {**orientation.STAGE.default_params(), "block_s": 3600}
@@ -116,7 +116,7 @@ def test_series_keys_and_params_columns_come_from_the_stamped_dict(lab):
 
 
 def test_the_study_manifest_is_checked_against_the_params_class(tmp_path, monkeypatch):
-    from pipeline import config
+    from stridelab.pipeline import config
     d = tmp_path / "s1"
     d.mkdir()
     (d / "study.toml").write_text('[stages.gait]\nmin_segment_s = 3.0\n[stages.gait.distance_sensors]\nuse = false\n'

@@ -8,9 +8,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from pipeline.stages import SessionInput
-from pipeline.stages import trunk_gait as tg
-from pipeline.stages._shape import StageContext, params_from_dict, params_to_dict, shaped_stage
+from stridelab.pipeline.stages import SessionInput
+from stridelab.pipeline.stages import trunk_gait as tg
+from stridelab.pipeline.stages._shape import StageContext, params_from_dict, params_to_dict, shaped_stage
 from tests.pipeline._lab import df as _df
 from tests.pipeline._lab import run_with
 
@@ -27,9 +27,9 @@ def _flip(imu):
 
 @pytest.fixture(scope="module")
 def warehouse(tmp_path_factory):
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_chest_day, simulate_lab_session, study_participants
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST).with_free_living_hours(1.0)
     m = replace(m, lab=replace(m.lab, walking_trials=1, lower_back=True, distance_sensors=False,
                                optical_reference=False), free_living=replace(m.free_living, lower_back=True))
@@ -180,8 +180,8 @@ def test_shaped_stage_skips_without_declared_input_and_refuses_undeclared_tables
 def test_day_by_day_reading_gives_the_same_rows(warehouse):
     """Recordings longer than ``day_pieces_above_s`` are read one local day at a time (a week is never held at
     once); on an hour inside one day that path gives the rows of the whole-recording path."""
-    from pipeline.runner import _session_inputs
-    from warehouse.catalog import Warehouse
+    from stridelab.pipeline.runner import _session_inputs
+    from stridelab.warehouse.catalog import Warehouse
     root, _ = warehouse
     sid = _df(root, "SELECT session_id FROM sessions WHERE participant_id = 'P001' AND kind = 'free_living'")
     with Warehouse.open(root) as wh:

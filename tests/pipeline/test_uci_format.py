@@ -1,11 +1,11 @@
-"""The UCI chest reader (pipeline.formats.uci_chest) on files written here: any participant file in the
+"""The UCI chest reader (stridelab.pipeline.formats.uci_chest) on files written here: any participant file in the
 format works, anything else is refused with one line naming the file."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pipeline.formats.uci_chest import G, load_uci_chest, load_uci_participant
+from stridelab.pipeline.formats.uci_chest import G, load_uci_chest, load_uci_participant
 
 FS = 52.0
 
@@ -82,7 +82,7 @@ def test_bench_activity_runs_on_any_participant_files(tmp_path):
 
     from click.testing import CliRunner
 
-    from validation.bench.activity import command
+    from stridelab.validation.bench.activity import command
     for k, name in enumerate(("21", "22")):
         _write(tmp_path / f"{name}.csv", *_protocol(k))
     res = CliRunner().invoke(command, ["--uci-chest", str(tmp_path), "--no-speed", "--simulated", "0", "--json"])
@@ -103,7 +103,7 @@ def test_bench_activity_runs_on_any_participant_files(tmp_path):
 def test_bench_activity_names_a_bad_file(tmp_path):
     from click.testing import CliRunner
 
-    from validation.bench.activity import command
+    from stridelab.validation.bench.activity import command
     (tmp_path / "5.csv").write_text("not,a,uci,file\n")
     res = CliRunner().invoke(command, ["--uci-chest", str(tmp_path), "--no-speed", "--simulated", "0"])
     assert res.exit_code != 0 and "5.csv" in res.output

@@ -13,8 +13,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 
-from pipeline.engines import LocalEngine
-from pipeline.worker_tuning import _glibc, release_memory, run_task
+from stridelab.pipeline.engines import LocalEngine
+from stridelab.pipeline.worker_tuning import _glibc, release_memory, run_task
 
 pytestmark = pytest.mark.skipif(not (sys.platform.startswith("linux") and _glibc()),
                                 reason="allocator settings exist only with glibc on Linux")
@@ -57,10 +57,10 @@ def probe(kind: str):
         from threadpoolctl import threadpool_info
         return {d["filepath"]: d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"}
     if kind == "ingest_loaded":           # the worker's start imported the ingest modules (this module does not)
-        return "pipeline.ingest" in sys.modules
+        return "stridelab.pipeline.ingest" in sys.modules
     if kind == "ready":                   # ... and what the first task would import or load before its first byte
         from numba.core.registry import cpu_target
-        return ("pipeline.ingest" in sys.modules, "pandas" in sys.modules,
+        return ("stridelab.pipeline.ingest" in sys.modules, "pandas" in sys.modules,
                 len(cpu_target.target_context._registries) > 1)
     if kind == "touch":                   # touch 400 MB, free it, report the RSS while holding it
         a = np.ones(400 << 17)
@@ -111,7 +111,7 @@ def test_workers_started_early_are_taken_over_by_the_run_and_ready():
     """``start_workers_early`` (the CLI's ``run`` and the pipeline bench, before they import the runner) starts
     the pool; the next ``make_engine`` of the same size takes it over, with its workers already spawned and past
     the imports and registry loads of a first task."""
-    from pipeline import engines
+    from stridelab.pipeline import engines
     assert engines._early is None
     engines.start_workers_early("local", 2)
     early = engines._early
@@ -131,8 +131,8 @@ def test_workers_started_early_are_taken_over_by_the_run_and_ready():
 
 
 def test_the_engines_module_starts_workers_before_the_heavy_imports():
-    """Starting the workers early only helps if importing ``pipeline.engines`` itself is light."""
-    code = ("import sys, pipeline.engines; "
+    """Starting the workers early only helps if importing ``stridelab.pipeline.engines`` itself is light."""
+    code = ("import sys, stridelab.pipeline.engines; "
             "print(sorted(m for m in ('numpy', 'duckdb', 'pyarrow', 'pandas', 'numba') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "[]"
@@ -178,7 +178,7 @@ def test_local_engine_workers_exit_without_the_interpreter_teardown(tmp_path):
 def test_dask_workers_task_thread_serves_large_arrays_from_the_heap():
     """A Dask worker's task thread exists before its first task: only MALLOC_ARENA_MAX at the worker's
     start keeps it on the main heap (pipeline/engines.py)."""
-    from pipeline.engines import DaskEngine
+    from stridelab.pipeline.engines import DaskEngine
     out = []
     eng = DaskEngine(1)
     try:

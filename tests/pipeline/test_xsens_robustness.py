@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.formats.xsens_mt import (XsensPacketWarning, load_voisard_dir, load_xsens_mt_txt, on_packet_grid,
+from stridelab.pipeline.formats.xsens_mt import (XsensPacketWarning, load_voisard_dir, load_xsens_mt_txt, on_packet_grid,
                                        packet_index)
-from pipeline.importers import import_paths
+from stridelab.pipeline.importers import import_paths
 
 COLS = ["PacketCounter", "SampleTimeFine", "Acc_X", "Acc_Y", "Acc_Z", "Gyr_X", "Gyr_Y", "Gyr_Z", "Mag_X", "Mag_Y",
         "Mag_Z"]
@@ -106,7 +106,7 @@ def test_import_of_a_folder_names_the_bad_file_and_imports_the_repeated_one(tmp_
     assert len(res.written) == 2
     assert len(res.errors) == 1 and "2-1" in res.errors[0] and "2-1_rf.txt" in res.errors[0]
     assert len(res.warnings) == 1 and "1-2_lf.txt" in res.warnings[0] and "repeats" in res.warnings[0]
-    from pipeline.formats.mcap_read import ReadResult, iter_blocks
+    from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
     rr = ReadResult()
     # a study's imports are named by a token, not the export's file name (docs/privacy.md): the console line says
     # which written file came from trial 1-2
@@ -123,7 +123,7 @@ def test_import_of_an_mt_manager_export(tmp_path):
     p = _write(tmp_path / "walk_lf.txt", range(100, 130), preamble=pre, trailing_tab=True)
     res = import_paths("xsens", [p], tmp_path / "inbox")
     assert not res.errors and not res.warnings and len(res.written) == 1
-    from pipeline.formats.mcap_read import ReadResult, iter_blocks
+    from stridelab.pipeline.formats.mcap_read import ReadResult, iter_blocks
     blocks = [b for b in iter_blocks(res.written[0], ReadResult()) if b.topic == "/imu/foot_left"]
     t = np.concatenate([b.t_ns for b in blocks])
     acc_x = np.concatenate([b.values[:, 3] for b in blocks])                # gyr then acc (m/s²)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from validation.simulator import hemiparetic_gait as H
+from stridelab.validation.simulator import hemiparetic_gait as H
 
 SRC = Path(H.__file__)
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from studies.manifest import DEFAULT_MANIFEST, load_manifest
+from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
 
 
 def test_default_manifest():

@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.quaternion import quat_angle_deg, quat_conj, quat_exp_step_1, quat_mul, quat_rotate
-from studies.manifest import DEFAULT_MANIFEST, SensorModelSpec, load_manifest
-from validation.simulator import simulate_chest_day, simulate_lab_session, simulate_study, study_participants
+from stridelab.estimators.quaternion import quat_angle_deg, quat_conj, quat_exp_step_1, quat_mul, quat_rotate
+from stridelab.studies.manifest import DEFAULT_MANIFEST, SensorModelSpec, load_manifest
+from stridelab.validation.simulator import simulate_chest_day, simulate_lab_session, simulate_study, study_participants
 
 pytestmark = pytest.mark.slow
 
@@ -200,7 +200,7 @@ def test_range_sensors(ideal_sessions):
     assert ok.max() > 0.08                                # foot lifted in swing
     np.testing.assert_allclose(np.median(ok), 0.03, atol=1e-9)   # flat foot: sensor 3 cm above the floor
     # out of range (beyond 0.2 m or beam not towards the floor) reads NaN: lift the whole foot 0.3 m
-    from validation.simulator._lab import range_geometry
+    from stridelab.validation.simulator._lab import range_geometry
     assert set(range_geometry(tr.geometry)) == set(rec.ranges)
 
 
@@ -222,7 +222,7 @@ def test_chest_day_labels_cover_duration(manifest):
 
 def test_chest_day_full_day_is_scripted(manifest):
     m = replace(manifest, free_living=replace(manifest.free_living, hours=24.0, start_local="00:00"))
-    from validation.simulator._chest_day import build_day_script
+    from stridelab.validation.simulator._chest_day import build_day_script
     bouts = build_day_script(np.random.default_rng(1), m.participants[2], 24 * 3600)
     labels = {b.label for b in bouts if b.t0 < 24 * 3600}
     assert {"lying", "sitting", "standing", "level_walking", "stairs_up", "stairs_down", "transition",
@@ -239,7 +239,7 @@ def test_more_participants_derived_deterministically(manifest):
 
 def test_programme_follow_up_values(manifest):
     """Visit k of a programme simulates the participant moved towards the follow_up_* values (P003 improves)."""
-    from validation.simulator._gait_patterns import gait_params
+    from stridelab.validation.simulator._gait_patterns import gait_params
     p3 = manifest.participants[2]
     assert p3.hemiparetic and p3.follow_up_speed_m_s > p3.speed_m_s and p3.follow_up_severity < p3.severity
     base, follow = p3.at_visit(1, manifest.visits), p3.at_visit(manifest.visits, manifest.visits)

@@ -10,7 +10,7 @@ from tests.conftest import shared_data
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_activity_bench_lists_a_broken_file_and_scores_the_others(tmp_path):
-    from validation.bench.activity import run_benchmark
+    from stridelab.validation.bench.activity import run_benchmark
     src = shared_data("uci_chest")
     for n in ("1", "2", "3", "4"):
         (tmp_path / f"{n}.csv").symlink_to(src / f"{n}.csv")

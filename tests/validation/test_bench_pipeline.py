@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-BENCH = [sys.executable, "-m", "pipeline", "bench", "pipeline"]
+BENCH = [sys.executable, "-m", "stridelab", "bench", "pipeline"]
 
 
 def _bench(*args, check=True):
@@ -47,7 +47,7 @@ def test_bench_pipeline_json_engines_and_inbox_reuse(tmp_path):
 def test_drop_caches_without_permission_is_a_one_line_error(monkeypatch):
     import builtins
     import click
-    from validation.bench import pipeline as bench
+    from stridelab.validation.bench import pipeline as bench
 
     real_open = builtins.open
 

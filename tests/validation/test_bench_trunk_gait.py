@@ -14,7 +14,7 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 
 def test_bench_skips_a_broken_file_and_reports_every_block(tmp_path):
-    from validation.bench.trunk_gait import KEYS, run_benchmark
+    from stridelab.validation.bench.trunk_gait import KEYS, run_benchmark
     src = shared_data("voisard_gait")
     for name in ("1-1", "2-1"):                       # a temporary copy (never into the repository: AGPL data)
         for suffix in (".json", "_lf.txt", "_rf.txt", "_lb.txt"):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
-from estimators.gait import FootParams
-from validation.bench.hemiparetic import SUMMARY_KEYS, hemiparetic_benchmark
+from stridelab.estimators.gait import FootParams
+from stridelab.validation.bench.hemiparetic import SUMMARY_KEYS, hemiparetic_benchmark
 
 
 def test_bench_output_is_strict_json_with_the_summary_keys():

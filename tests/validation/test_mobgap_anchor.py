@@ -10,7 +10,7 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 
 def test_mobgap_runner_finds_the_straight_walk(tmp_path):
-    from validation.bench.trunk_gait import DEFAULT_MOBGAP_PY, load_mobilised, run_mobgap, score
+    from stridelab.validation.bench.trunk_gait import DEFAULT_MOBGAP_PY, load_mobilised, run_mobgap, score
     if not DEFAULT_MOBGAP_PY.is_file():
         pytest.skip(f"mobgap environment absent ({DEFAULT_MOBGAP_PY}); run `make anchors-mobgap`")
     recs = [r for r in load_mobilised(shared_data("mobilised_lab"), []) if r.name.endswith("Test5_Trial1")]

@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from estimators import recording as est_rec
-from estimators.joints import clinical_to_matrix, joint_angles_deg
-from estimators.quaternion import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix, quat_to_rotvec
-from validation.simulator import _jcs_truth as jcs
-from validation.simulator import _records as sim_rec
-from validation.simulator import _rotations as rot
+from stridelab.estimators import recording as est_rec
+from stridelab.estimators.joints import clinical_to_matrix, joint_angles_deg
+from stridelab.estimators.quaternion import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix, quat_to_rotvec
+from stridelab.validation.simulator import _jcs_truth as jcs
+from stridelab.validation.simulator import _records as sim_rec
+from stridelab.validation.simulator import _rotations as rot
 
 
 @pytest.mark.parametrize("name", ["ImuData", "PoseData", "RangeData", "Recording"])

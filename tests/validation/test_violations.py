@@ -6,12 +6,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from validation.simulator import SCENARIOS, Violations, simulate_lab_session, study_participants
-from validation.simulator._rotations import quat_to_matrix
+from stridelab.validation.simulator import SCENARIOS, Violations, simulate_lab_session, study_participants
+from stridelab.validation.simulator._rotations import quat_to_matrix
 
 
 def _session(v):
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=False, optical_reference=False))
     return list(simulate_lab_session(m, study_participants(m, 1)[0], 0, violations=v))
@@ -39,7 +39,7 @@ def test_gyro_saturation_and_strap_slip(base):
 
 @pytest.mark.slow
 def test_non_upright_standing_tilts_the_legs_and_costs_calibration_accuracy(base):
-    from validation.bench.violations import lab_scenario
+    from stridelab.validation.bench.violations import lab_scenario
     knee = _session(SCENARIOS["non_upright_standing"][0])
     tilt = {}
     for name, s in (("base", base), ("knee", knee)):

@@ -60,8 +60,8 @@ def disturbance_cv(trials, synthetic, labels: list[str], progress=None) -> dict:
     options (:data:`DCF_OPTIONS`, :data:`VQF_OPTIONS`). The objective is the mean over the training groups of each
     group's mean total RMSE (each group weighs the same, whatever its number of trials). Returns, per method, the
     choice per fold, the held-out error per group, the option chosen most often and the table of all options."""
-    from estimators.orientation import DCFParams, dcf, vqf_orientation
-    from estimators.orientation.evaluation import orientation_rmse_deg
+    from stridelab.estimators.orientation import DCFParams, dcf, vqf_orientation
+    from stridelab.estimators.orientation.evaluation import orientation_rmse_deg
 
     allt = list(trials) + list(synthetic)
     groups = np.array(list(labels) + [GROUP] * len(synthetic))
@@ -100,8 +100,8 @@ def disturbance_cv(trials, synthetic, labels: list[str], progress=None) -> dict:
 
 def stress_scores(synthetic, names: list[str]) -> dict:
     """Mean total RMSE of each estimator (default parameters) on the synthetic group, overall and per magnitude."""
-    from estimators.orientation import ESTIMATORS
-    from estimators.orientation.evaluation import orientation_rmse_deg
+    from stridelab.estimators.orientation import ESTIMATORS
+    from stridelab.estimators.orientation.evaluation import orientation_rmse_deg
     out = {}
     for name in names:
         est = ESTIMATORS[name]

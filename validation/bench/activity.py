@@ -2,20 +2,20 @@
 24 h, 100 Hz day.
 
 UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (uncalibrated 12-bit counts, 52 Hz,
-unknown sensor orientation; reader ``pipeline.formats.uci_chest``). Each participant file is classified as one
-continuous recording by ``estimators.activity.classify_day``; the per-second classes are mapped to four classes
+unknown sensor orientation; reader ``stridelab.pipeline.formats.uci_chest``). Each participant file is classified as one
+continuous recording by ``stridelab.estimators.activity.classify_day``; the per-second classes are mapped to four classes
 (lying/sitting -> sitting, standing/non-wear -> standing, level walking -> walking, stairs up/down -> stairs)
 and scored on non-overlapping 10-s windows lying wholly inside one reference label (majority of the window's
 seconds). Reference: label 1 sitting, 3 and 7 standing, 4 and 6 walking, 5 stairs; 2 and 0 excluded.
 
 Methods: ``thesis`` (``PRESETS["thesis"]``) and ``rules`` (``PRESETS["default"]``, rules only): nothing learned
-from UCI labels. ``default``: what the pipeline's activity stage runs (``pipeline.activity_model.classify_recording``:
+from UCI labels. ``default``: what the pipeline's activity stage runs (``stridelab.pipeline.activity_model.classify_recording``:
 the rules refined by the shipped window model fitted on UCI participants 1-8). Participants in the model's
 ``trained_on`` are scored by nested leave-one-participant-out (``nested_lopo``: outer fold = the participant, the
-design chosen among ``pipeline.activity_model.DESIGNS`` by an inner LOPO over the other training participants);
+design chosen among ``stridelab.pipeline.activity_model.DESIGNS`` by an inner LOPO over the other training participants);
 any other participant file by the shipped model. ``rf_tuned``: a random forest alone on the same features with
 the same budget (12 designs, ``RF_DESIGNS``) and the same nested protocol. ``learned_loso``: the fixed forest of
-issue #6 (``LEARNED``, features ``estimators.activity.windows`` at 52 Hz, ±1-window context),
+issue #6 (``LEARNED``, features ``stridelab.estimators.activity.windows`` at 52 Hz, ±1-window context),
 leave-one-subject-out. ``development`` groups the participants used for any tuning (``DEVELOPMENT`` = 1-8),
 ``held_out`` every other file. ``--fit-model PATH`` refits the default's model on the given participants
 (design by flat LOPO) and writes it.
@@ -27,7 +27,7 @@ Speed: ``classify_recording`` (key ``seconds_24h_100hz``; rules only: ``seconds_
 ``daily_summaries`` on a synthetic 24 h, 100 Hz chest day (8.64 M samples), after a warm-up call (numba JIT).
 
 Simulated free-living days (``--simulated N``, key ``simulated``): the demo study's first N participants, one
-24 h day each from ``validation.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
+24 h day each from ``stridelab.validation.simulator.simulate_chest_day`` (its reference labels and scripted step counts),
 classified with the pipeline's default (``classify_recording``) and the participant's thigh length. ``agreement`` = per-second agreement
 over the seconds whose reference is a class (``transition`` seconds are not scored; a labelled interval covers
 its whole seconds, same definition as docs/activity.md); ``steps_error_pct`` = 100 (detected − scripted) /
@@ -41,20 +41,20 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_UCI = PROJECT_ROOT.parent / "shared" / "data" / "uci_chest"
-from estimators.activity.evaluation import CLASS_MAP, SCORED_CLASSES as BENCH_CLASSES, WINDOW_S, scores  # noqa: E402,F401
-from estimators.activity.evaluation import window_confusion as _window_confusion  # noqa: E402
-from pipeline.formats.uci_chest import LABEL_TO_CLASS  # noqa: E402
+from stridelab.estimators.activity.evaluation import CLASS_MAP, SCORED_CLASSES as BENCH_CLASSES, WINDOW_S, scores  # noqa: E402,F401
+from stridelab.estimators.activity.evaluation import window_confusion as _window_confusion  # noqa: E402
+from stridelab.pipeline.formats.uci_chest import LABEL_TO_CLASS  # noqa: E402
 #: participants used for any tuning: 1-4 were inspected while the rules were developed, 5-8 in a later session,
 #: and 1-8 train (and choose the design of) the default's window model; any other participant file is held out
 DEVELOPMENT = ("1", "2", "3", "4", "5", "6", "7", "8")
 
 
 def window_confusion(second_class: np.ndarray, labels: np.ndarray, fs: float, window_s: float = WINDOW_S) -> np.ndarray:
-    """The one activity scorer (:func:`estimators.activity.evaluation.window_confusion`) with the UCI label codes."""
+    """The one activity scorer (:func:`stridelab.estimators.activity.evaluation.window_confusion`) with the UCI label codes."""
     return _window_confusion(second_class, labels, fs, LABEL_TO_CLASS, window_s)
 
 
@@ -81,7 +81,7 @@ def _new_forest():
 def participant_features(parts) -> dict:
     """``window_features`` of every participant (``WINDOW_S`` windows), by participant id; computed once and
     shared by ``learned_loso`` and ``label_consistency``."""
-    from estimators.activity.windows import window_features
+    from stridelab.estimators.activity.windows import window_features
     return {u.participant: window_features(u.acc, u.sampling_rate_hz, WINDOW_S) for u in parts}
 
 
@@ -89,7 +89,7 @@ def learned_loso(parts, progress_cb=None, features: dict | None = None) -> dict:
     """Leave-one-subject-out scores of the learned window classifier (see module docstring) over ``parts``
     (``UciParticipant`` list, ≥ 2). Same keys as the other methods plus ``protocol`` and, per participant,
     the unlabelled normalisation it used (gait-like windows, still-posture cluster separation)."""
-    from estimators.activity.windows import add_context
+    from stridelab.estimators.activity.windows import add_context
     if len(parts) < 2:
         raise ValueError("learned_loso needs at least two participants (train on the others)")
     features = features or participant_features(parts)
@@ -180,7 +180,7 @@ class UciWindows:
     the rules' per-second classes (``rules``) and the design matrices per design."""
 
     def __init__(self, parts, rule_seconds: dict):
-        from pipeline.activity_model import raw_features
+        from stridelab.pipeline.activity_model import raw_features
         self.parts = {u.participant: u for u in parts}
         self.wf = {q: raw_features(u.acc, u.sampling_rate_hz) for q, u in self.parts.items()}
         self.y = {}
@@ -199,7 +199,7 @@ class UciWindows:
         return self._nested[key]
 
     def x(self, q: str, d: dict) -> np.ndarray:
-        from pipeline.activity_model import design_x
+        from stridelab.pipeline.activity_model import design_x
         key = (q, d["feature_set"], tuple(d["context"]))
         if key not in self._x:
             self._x[key] = design_x(self.wf[q], d)
@@ -209,14 +209,14 @@ class UciWindows:
         return [self.x(q, d)[: self.y[q].size] for q in ids], [self.y[q] for q in ids]
 
     def default_confusion(self, model, q: str, stairs_lean_deg: float) -> np.ndarray:
-        from pipeline.activity_model import merged_window_classes
+        from stridelab.pipeline.activity_model import merged_window_classes
         u = self.parts[q]
         sec = merged_window_classes(model, self.x(q, {"feature_set": model.feature_set, "context": model.context}),
                                     self.wf[q], self.rule[q], stairs_lean_deg)
         return window_confusion(sec, u.labels, u.sampling_rate_hz)
 
     def predict_default(self, stairs_lean_deg: float):
-        from pipeline.activity_model import fit_model
+        from stridelab.pipeline.activity_model import fit_model
 
         def predict(train, tests, d):
             m = fit_model(*self.train(train, d), {**d, "C": d["C"]})
@@ -268,7 +268,7 @@ def tuned_window_methods(data: "UciWindows", stairs_lean_deg: float, *, rf: bool
     protocol). Participants the shipped model was trained on are scored by nested LOPO among them (outer
     folds); any other participant by the shipped model (``default``) or by a forest fitted on all training
     participants with the design the flat LOPO picked (``rf_tuned``)."""
-    from pipeline.activity_model import DESIGNS, MODEL_PATH, load_model
+    from stridelab.pipeline.activity_model import DESIGNS, MODEL_PATH, load_model
     model = load_model()
     train_ids = [q for q in data.parts if q in model.trained_on]
     new_ids = [q for q in data.parts if q not in model.trained_on]
@@ -310,7 +310,7 @@ def fit_shipped_model(data: "UciWindows", stairs_lean_deg: float, path: Path, pr
     """Choose the design by flat LOPO over ``parts`` (``nested_lopo``'s ``final``), fit it on all of them and
     write the model file. Returns the choice and the nested score (what the design choice is worth on a
     participant not used for it)."""
-    from pipeline.activity_model import DESIGNS, fit_model, save_model
+    from stridelab.pipeline.activity_model import DESIGNS, fit_model, save_model
     ids = list(data.parts)
     nested = data.nested("default", ids, DESIGNS, data.predict_default(stairs_lean_deg), progress_cb)
     d = DESIGNS[nested["final"]]
@@ -345,7 +345,7 @@ def label_consistency(parts, features: dict | None = None) -> dict:
     mean over classes of the consistent fraction (``ceiling_balanced_accuracy``) bounds its balanced accuracy
     from above, even if it is perfect on every other window (including stairs vs level walking). Labels are read
     only to count; nothing here is fitted."""
-    from estimators.activity.windows import moving_fraction
+    from stridelab.estimators.activity.windows import moving_fraction
     features = features or participant_features(parts)
     per, tot, bad = {}, np.zeros(4, np.int64), np.zeros(4, np.int64)
     for u in parts:
@@ -410,8 +410,8 @@ def synthetic_day(hours: float = 24.0, fs: float = 100.0, seed: int = 0) -> np.n
 def speed_24h(fs: float = 100.0, window_model: str | None = "default") -> float:
     """Seconds for the pipeline's classifier (``classify_recording``; ``window_model=None``: rules only) +
     daily_summaries on a synthetic 24 h day at ``fs`` (after a warm-up call: numba JIT, model file)."""
-    from estimators.activity import daily_summaries
-    from pipeline.activity_model import classify_recording
+    from stridelab.estimators.activity import daily_summaries
+    from stridelab.pipeline.activity_model import classify_recording
     acc = synthetic_day(24.0, fs)
     classify_recording(acc[: int(600 * fs)], sampling_rate_hz=fs, t0_ns=0, timezone="Europe/Zurich",
                        window_model=window_model)
@@ -425,7 +425,7 @@ def speed_24h(fs: float = 100.0, window_model: str | None = "default") -> float:
 def reference_seconds(events, t0_ns: int, n_sec: int) -> tuple[np.ndarray, int]:
     """Per-second reference class index (−1 = not scored, e.g. transitions) and the scripted step total from a
     simulated recording's activity events (whole seconds inside each labelled interval)."""
-    from estimators.activity import CLASSES
+    from stridelab.estimators.activity import CLASSES
     ref = np.full(n_sec, -1, dtype=np.int64)
     steps = 0
     for e in events:
@@ -442,10 +442,10 @@ def simulated_days(n: int, *, preset: str = "default", window_model: str | None 
     None = rules only) on N simulated 24 h days of the demo study."""
     import dataclasses
 
-    from estimators.activity import CLASSES, PRESETS, daily_summaries
-    from pipeline.activity_model import classify_recording
-    from studies.manifest import load_manifest
-    from validation.simulator import simulate_chest_day, study_participants
+    from stridelab.estimators.activity import CLASSES, PRESETS, daily_summaries
+    from stridelab.pipeline.activity_model import classify_recording
+    from stridelab.studies.manifest import load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
     m = dataclasses.replace(m, visits=1, free_living=dataclasses.replace(m.free_living, hours=24.0, start_local="00:00"))
     per = {}
@@ -485,8 +485,8 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
     """Run the benchmark; returns the JSON-able result (see module docstring). ``directory`` None skips UCI.
     ``fit_model_path``: refit the default's window model on every participant in ``directory`` and write it
     there (``fit_model`` key) before scoring."""
-    from estimators.activity import PRESETS, classify_day
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.estimators.activity import PRESETS, classify_day
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     parts, skipped = [], []
     if directory is not None:
         # file by file, as load_uci_chest orders them: a file that cannot be read is listed and the bench goes on
@@ -543,7 +543,7 @@ def run_benchmark(directory: Path | None, *, show_progress: bool = True, speed: 
                             "are scored by nested leave-one-participant-out (see each method's 'protocol'), others "
                             "by the fitted model. learned_loso: fixed forest, leave-one-subject-out"),
                "development_participants": list(DEVELOPMENT), "methods": methods,
-               # what pipeline.stages.activity runs: pipeline.activity_model.classify_recording
+               # what stridelab.pipeline.stages.activity runs: stridelab.pipeline.activity_model.classify_recording
                "default": "default",
                "best_balanced_accuracy": max(scored, key=scored.get) if scored else None,
                "reference_random_forest_loso_balanced_accuracy": 0.59, "skipped_files": skipped, **out_extra}

@@ -1,8 +1,8 @@
 """``stridelab bench calibration``: sensor-to-segment calibration and joint-angle accuracy and speed.
 
-Scenes with known mounting misalignment: the platform study simulator (``validation.simulator``, lab
+Scenes with known mounting misalignment: the platform study simulator (``stridelab.validation.simulator``, lab
 sessions with a calibration trial and walking trials, when available) or the built-in kinematic
-fixture of :mod:`validation.simulator.lower_body` (``--scene synthetic``). Figures:
+fixture of :mod:`stridelab.validation.simulator.lower_body` (``--scene synthetic``). Figures:
 
 * calibration error = helical angle between estimated and true sensor-to-segment rotation (thesis
   Eq. 19), median per segment over participants, for hip flexion/extension and straight walking;
@@ -23,7 +23,7 @@ import time
 import click
 import numpy as np
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 SEGMENTS = ("pelvis", "thigh", "shank", "foot")
 PLANE = {0: "sagittal", 1: "frontal", 2: "transverse"}
@@ -34,7 +34,7 @@ def _seg(p: str) -> str:
 
 
 def _synthetic_participant(rng, reps: int, posture_sd_deg: float, crosstalk: float):
-    from validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
+    from stridelab.validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
     mounts = random_mounts(rng)
     cal = calibration_trial(mounts=mounts, rng=rng, fe_reps=reps, standing_offsets=posture_sd_deg, crosstalk=crosstalk)
     walk = walking_trial(mounts=mounts, rng=rng, strides=20, noise=True, crosstalk=crosstalk)
@@ -42,14 +42,14 @@ def _synthetic_participant(rng, reps: int, posture_sd_deg: float, crosstalk: flo
 
 
 def _calibration_errors(tr, mounts, method: str) -> tuple[dict, object]:
-    from estimators.calibration import CalibrationParams, calibrate_session, helical_angle_deg
+    from stridelab.estimators.calibration import CalibrationParams, calibrate_session, helical_angle_deg
     cal = calibrate_session(tr.acc, tr.gyr, sampling_rate_hz=tr.sampling_rate_hz, windows=None,
                             params=CalibrationParams(method=method), quats=tr.quat_sensor)
     return {p: float(helical_angle_deg(mounts[p], c.R_sensor_af)) for p, c in cal.imus.items()}, cal
 
 
 def _joint_rmse(walk, cal) -> dict:
-    from estimators.joints import angle_errors, compute_joint_angles, remove_standing_offset
+    from stridelab.estimators.joints import angle_errors, compute_joint_angles, remove_standing_offset
     ja = compute_joint_angles(walk.quat_sensor, cal, standing=walk.standing)
     out = {}
     w0, w1 = walk.windows.walking
@@ -63,7 +63,7 @@ def _joint_rmse(walk, cal) -> dict:
 
 def _reps_curve(tr, mounts, k_max: int) -> dict:
     """θ (deg) per leg segment for the first k hip FE repetitions of each leg, k = 1..k_max."""
-    from estimators.calibration import CalibrationParams, CalibrationWindows, calibrate_session, helical_angle_deg
+    from stridelab.estimators.calibration import CalibrationParams, CalibrationWindows, calibrate_session, helical_angle_deg
     fs = tr.sampling_rate_hz
     period = 2.0 * fs
     out = {}
@@ -79,9 +79,9 @@ def _reps_curve(tr, mounts, k_max: int) -> dict:
 
 
 def _speed(rng, minutes: float, repeats: int = 3) -> dict:
-    from estimators.calibration import calibrate_session
-    from validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
-    from estimators.joints import compute_joint_angles, session_gait_curves
+    from stridelab.estimators.calibration import calibrate_session
+    from stridelab.validation.simulator.lower_body import calibration_trial, random_mounts, walking_trial
+    from stridelab.estimators.joints import compute_joint_angles, session_gait_curves
     mounts = random_mounts(rng)
     cal_tr = calibration_trial(mounts=mounts, rng=rng)
     strides = int(minutes * 60 / 1.1)
@@ -107,7 +107,7 @@ def _true_r_sensor_af(truth) -> dict:
     joint centre, x anterior, z right), the frame the thesis reference calibration (Eq. 18) uses, so
     this is the truth of Eq. 19. The thesis method reaches it when the segment's y axis is vertical
     in quiet standing, which the simulated standing is (within about 1°, plus sway)."""
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.quaternion import quat_to_matrix
     return {p: quat_to_matrix(np.asarray(q, float)).T for p, q in truth.mounting_quat.items()}
 
 
@@ -115,7 +115,7 @@ def _upright_r_sensor_af(truth, r_true: dict, standing: tuple[int, int]) -> dict
     """The true rotation re-referenced to the segment frame tilted so that its y axis is vertical in
     quiet standing: what a standing-vertical method (thesis Eq. 14) can reach when the simulated
     standing posture has the knee slightly flexed (thigh and shank y axes not vertical)."""
-    from estimators.quaternion import quat_to_matrix
+    from stridelab.estimators.quaternion import quat_to_matrix
     out = {}
     for p, R in r_true.items():
         Rg = quat_to_matrix(truth.segment_quat[p][standing[0]:standing[1]])
@@ -132,7 +132,7 @@ def _upright_r_sensor_af(truth, r_true: dict, standing: tuple[int, int]) -> dict
 def _sim_participant(manifest, participant, index: int, seed: int, estimate):
     """Calibration trial, walking trials and their truths of one simulated lab session, with the
     sensor orientations of the default orientation estimator beside the true ones."""
-    from validation.simulator import simulate_lab_session
+    from stridelab.validation.simulator import simulate_lab_session
     trials = []
     for rec, truth in simulate_lab_session(manifest, participant, index, seed=seed):
         acc = {p: d.acc for p, d in rec.imu.items()}
@@ -145,15 +145,15 @@ def _sim_participant(manifest, participant, index: int, seed: int, estimate):
 
 
 def _sim_calibrate(cal_tr, method: str, quats):
-    from estimators.calibration import CalibrationParams, calibrate_session
+    from stridelab.estimators.calibration import CalibrationParams, calibrate_session
     return calibrate_session(cal_tr["acc"], cal_tr["gyr"], sampling_rate_hz=cal_tr["fs"],
                              params=CalibrationParams(method=method), quats=quats)
 
 
 def _sim_joint_rmse(walks, cal, source: str) -> dict:
     """key -> (3,) RMSE (deg) over the walking trials, both sides offset-corrected on the same standing."""
-    from estimators.calibration import first_quiet_standing
-    from estimators.joints import angle_errors, compute_joint_angles, remove_standing_offset
+    from stridelab.estimators.calibration import first_quiet_standing
+    from stridelab.estimators.joints import angle_errors, compute_joint_angles, remove_standing_offset
     sq = {}
     for w in walks:
         st = first_quiet_standing(w["acc"], w["gyr"], sampling_rate_hz=w["fs"]) or (0, int(w["fs"]))
@@ -168,7 +168,7 @@ def _sim_joint_rmse(walks, cal, source: str) -> dict:
 def _sim_reps_curve(cal_tr, r_true: dict, reps: int) -> dict:
     """θ (deg) of thighs and shanks from the first k of the ``reps`` simulated hip FE repetitions (true
     windows), k = 1..reps (the feet do not rotate in the simulated hip FE and are left out)."""
-    from estimators.calibration import CalibrationParams, CalibrationWindows, calibrate_session, helical_angle_deg
+    from stridelab.estimators.calibration import CalibrationParams, CalibrationWindows, calibrate_session, helical_angle_deg
     fs = cal_tr["fs"]
     tw = cal_tr["truth"].windows
     stand = next((int(a * fs), int(b * fs)) for lab, a, b, s in tw if lab == "quiet_standing")
@@ -189,7 +189,7 @@ def _sim_reps_curve(cal_tr, r_true: dict, reps: int) -> dict:
 
 def _simulator_available() -> bool:
     try:
-        import validation.simulator  # noqa: F401
+        import stridelab.validation.simulator  # noqa: F401
     except ImportError:
         return False
     return True
@@ -204,7 +204,7 @@ def _median(xs):
 @click.option("--participants", "-n", type=click.IntRange(1, 200), default=6, show_default=True,
               help="Simulated participants (each with its own random mounting misalignment).")
 @click.option("--scene", type=click.Choice(["auto", "simulator", "synthetic"]), default="auto", show_default=True,
-              help="auto: the platform study simulator (validation.simulator, demo manifest) when installed, else the "
+              help="auto: the platform study simulator (stridelab.validation.simulator, demo manifest) when installed, else the "
                    "built-in kinematic fixture.")
 @click.option("--reps", type=click.IntRange(10, 40), default=20, show_default=True,
               help="Hip flexion/extension repetitions per leg in the calibration trial (thesis protocol: 20).")
@@ -227,7 +227,7 @@ def command(participants, scene, reps, minutes, posture_sd_deg, crosstalk, seed,
     if scene == "auto":
         scene = "simulator" if _simulator_available() else "synthetic"
     if scene == "simulator" and not _simulator_available():
-        raise UserError("the platform simulator (validation.simulator) is not installed; use --scene synthetic")
+        raise UserError("the platform simulator (stridelab.validation.simulator) is not installed; use --scene synthetic")
     rng = np.random.default_rng(seed)
     errs = {"hip_fe": [], "walking": []}
     errs_upright = {"hip_fe": [], "walking": []}
@@ -238,10 +238,10 @@ def command(participants, scene, reps, minutes, posture_sd_deg, crosstalk, seed,
     with progress(not as_json) as pb:
         task = pb.add_task("simulated participants", total=participants)
         if scene == "simulator":
-            from estimators.calibration import first_quiet_standing, helical_angle_deg
-            from estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
-            from studies.manifest import DEFAULT_MANIFEST, load_manifest
-            from validation.simulator import study_participants
+            from stridelab.estimators.calibration import first_quiet_standing, helical_angle_deg
+            from stridelab.estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
+            from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+            from stridelab.validation.simulator import study_participants
             from dataclasses import replace
             m = load_manifest(DEFAULT_MANIFEST)
             m = replace(m, lab=replace(m.lab, hip_repetitions=reps, distance_sensors=False, optical_reference=False))

@@ -1,7 +1,7 @@
 """``stridelab bench checksums``: what the series files' page checksums cost (docs/integrity.md).
 
 An IMU series of ``--rows`` rows (the ingest schema: stamps 100 Hz, six float columns of 4-decimal values, like a
-device's scaled counts) is written through :class:`warehouse.store.SeriesWriter` in slices of 2^19 rows, with and
+device's scaled counts) is written through :class:`stridelab.warehouse.store.SeriesWriter` in slices of 2^19 rows, with and
 without ``write_page_checksum``, and read back one row group at a time on one thread (as the stages read) with and
 without ``page_checksum_verification``; ``--repeat`` times each, alternating, the median CPU seconds of this
 process reported. Nothing else differs between the two (same writer options, same file)."""
@@ -19,8 +19,8 @@ def _measure(rows: int, repeat: int, workdir: Path) -> dict:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    import warehouse.store as store
-    from pipeline.ingest.series import SCHEMAS
+    import stridelab.warehouse.store as store
+    from stridelab.pipeline.ingest.series import SCHEMAS
     rng = np.random.default_rng(0)
     t = (1_772_438_400_000_000_000 + np.arange(rows) * 10_000_000).astype(np.int64)
     cols = [pa.array(t), pa.array(t + 1_000_000)] + [pa.array(np.round(rng.normal(0, 1, rows), 4)) for _ in range(6)]
@@ -69,7 +69,7 @@ def command(rows, repeat, as_json) -> None:
       stridelab bench checksums --json
       stridelab bench checksums --rows 8640000 --repeat 5
     """
-    from pipeline.console import emit_json, err_console
+    from stridelab.pipeline.console import emit_json, err_console
     with tempfile.TemporaryDirectory() as d:
         res = _measure(rows, repeat, Path(d))
     if as_json:

@@ -8,7 +8,7 @@ participants, < 5 s per report (HTML + PDF).
 
 The synthetic warehouse has the catalog of a real study (participants, sessions, recordings,
 sensors, run ledger) plus results of the later stages in the tables the dashboard reads
-(``warehouse.queries.DATASETS``): strides, calibration QC, joint-angle cycles, activity bouts,
+(``stridelab.warehouse.queries.DATASETS``): strides, calibration QC, joint-angle cycles, activity bouts,
 accuracy metrics and pairs, foot trajectories. It is written through :class:`Warehouse`, the
 pipeline's writer, and published as a snapshot like a nightly run.
 """
@@ -26,7 +26,7 @@ import click
 import numpy as np
 import pyarrow as pa
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 DAY_NS = 86_400 * 10**9
 T0 = datetime(2026, 3, 2, 7, 0, tzinfo=timezone.utc)
@@ -84,7 +84,7 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
     Lab sessions get strides, calibration QC, joint-angle cycles, accuracy metrics/pairs, foot
     trajectories; free-living sessions get activity bouts with matching reference labels.
     """
-    from warehouse.store import series_relpath, write_table
+    from stridelab.warehouse.store import series_relpath, write_table
     rng = np.random.default_rng(seed)
     rows: dict[str, list[dict]] = {t: [] for t in RESULT_TABLES}
     ref_events: list[dict] = []
@@ -185,7 +185,7 @@ def add_synthetic_results(wh, sessions: list[dict], seed: int = 0, with_trajecto
 def build_synthetic_warehouse(root: Path, participants: int = 100, seed: int = 0, lab_sessions: int = 3,
                               free_living_days: int = 7, study: str = "synthetic", on_step=lambda m: None) -> Path:
     """A complete synthetic warehouse (catalog + stage results + run ledger), published as a snapshot."""
-    from warehouse.catalog import Warehouse
+    from stridelab.warehouse.catalog import Warehouse
     rng = np.random.default_rng(seed)
     root = Path(root)
     with Warehouse.open(root) as wh:
@@ -297,8 +297,8 @@ def time_pages(root: Path, repeats: int = 2, timeout: float = 60.0) -> dict[str,
 
 
 def time_report(root: Path, out_dir: Path) -> dict:
-    from reports.participant import build_report
-    from warehouse.read import connect_snapshot
+    from stridelab.reports.participant import build_report
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(root)
     try:
         pid, study = con.execute("SELECT participant_id, study FROM sessions GROUP BY ALL "
@@ -330,8 +330,8 @@ def command(demo_warehouse, participants, repeats, workdir, as_json) -> None:
       stridelab bench dashboard --json
       stridelab bench dashboard --demo-warehouse stridelab-home/warehouse -n 100
     """
-    from pipeline.config import default_warehouse
-    from warehouse.read import latest_snapshot
+    from stridelab.pipeline.config import default_warehouse
+    from stridelab.warehouse.read import latest_snapshot
     if demo_warehouse is not None and latest_snapshot(demo_warehouse) is None:
         raise UserError(f"{demo_warehouse} has no published snapshot; run `stridelab demo --no-serve` first")
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:

@@ -6,7 +6,7 @@ displacement of the heel marker (FCC) between the stride borders — the same qu
 trajectory (``position_sample.csv`` equals the FCC marker path per stride to < 0.1 mm, checked). The foot is flat
 and still at both borders, so any point of the foot (the IMU too) moves by the same amount up to foot yaw × lever.
 
-Detected strides (``estimators.gait.foot_kinematics``: own ZUPT stance detection, own IC/TC) are matched to the
+Detected strides (``stridelab.estimators.gait.foot_kinematics``: own ZUPT stance detection, own IC/TC) are matched to the
 reference strides when both borders agree within 0.3 s; events are matched one-to-one within ±0.5 s (thesis
 §3.5), counting only detections inside the span the reference annotates ([first start, last end] per foot; the
 reference has no events outside its strides). Timing error = detected − reference (positive = late).
@@ -30,7 +30,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_GAITMAP = PROJECT_ROOT.parent / "shared" / "data" / "gaitmap_example"
@@ -67,10 +67,10 @@ def _none(x):
 
 
 def _event_figures(dets_s, refs_s, spans_s, unannotated_s, tol_s) -> dict:
-    """IC or TC figures pooled over feet, all from ``estimators.gait.evaluation.event_accuracy`` (the gait stage's
+    """IC or TC figures pooled over feet, all from ``stridelab.estimators.gait.evaluation.event_accuracy`` (the gait stage's
     scorer): ``precision`` with the unannotated foot placements unscored, ``precision_strict`` counting them as false
     positives (the reference's own reading)."""
-    from estimators.gait.evaluation import event_accuracy
+    from stridelab.estimators.gait.evaluation import event_accuracy
     a = event_accuracy(dets_s, refs_s, tolerance_s=tol_s, spans_s=spans_s, unscored_spans_s=unannotated_s)
     strict = event_accuracy(dets_s, refs_s, tolerance_s=tol_s, spans_s=spans_s)
     return {"sensitivity": _none(a.sensitivity), "precision": _none(a.precision),
@@ -117,13 +117,13 @@ def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
         em = _events_of([inp], EVENT_TOL_S, names=("ic_pitch_max",))
         out["ic_pitch_max_timing_mae_ms"] = em["ic_pitch_max_timing_mae_ms"]
         out["ic_pitch_max_timing_mean_ms"] = em["ic_pitch_max_timing_mean_ms"]
-    from estimators.gait.evaluation import stride_length_reference
+    from stridelab.estimators.gait.evaluation import stride_length_reference
     heel = foot.markers["FCC"]
     # the gait stage's definition: detected strides matched to the labelled ones, heel displacement between the
     # labelled borders
     ref_len = stride_length_reference(fk.strides.idx[:, :2] / fs, np.arange(len(heel)) / mocap_fs, heel,
                                       ref[:, :2] / fs, tolerance_s=STRIDE_TOL_S)
-    from estimators.gait.evaluation import paired_errors
+    from stridelab.estimators.gait.evaluation import paired_errors
     e = fk.strides.column("stride_length_m") - ref_len
     e = e[np.isfinite(e)]
     pe = paired_errors(e, 0.0)
@@ -137,7 +137,7 @@ def _foot_metrics(foot, fk, fs, mocap_fs) -> dict:
 
 def speed_2feet_10min(ex, *, threads: int = 2) -> float:
     """Seconds for ``foot_kinematics`` of two feet × 10 min at 100 Hz (example walk resampled to 100 Hz, tiled)."""
-    from estimators.gait import foot_kinematics
+    from stridelab.estimators.gait import foot_kinematics
     fs_in, fs = ex.sampling_rate_hz, 100.0
     n10 = int(600 * fs)
     feet = []
@@ -157,8 +157,8 @@ def speed_2feet_10min(ex, *, threads: int = 2) -> float:
 
 def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = True) -> dict:
     """Run the benchmark; returns the JSON-able result (see module docstring)."""
-    from estimators.gait import foot_kinematics, gait_session
-    from pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.estimators.gait import foot_kinematics, gait_session
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
     try:
         ex = load_gaitmap_example(directory)
     except ValueError as e:
@@ -184,7 +184,7 @@ def run_benchmark(directory: Path, *, show_progress: bool = True, speed: bool = 
             pm = _events_of(inputs, EVENT_TOL_S, names=("ic_pitch_max",))
             overall["ic_pitch_max_timing_mae_ms"] = pm["ic_pitch_max_timing_mae_ms"]
             overall["ic_pitch_max_timing_mean_ms"] = pm["ic_pitch_max_timing_mean_ms"]
-        from estimators.gait.evaluation import paired_errors
+        from stridelab.estimators.gait.evaluation import paired_errors
         pe = paired_errors(np.concatenate([res[s]["_sl_err"] for s in res]), 0.0)
         overall["stride_length_mae_m"] = _none(pe["mae"])
         overall["stride_length_mean_error_m"] = _none(pe["mean"])
@@ -214,7 +214,7 @@ def _gaitmap_walk_anchor(ex):
         from gaitmap.trajectory_reconstruction import RtsKalman
     except ImportError:
         return "gaitmap not installed"
-    from estimators.gait.evaluation import paired_errors, reference_stride_lengths
+    from stridelab.estimators.gait.evaluation import paired_errors, reference_stride_lengths
     fs, errs = ex.sampling_rate_hz, []
     for foot in (ex.left, ex.right):
         df = pd.DataFrame(np.column_stack([foot.acc, np.degrees(foot.gyr)]),
@@ -236,7 +236,7 @@ VOISARD_TOL_S = 0.1
 #: leave-one-group-out grid (groups: Voisard subjects and the gaitmap walk) over three event options:
 #: Algorithm-1 threshold T (one ESKF run per foot and T), toe-off refinement T1 onset fraction (None = the thesis'
 #: pitch-minimum TC) and heel-strike refinement H1 onset fraction (None = the pitch-maximum IC). T1 and H1 are the
-#: last steps of foot_kinematics (``estimators.gait.refine_events``), scored from one run per threshold.
+#: last steps of foot_kinematics (``stridelab.estimators.gait.refine_events``), scored from one run per threshold.
 EVENT_GRID_KEYS = ("threshold", "toe_off_onset_fraction", "heel_strike_fraction", "min_step_m")
 THRESHOLDS = (-0.2, -0.1)
 TOE_OFF_FRACTIONS = (None, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
@@ -248,14 +248,14 @@ EVENT_GRID = tuple((t, f1, h, ms) for t in THRESHOLDS for f1 in TOE_OFF_FRACTION
 
 
 def _event_params(thr: float, toe_off: float | None, heel: float | None, min_step: float | None = None):
-    from estimators.gait import FootParams, IcTcParams
+    from stridelab.estimators.gait import FootParams, IcTcParams
     return FootParams(events=IcTcParams(threshold=thr), toe_off_refine=toe_off is not None,
                       toe_off_onset_fraction=0.2 if toe_off is None else toe_off, heel_strike_fraction=heel,
                       min_step_m=min_step)
 
 
 def _unrefined(thr: float):
-    from estimators.gait import FootParams, IcTcParams
+    from stridelab.estimators.gait import FootParams, IcTcParams
     return FootParams(events=IcTcParams(threshold=thr), toe_off_refine=False, heel_strike_fraction=None,
                       min_step_m=None)
 
@@ -265,7 +265,7 @@ def _grid_events(gyr, acc, fs) -> list:
     the refinements applied by ``refine_events`` (what ``foot_kinematics`` does with that configuration)."""
     import warnings
 
-    from estimators.gait import foot_kinematics, refine_events
+    from stridelab.estimators.gait import foot_kinematics, refine_events
     base = {}
     for thr in THRESHOLDS:
         with warnings.catch_warnings():
@@ -304,7 +304,7 @@ def _acc_dict(a) -> dict:
 
 def _accs(per) -> tuple:
     """(IC, TC) ``event_accuracy`` of per-foot tuples (group, det_ic_s, det_tc_s, ref_ic_s, ref_tc_s, span)."""
-    from estimators.gait.evaluation import event_accuracy
+    from stridelab.estimators.gait.evaluation import event_accuracy
     return tuple(event_accuracy([p[di] for p in per], [p[ri] for p in per], tolerance_s=VOISARD_TOL_S,
                                 spans_s=[p[5] for p in per]) for di, ri in ((1, 3), (2, 4)))
 
@@ -326,9 +326,9 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
     reader warnings (e.g. a repeated packet counter) in ``warnings``."""
     import warnings
 
-    from estimators.gait import FootParams, foot_kinematics
-    from validation.bench._cv import logo_choose
-    from pipeline.formats.xsens_mt import load_voisard_dir
+    from stridelab.estimators.gait import FootParams, foot_kinematics
+    from stridelab.validation.bench._cv import logo_choose
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_dir
     skipped: list = []
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -376,7 +376,7 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
     group_names = [f"voisard subject {s}" for s in subjects]
     gm = None
     if gaitmap_dir is not None and Path(gaitmap_dir).is_dir():
-        from pipeline.formats.gaitmap import load_gaitmap_example
+        from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
         ex = load_gaitmap_example(gaitmap_dir)
         fs_g = ex.sampling_rate_hz
         gm = {c: [] for c in range(len(EVENT_GRID))}
@@ -450,17 +450,17 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
 
 
 def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) -> dict:
-    """Stride-length MAE of ``foot_kinematics`` on the platform simulator (``validation.simulator``, walking trials of
+    """Stride-length MAE of ``foot_kinematics`` on the platform simulator (``stridelab.validation.simulator``, walking trials of
     ``participants`` participants) for several c_a (``EskfParams.acc_noise_rel``): parameters chosen on data that is not
     the evaluation walk. Truth = horizontal displacement of the simulated sensor between the detected mid-stances."""
     import warnings
     from dataclasses import replace
 
-    from estimators.gait import FootParams, foot_kinematics
-    from estimators.gait.evaluation import paired_errors
-    from estimators.trajectory import EskfParams
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_lab_session, study_participants
+    from stridelab.estimators.gait import FootParams, foot_kinematics
+    from stridelab.estimators.gait.evaluation import paired_errors
+    from stridelab.estimators.trajectory import EskfParams
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=2, distance_sensors=False, optical_reference=False))
     feet = []
@@ -492,7 +492,7 @@ def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) ->
 @click.option("--simulator-scan", is_flag=True,
               help="also scan c_a (acceleration-proportional noise) on the platform simulator (not the evaluation walk)")
 @click.option("--no-hemiparetic", is_flag=True,
-              help="skip the simulated hemiparetic walks (validation.simulator.hemiparetic_gait, issue 18)")
+              help="skip the simulated hemiparetic walks (stridelab.validation.simulator.hemiparetic_gait, issue 18)")
 @click.option("--hemiparetic-before", is_flag=True,
               help="also score the hemiparetic walks with the swing rules off (FootParams(swing_events=False))")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
@@ -524,7 +524,7 @@ def command(gaitmap: Path, voisard: Path | None, no_speed: bool, simulator_scan:
     if simulator_scan:
         result["simulator_scan"] = globals()["simulator_scan"]()
     if not no_hemiparetic:
-        from validation.bench.hemiparetic import hemiparetic_report
+        from stridelab.validation.bench.hemiparetic import hemiparetic_report
         result["hemiparetic"] = hemiparetic_report(before=hemiparetic_before)
     if as_json:
         emit_json(result)

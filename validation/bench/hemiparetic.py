@@ -1,9 +1,9 @@
-"""Hemiparetic gait bench (issue 18): strides, events and stride length of ``estimators.gait.foot_kinematics`` on
-the simulated stroke walks of ``validation.simulator.hemiparetic_gait`` (mild / moderate / severe).
+"""Hemiparetic gait bench (issue 18): strides, events and stride length of ``stridelab.estimators.gait.foot_kinematics`` on
+the simulated stroke walks of ``stridelab.validation.simulator.hemiparetic_gait`` (mild / moderate / severe).
 
 Reference strides = the simulator's swings (its own TC and IC, footprint k → k+1). A detected stride (a row of the
 ``StrideTable``) matches a reference stride when its TC and its IC both lie within ``TOL_S`` of the reference's
-(``estimators.gait.evaluation.match_strides`` on the (TC, IC) pairs, one-to-one): stride sensitivity = matched /
+(``stridelab.estimators.gait.evaluation.match_strides`` on the (TC, IC) pairs, one-to-one): stride sensitivity = matched /
 reference strides, precision = matched / detected strides. Events: ``event_accuracy`` (±``TOL_S``, one-to-one);
 timing error = detected − true contact (positive = late), MAE over IC and TC. Stride length: ``paired_errors`` of
 the detected length against the horizontal displacement of the sensor between the two true footprints of the
@@ -27,7 +27,7 @@ SUMMARY_KEYS = ("paretic_stride_sensitivity", "paretic_stride_precision", "other
 
 
 def _foot_records(trial, params=None):
-    from estimators.gait import FootParams, foot_kinematics
+    from stridelab.estimators.gait import FootParams, foot_kinematics
     out = []
     for side, f in trial.feet.items():
         with warnings.catch_warnings():
@@ -39,7 +39,7 @@ def _foot_records(trial, params=None):
 
 def _score(records, _unused=None) -> dict:
     """Pooled scores of a list of (SimFoot, FootKinematics, rate_hz) of one side class."""
-    from estimators.gait.evaluation import event_accuracy, match_strides, paired_errors
+    from stridelab.estimators.gait.evaluation import event_accuracy, match_strides, paired_errors
     n_ref = n_det = n_match = 0
     sl_est, sl_ref = [], []
     ev = {"IC": ([], []), "TC": ([], [])}
@@ -92,7 +92,7 @@ def _summary(par: dict, oth: dict, recs_all) -> dict:
 def hemiparetic_benchmark(*, split: str = "bench", params=None, strides: int = STRIDES_PER_TRIAL,
                           rate_hz: float = 100.0, show_progress: bool = False) -> dict:
     """Per severity and side class (paretic / other) and the pooled ``summary`` (module docstring)."""
-    from validation.simulator.hemiparetic_gait import SEVERITIES, hemiparetic_subjects, simulate_hemiparetic_trial
+    from stridelab.validation.simulator.hemiparetic_gait import SEVERITIES, hemiparetic_subjects, simulate_hemiparetic_trial
     by_sev = {s: {"paretic": [], "other": []} for s in SEVERITIES}
     for sev, subj in hemiparetic_subjects(split):
         tr = simulate_hemiparetic_trial(sev, subj, strides=strides, rate_hz=rate_hz)
@@ -116,7 +116,7 @@ def hemiparetic_report(*, before: bool = False) -> dict:
     ``heldout`` (subjects 200–203 of each severity) and, with ``before``, both with the swing rules off."""
     from dataclasses import replace
 
-    from estimators.gait import FootParams
+    from stridelab.estimators.gait import FootParams
     out = hemiparetic_benchmark(split="bench")
     out["heldout"] = hemiparetic_benchmark(split="heldout")
     if before:

@@ -34,14 +34,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import emit_json, err_console
+from stridelab.pipeline.console import emit_json, err_console
 
 T0_NS = 1_772_409_600_000_000_000   # 2026-03-02 00:00 UTC
 
 
 def synthetic_imu_day(hours: float, rate_hz: float, seed: int = 0):
     """A chest IMU with gravity, slow posture drift and noise (values only need to be plausible SI)."""
-    from estimators.recording import ImuData, Recording
+    from stridelab.estimators.recording import ImuData, Recording
     rng = np.random.default_rng(seed)
     n = int(hours * 3600 * rate_hz)
     t = T0_NS + np.round(np.arange(n) * (1e9 / rate_hz)).astype(np.int64)
@@ -59,8 +59,8 @@ def synthetic_imu_day(hours: float, rate_hz: float, seed: int = 0):
 
 def _ingest_child(path: str, root: str, q) -> None:
     t_start = time.perf_counter()
-    from pipeline import runner
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline import runner
+    from stridelab.pipeline.formats.mcap_write import write_recording
     warm = Path(root).with_name(Path(root).name + "-startup")
     warm.mkdir()
     rec = synthetic_imu_day(0.01, 100.0, seed=1)
@@ -104,7 +104,7 @@ def write_third_party(rec, path: Path, sample_check: int = 2000) -> Path:
     """``rec``'s chest IMU written with mcap_ros2's Writer (1 MiB zstd chunks, Schema/Channel in chunks)."""
     from mcap_ros2._dynamic import serialize_dynamic
     from mcap_ros2.writer import Writer
-    from pipeline.formats import ros2_cdr
+    from stridelab.pipeline.formats import ros2_cdr
     x = rec.imu["chest"]
     schema_text = ros2_cdr.SCHEMAS["sensor_msgs/msg/Imu"]
     enc = serialize_dynamic("sensor_msgs/msg/Imu", schema_text)["sensor_msgs/msg/Imu"]
@@ -223,7 +223,7 @@ def command(hours, rate_hz, naive_samples, workdir, cache_dir, as_json) -> None:
     except ImportError:
         raise click.ClickException("bench ingest compares with mcap_ros2's writer and decoder, which is not installed: "
                                    "pip install 'stridelab[bench]' (make install does)") from None
-    from pipeline.formats.mcap_write import write_recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         tmp = Path(tmp)
         err_console.print(f"simulating {hours:g} h at {rate_hz:g} Hz …")
@@ -248,7 +248,7 @@ def command(hours, rate_hz, naive_samples, workdir, cache_dir, as_json) -> None:
         floor_s, floor_n = decompress_floor(third)
         err_console.print("timing the mcap library on a slice of the same file …")
         naive = _naive(path, naive_samples)
-        from pipeline.formats.mcap_read import read_threads
+        from stridelab.pipeline.formats.mcap_read import read_threads
         out = {
             "n_samples": n,
             "file_mb": path.stat().st_size / 1e6,

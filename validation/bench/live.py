@@ -31,14 +31,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import emit_json, err_console
+from stridelab.pipeline.console import emit_json, err_console
 
 
 def demo_lab_session(directory: Path, participant: int = 2) -> tuple[Path, Path]:
     """(calibration trial, walk) of a demo-manifest participant (2 = P003, hemiparetic) as MCAP files."""
-    from pipeline.formats.mcap_write import write_recording
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_lab_session, study_participants
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=False, optical_reference=False))
     files = [write_recording(rec, directory / f"{rec.name}.mcap")
@@ -52,11 +52,11 @@ def _rss_mb() -> float:
 
 
 def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sample_memory: bool = False) -> dict:
-    from pipeline.live.engine import LEG_PLACEMENTS
-    from pipeline.live.recorder import McapRecorder
-    from pipeline.live.session import LiveSession
-    from pipeline.live.sources import ReplaySource
-    from pipeline.live.streams import read_streams
+    from stridelab.pipeline.live.engine import LEG_PLACEMENTS
+    from stridelab.pipeline.live.recorder import McapRecorder
+    from stridelab.pipeline.live.session import LiveSession
+    from stridelab.pipeline.live.sources import ReplaySource
+    from stridelab.pipeline.live.streams import read_streams
     st = read_streams(walk)
     pl = [p for p in LEG_PLACEMENTS if p in st.sensors]
     src = ReplaySource(st, pl, speed=speed, minutes=minutes)
@@ -77,7 +77,7 @@ def run_once(walk: Path, cal, *, speed, minutes=None, inbox: Path, name: str, sa
         th.start()
     server = client = None
     if speed is not None:        # the page's path too: the server pushes events to a WebSocket client in-process
-        from pipeline.live.server import LiveServer
+        from stridelab.pipeline.live.server import LiveServer
         server = LiveServer(session.hub, port=0)
         server.start()
         client = _EventClient(f"ws://127.0.0.1:{server.port}/ws")
@@ -153,7 +153,7 @@ class _EventClient:
     """A WebSocket client (the page's protocol) timing each event from its sample's arrival to its receipt."""
 
     def __init__(self, url: str):
-        from pipeline.live.session import LatencyStats
+        from stridelab.pipeline.live.session import LatencyStats
         self.stats, self.connected, self._stop = LatencyStats(), threading.Event(), threading.Event()
         self._th = threading.Thread(target=self._run, args=(url,), name="bench-ws", daemon=True)
         self._th.start()
@@ -200,7 +200,7 @@ class _EventClient:
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 def command(recording, calibration, minutes, speed_memory, skip_1x, as_json) -> None:
     """Latency, CPU and memory of a live session replayed at 10× and 1× real time (and a long session)."""
-    from pipeline.live.calibration import calibration_from_trial
+    from stridelab.pipeline.live.calibration import calibration_from_trial
     with tempfile.TemporaryDirectory(prefix="stridelab-bench-live-") as tmp:
         tmp = Path(tmp)
         if recording is None:

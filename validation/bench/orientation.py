@@ -1,10 +1,10 @@
 """``stridelab bench orientation``: accuracy and speed of the orientation estimators on BROAD.
 
-Every estimator of ``estimators.orientation.ESTIMATORS`` and of ``REPLICATION`` (the thesis' literal LKF, scored
+Every estimator of ``stridelab.estimators.orientation.ESTIMATORS`` and of ``REPLICATION`` (the thesis' literal LKF, scored
 but not selectable by the pipeline), or those named with ``--estimator``, runs on
 every BROAD trial, 9D (magnetometer used), with its default parameters; no per-trial alignment. The
 error quaternion ``q_est ⊗ q_ref*`` (earth frame) is split into total / heading / inclination angles
-and RMS'd over the trial's ``movement`` mask (``estimators.orientation.evaluation``). Speed is the
+and RMS'd over the trial's ``movement`` mask (``stridelab.estimators.orientation.evaluation``). Speed is the
 wall time of the estimator call divided by the number of samples, after one warm-up call (numba JIT).
 vqf (online) and offline vqf run in the same process for comparison.
 
@@ -24,7 +24,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BROAD = PROJECT_ROOT.parent / "shared" / "data" / "broad"
@@ -35,11 +35,11 @@ def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True, 
     """Run the benchmark; returns the JSON-able result (see module docstring). ``cv``: also the
     leave-one-group-out tuning of ours and of the baselines (:func:`run_cross_validation`); ``pso``:
     (particles, iterations) of the Madgwick / Mahony swarm inside it, None = skip the swarm; ``stress``: also score dcf
-    and VQF on the synthetic attached-magnet trials (:mod:`validation.bench._attached_magnet`) and, with ``cv``, choose
+    and VQF on the synthetic attached-magnet trials (:mod:`stridelab.validation.bench._attached_magnet`) and, with ``cv``, choose
     their magnetic-disturbance options by leave-one-group-out with that group added."""
-    from estimators.orientation import DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, REPLICATION
-    from estimators.orientation.evaluation import orientation_rmse_deg
-    from estimators.orientation.tuning import trial_groups
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, REPLICATION
+    from stridelab.estimators.orientation.evaluation import orientation_rmse_deg
+    from stridelab.estimators.orientation.tuning import trial_groups
 
     ESTIMATORS = {**ESTIMATORS, **REPLICATION}
     unknown = [n for n in names if n not in ESTIMATORS]
@@ -87,7 +87,7 @@ def run_benchmark(broad: Path, names: list[str], *, show_progress: bool = True, 
             out["cv"] = run_cross_validation(trials, labels, pso=pso, progress_bar=p)
             out["comparison"] = _comparison(out["summary"], out["cv"])
         if stress:
-            from validation.bench._attached_magnet import attached_magnet_trials, disturbance_cv, stress_scores
+            from stridelab.validation.bench._attached_magnet import attached_magnet_trials, disturbance_cv, stress_scores
             synthetic = attached_magnet_trials(trials)
             if synthetic:
                 out["attached_magnet_synthetic"] = stress_scores(synthetic, [n for n in names if n in ("dcf", "vqf")])
@@ -105,7 +105,7 @@ def _blocks(out: dict) -> dict:
     recorded in tuned_gains.json, marked ``recorded``), ``in_sample`` (the shipped defaults on the trials they were
     chosen on: the 15 development trials; on other data the same figures are not in-sample)."""
     import json
-    from estimators.orientation import DEFAULT_OFFLINE, DEFAULT_ONLINE
+    from stridelab.estimators.orientation import DEFAULT_OFFLINE, DEFAULT_ONLINE
     s = out["summary"]
     fig = lambda n: s[n]["mean_total_rmse_deg"] if n in s else None
     shipped = {"online_rmse_deg": fig(DEFAULT_ONLINE), "offline_rmse_deg": fig(DEFAULT_OFFLINE),
@@ -138,7 +138,7 @@ TUNED_ON_BROAD = ("dcf", "dcf_offline", "madgwick_tuned", "mahony_tuned", "robus
 
 
 def _load(broad: Path):
-    from pipeline.formats.broad import load_broad
+    from stridelab.pipeline.formats.broad import load_broad
     try:
         return load_broad(broad)
     except ValueError as e:
@@ -161,7 +161,7 @@ def candidate_grids() -> dict:
     the result and a fold trained without disturbed trials cannot choose it; the larger margin (more rejection
     around a disturbance) is then preferred, a rule fixed before looking at the held-out group.
     """
-    from estimators.orientation import (DCFOfflineParams, DCFParams, DCFFilter, dcf, dcf_offline_from_online,
+    from stridelab.estimators.orientation import (DCFOfflineParams, DCFParams, DCFFilter, dcf, dcf_offline_from_online,
                                         vqf_orientation)
     cache: dict = {}
 
@@ -219,7 +219,7 @@ def run_cross_validation(trials, labels, *, pso: tuple[int, int] | None = (30, 3
     the choice per fold, the shipped candidate (chosen most often) and its in-sample figure."""
     import dataclasses
 
-    from estimators.orientation.tuning import leave_groups_out, score_grid
+    from stridelab.estimators.orientation.tuning import leave_groups_out, score_grid
     names = [t.name for t in trials]
     folds = {g: [n for n, lab in zip(names, labels) if lab == g] for g in dict.fromkeys(labels)}
     out = {"procedure": "leave-one-group-out: each BROAD group (trials.json) held out in turn, the candidate with "
@@ -257,7 +257,7 @@ def run_cross_validation(trials, labels, *, pso: tuple[int, int] | None = (30, 3
 
 def _is_default(name: str, cand) -> bool | None:
     """Whether the shipped candidate equals the estimator's default parameters (None: a library's defaults)."""
-    from estimators.orientation import DCFOfflineParams, DCFParams
+    from stridelab.estimators.orientation import DCFOfflineParams, DCFParams
     return {"dcf": lambda: cand == DCFParams(), "dcf_offline": lambda: cand == DCFOfflineParams()}.get(
         name, lambda: None)()
 
@@ -265,7 +265,7 @@ def _is_default(name: str, cand) -> bool | None:
 def _pso_cv(trials, labels, folds, n_particles: int, n_iter: int) -> dict:
     """Madgwick / Mahony 3-level switching (thesis VST2, the shipped presets' space) tuned by the same swarm
     budget in each leave-one-group-out fold."""
-    from estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
+    from stridelab.estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
     data = SwarmData.from_trials(trials)
     names = list(data.names)
     idx = [[names.index(n) for n in f] for f in folds.values()]
@@ -312,7 +312,7 @@ def _comparison(summary: dict, cv: dict) -> list[dict]:
               help="folder of BROAD *.hdf5 trials (or one file)")
 @click.option("--estimator", "estimators", multiple=True,
               help="estimator name (repeatable); default: all registered estimators and the replication-only "
-                   "ones (estimators.orientation.REPLICATION)")
+                   "ones (stridelab.estimators.orientation.REPLICATION)")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
 @click.option("--pso", "pso", default=None, metavar="FILTER:LEVELS",
               help="instead of the benchmark, tune madgwick|mahony switching gains (1 = fixed, 2 = VST1, 3 = VST2) by "
@@ -337,7 +337,7 @@ def command(broad: Path, estimators: tuple[str, ...], as_json: bool, pso: str | 
       stridelab bench orientation --broad /data/broad --json > broad.json
       stridelab bench orientation --pso madgwick:2 --json      # particle-swarm tuning + CV
     """
-    from estimators.orientation import ESTIMATORS, REPLICATION
+    from stridelab.estimators.orientation import ESTIMATORS, REPLICATION
     if not broad.exists():
         raise UserError(f"BROAD data not found at {broad}; pass --broad DIR (see DESIGN.md 'Real data')")
     if pso:
@@ -382,13 +382,13 @@ def command(broad: Path, estimators: tuple[str, ...], as_json: bool, pso: str | 
 
 def run_pso_tuning(broad: Path, filter_name: str, n_levels: int, *, n_particles: int = 50, n_iter: int = 50,
                    cv: bool = True, seed: int = 0) -> dict:
-    """Particle-swarm tuning of Madgwick / Mahony switching gains on BROAD (estimators.orientation.pso):
+    """Particle-swarm tuning of Madgwick / Mahony switching gains on BROAD (stridelab.estimators.orientation.pso):
     leave-one-group-out CV (BROAD groups) for the honest held-out error, then one run on all
     trials whose result is what tuned_gains.json ships. Returns a JSON-able dict with timings."""
     import dataclasses
 
-    from estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
-    from estimators.orientation.tuning import trial_groups
+    from stridelab.estimators.orientation.pso import SwarmData, SwitchingSpace, pso_leave_trials_out, tune_pso
+    from stridelab.estimators.orientation.tuning import trial_groups
     trials = _load(broad)
     space = SwitchingSpace(filter_name, n_levels)
     data = SwarmData.from_trials(trials)

@@ -12,7 +12,7 @@ ingest, the coordinator, the workers' start-up); a participant-day is one partic
 and 24 h of free-living recording. ``reading_floor_cpu_s_per_participant_day`` sets that CPU beside what reading
 the inbox costs at the least, measured after the run on the first participant's recordings: the SHA-256 of each
 file (``content_hash``) and the zstd decompression of its chunks, on one core
-(:func:`validation.bench.ingest.reading_floor`). A multi-day recording (``--days`` > 2) is made of consecutive simulated
+(:func:`stridelab.validation.bench.ingest.reading_floor`). A multi-day recording (``--days`` > 2) is made of consecutive simulated
 days (day k: the participant's day simulated as session k, shifted by k days) written as one MCAP file.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import click
 
-from pipeline.console import emit_json, err_console
+from stridelab.pipeline.console import emit_json, err_console
 
 
 def _cpu_children() -> float:
@@ -43,9 +43,9 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
     t0 = time.perf_counter()
     # the run process's own peak is its VmHWM: ru_maxrss survives exec on Linux, so the child would report the
     # bench's resident size at fork time (6.8 GB after simulating a week in the bench process) as its own
-    # the workers start before the runner's imports, as in `stridelab run` (pipeline.engines.start_workers_early)
-    code = ("import json, resource, sys; from pipeline.engines import start_workers_early; "
-            "start_workers_early(sys.argv[4], int(sys.argv[3])); from pathlib import Path; from pipeline import runner; "
+    # the workers start before the runner's imports, as in `stridelab run` (stridelab.pipeline.engines.start_workers_early)
+    code = ("import json, resource, sys; from stridelab.pipeline.engines import start_workers_early; "
+            "start_workers_early(sys.argv[4], int(sys.argv[3])); from pathlib import Path; from stridelab.pipeline import runner; "
             "s = runner.run(Path(sys.argv[1]), Path(sys.argv[2]), jobs=int(sys.argv[3]), engine=sys.argv[4]); "
             "hwm = [int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmHWM:')]; "
             "me, ch = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN); "
@@ -69,7 +69,7 @@ def _run(inbox: Path, wh: Path, jobs: int, engine: str) -> dict:
 def _ledger(wh: Path) -> tuple[int, dict]:
     """IMU samples in the warehouse, and per stage: runs (``ok``), ``skipped`` runs (a session without the
     stage's inputs, with a reason in the ledger), their worker seconds and CPU seconds (``stage_runs.cpu_s``)."""
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
         n = int(con.execute("SELECT coalesce(sum(n_samples), 0) FROM sensors WHERE kind = 'imu'").fetchall()[0][0])
@@ -96,10 +96,10 @@ def _drop_page_cache() -> None:
 
 
 def _fingerprint(wh: Path) -> dict:
-    """Every table's content hash of the published snapshot (``warehouse.catalog.fingerprint``; run ids, times
+    """Every table's content hash of the published snapshot (``stridelab.warehouse.catalog.fingerprint``; run ids, times
     and host names excluded), to compare two warehouses built from the same inbox."""
-    from warehouse.catalog import fingerprint
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.catalog import fingerprint
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     try:
         return fingerprint(con, wh)
@@ -111,11 +111,11 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
     """Each participant's lab session and one ``days``-day free-living recording (consecutive simulated days)."""
     from dataclasses import replace
     import numpy as np
-    from estimators.recording import ImuData, Recording
-    from pipeline.formats.mcap_write import write_recording
-    from validation.simulate import simulate_to_dir
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.simulator import simulate_chest_day, study_participants
+    from stridelab.estimators.recording import ImuData, Recording
+    from stridelab.pipeline.formats.mcap_write import write_recording
+    from stridelab.validation.simulate import simulate_to_dir
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, study_participants
     files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs, visits=1)
              if "_free" not in f.name]
     for f in directory.glob("*_free*.mcap"):
@@ -202,8 +202,8 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
       stridelab bench pipeline --participants 20 --inbox /tmp/study20 --json   # simulate once, rerun on it
       sudo stridelab bench pipeline --participants 20 --inbox /tmp/study20 --drop-caches --json
     """
-    from validation.bench.ingest import reading_floor
-    from validation.simulate import simulate_to_dir
+    from stridelab.validation.bench.ingest import reading_floor
+    from stridelab.validation.simulate import simulate_to_dir
     if days is not None:
         hours = 24.0 * days
     if workdir is not None:

@@ -1,8 +1,8 @@
 """``stridelab bench trajectory``: foot-INS accuracy on the PyShoe Vicon trials, loop walks, Duong & Suh.
 
-``--pyshoe DIR`` (issue 15): every trial (``pipeline.formats.pyshoe``) through ``estimators.trajectory.
+``--pyshoe DIR`` (issue 15): every trial (``stridelab.pipeline.formats.pyshoe``) through ``stridelab.estimators.trajectory.
 eskf_trajectory`` (adaptive ZUPT, saturation repair, gravity normalisation; mounting-agnostic), scored by
-``estimators.trajectory.evaluation.armse_2d_aligned`` (PyShoe's alignment, Euclidean 2-D ARMSE). ``PYSHOE_GRID``
+``stridelab.estimators.trajectory.evaluation.armse_2d_aligned`` (PyShoe's alignment, Euclidean 2-D ARMSE). ``PYSHOE_GRID``
 is the small grid of detector parameters; the headline ``summary`` is the leave-one-trial-out figure (each trial
 scored with the configuration that minimises the mean ARMSE of the other trials); ``in_sample`` scores the
 shipped defaults (chosen on all trials, so in-sample). Motion type per trial is inferred from the IMU signal
@@ -10,7 +10,7 @@ shipped defaults (chosen on all trials, so in-sample). Motion type per trial is 
 
 ``--loop``: walked distance and final position error of loop walks (foot IMU CSVs).
 
-Each file (``pipeline.formats.loop_csv``) goes through ``estimators.gait.foot_kinematics`` (ESKF + ZUPT + RTS,
+Each file (``stridelab.pipeline.formats.loop_csv``) goes through ``stridelab.estimators.gait.foot_kinematics`` (ESKF + ZUPT + RTS,
 default parameters, mounting-agnostic). distance_m = Σ horizontal displacement between consecutive mid-stances;
 final_position_error_m = |p(last mid-stance) − p(first mid-stance)| (3-D; the walk ends where it started),
 also horizontal (``final_position_error_xy_m``) and as % of distance.
@@ -22,7 +22,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from pipeline.console import UserError, emit_json, err_console, progress
+from stridelab.pipeline.console import UserError, emit_json, err_console, progress
 
 FAILED_ARMSE_M = 0.5
 #: leave-one-trial-out grid (issue 43, second round), the current main values first (argmin keeps the first of
@@ -48,7 +48,7 @@ def grid_params(cg: float, ca: float, rule: str, delay_s: float):
     """EskfParams of one grid point (everything else at the shipped defaults)."""
     import dataclasses
 
-    from estimators.trajectory import EskfParams
+    from stridelab.estimators.trajectory import EskfParams
     return dataclasses.replace(EskfParams(), gyr_noise_rel=cg, acc_noise_rel=ca, attitude_rule=rule,
                                gyro_delay_s=delay_s)
 
@@ -93,7 +93,7 @@ def _gaitmap_scores(trials, grid) -> np.ndarray | None:
         from gaitmap.zupt_detection import NormZuptDetector
     except ImportError:
         return None
-    from estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
     out = np.full((len(trials), len(grid), 2), np.nan)
     for i, tr in enumerate(trials):
         n0 = max(2, int(0.5 * tr.sampling_rate_hz))
@@ -133,7 +133,7 @@ def _summary(armse, types, armse3=None) -> dict:
 
 def _load_trials(directory: Path):
     """All readable PyShoe trials and the files that could not be read: ``(trials, [{"file", "reason"}])``."""
-    from pipeline.formats.pyshoe import load_pyshoe_trial
+    from stridelab.pipeline.formats.pyshoe import load_pyshoe_trial
     files = sorted(Path(directory).glob("*.mat"))
     if not files:
         raise UserError(f"{directory}: no .mat files; expected the PyShoe Vicon trials (see ../shared/data/README.md)")
@@ -152,7 +152,7 @@ def _load_trials(directory: Path):
 
 def _blocks(loss2, loss3, shipped2, shipped3, types, grid, keys) -> dict:
     """``shipped_defaults`` / ``cross_validated`` / ``in_sample`` blocks from per-trial × grid losses."""
-    from validation.bench._cv import logo_choose
+    from stridelab.validation.bench._cv import logo_choose
     cv = logo_choose(loss2)
     idx = np.arange(len(loss2))
     counts: dict = {}
@@ -170,12 +170,12 @@ def pyshoe_benchmark(directory: Path, *, show_progress: bool = True, anchors: bo
     """The ``--pyshoe`` result: blocks ``shipped_defaults`` (the shipped EskfParams, no re-tuning),
     ``cross_validated`` (leave-one-trial-out over ``PYSHOE_GRID``: each trial scored with the grid point that
     minimises the mean 2-D ARMSE of the other trials), ``in_sample`` (the grid point best on all trials, scored on
-    them); 2-D and 3-D ARMSE (``estimators.trajectory.evaluation``), per activity (``motion_type``, inferred from
+    them); 2-D and 3-D ARMSE (``stridelab.estimators.trajectory.evaluation``), per activity (``motion_type``, inferred from
     the IMU signal with the shipped defaults). Unreadable files are listed in ``unreadable`` and skipped."""
     import warnings
 
-    from estimators.trajectory import EskfParams, eskf_trajectory
-    from estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
+    from stridelab.estimators.trajectory import EskfParams, eskf_trajectory
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
     trials, bad = _load_trials(directory)
     configs = [grid_params(*g) for g in PYSHOE_GRID]
     default = EskfParams()
@@ -254,8 +254,8 @@ def _loop_row(path: Path, rec, configs) -> tuple[dict, np.ndarray]:
     import dataclasses
     import warnings
 
-    from estimators.gait import FootParams, foot_kinematics
-    from estimators.trajectory.evaluation import final_position_error
+    from stridelab.estimators.gait import FootParams, foot_kinematics
+    from stridelab.estimators.trajectory.evaluation import final_position_error
     losses = np.full((len(configs), 2), np.nan)
     row = {"file": str(path), "sampling_rate_hz": rec.sampling_rate_hz}
     with warnings.catch_warnings():
@@ -286,8 +286,8 @@ def loop_benchmark(paths, *, show_progress: bool = True) -> dict:
     defaults; blocks ``shipped_defaults``, ``cross_validated`` (leave-one-walk-out over ``PYSHOE_GRID``, loss =
     horizontal final error; needs ≥ 2 walks) and ``in_sample``, each with the mean over the walks and per walk.
     A file that cannot be read is listed in ``unreadable`` with the reason; the others go on."""
-    from pipeline.formats.loop_csv import load_loop_csv
-    from validation.bench._cv import logo_choose
+    from stridelab.pipeline.formats.loop_csv import load_loop_csv
+    from stridelab.validation.bench._cv import logo_choose
     configs = [grid_params(*g) for g in PYSHOE_GRID]
     rows, losses, bad = [], [], []
     with progress(show_progress) as pr:
@@ -334,13 +334,13 @@ DS_METHODS = ("zupt_only", "zupt_height", "ds21", "ds9_table1", "ds9_true")
 
 
 def duong_suh_benchmark(seeds: int = 10, *, pitch_deg: float = 0.0) -> dict:
-    """Spec B11/B12 on the synthetic walk of ``validation.simulator.duong_suh_walk`` (B11 configuration; the filters start
+    """Spec B11/B12 on the synthetic walk of ``stridelab.validation.simulator.duong_suh_walk`` (B11 configuration; the filters start
     from the Table 1 geometry, the truth is eq. (24)): mean over seeds of the per-run RMS error per axis (m), for
     ZUPT only, ZUPT + height update, the 21-state filter and the 9-state filter with the Table 1 and the true
     geometry; the 21-state calibration after one trial; and the B12 checks."""
-    from estimators.trajectory import TABLE1_GEOMETRY, DuongSuhParams, RangeGeometry, duong_suh_trajectory
-    from validation.simulator.duong_suh_walk import simulate_ds_walk
-    from estimators.trajectory.evaluation import rms_error_per_axis
+    from stridelab.estimators.trajectory import TABLE1_GEOMETRY, DuongSuhParams, RangeGeometry, duong_suh_trajectory
+    from stridelab.validation.simulator.duong_suh_walk import simulate_ds_walk
+    from stridelab.estimators.trajectory.evaluation import rms_error_per_axis
     methods = {"zupt_only": (DuongSuhParams(use_ranges=False, estimate_calibration=False), False),
                "zupt_height": (DuongSuhParams(use_ranges=False, estimate_calibration=False,
                                               height_update_var=1e-4), False),

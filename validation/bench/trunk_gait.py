@@ -14,7 +14,7 @@ bouts leave out closing steps and some walking (turns, 110-115 s of Test11) that
 the whole recording, as scored before 2026-12-07, is printed beside as ``mobilised_whole_recording``. Trunk initial
 contacts and foot heel strikes are different events: the constant ``ic_offset_s`` maps one to the other and is chosen by cross-validation (below), never on the recording it is scored on.
 
-One scorer: ``estimators.trunk_gait.evaluation`` (contacts one-to-one within 0.25 s; bouts one-to-one by IoU ≥ 0.5;
+One scorer: ``stridelab.estimators.trunk_gait.evaluation`` (contacts one-to-one within 0.25 s; bouts one-to-one by IoU ≥ 0.5;
 per matched bout the cadence / stride length / speed errors), for StrideLab and mobgap alike.
 
 Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cross_validated``: the tuned constants
@@ -62,8 +62,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from estimators.trunk_gait._frame import check_units
-from pipeline.console import UserError, emit_json, err_console
+from stridelab.estimators.trunk_gait._frame import check_units
+from stridelab.pipeline.console import UserError, emit_json, err_console
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_VOISARD = PROJECT_ROOT.parent / "shared" / "data" / "voisard_gait"
@@ -150,12 +150,12 @@ def foot_stride_reference(feet: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
 
 
 def voisard_foot_reference(t, s0: int, s1: int) -> tuple[float, float, dict]:
-    """Spatial reference of one Voisard trial from its two foot MTws: StrideLab's foot INS (``estimators.gait.
+    """Spatial reference of one Voisard trial from its two foot MTws: StrideLab's foot INS (``stridelab.estimators.gait.
     foot_kinematics``: adaptive-ZUPT ESKF, stride length between mid-stances; docs/gait.md) -> mean stride length
     and speed over both feet (``foot_stride_reference``). A derived reference, not a gold standard: its own stride
     length error is 1.6-1.9 cm against optical markers on the gaitmap walk (docs/gait.md); the per-trial left /
     right disagreement is reported by the bench (``voisard_foot_reference``)."""
-    from estimators.gait import foot_kinematics
+    from stridelab.estimators.gait import foot_kinematics
     feet, per_foot, rows = [], {}, []
     for side, rec in (("left", t.left), ("right", t.right)):
         fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=rec.sampling_rate_hz)
@@ -172,7 +172,7 @@ def voisard_foot_reference(t, s0: int, s1: int) -> tuple[float, float, dict]:
 
 
 def load_voisard(directory: Path, failed: list, limit: int | None, foot_reference: bool = True) -> list[Rec]:
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     names = sorted((p.stem for p in directory.glob("*-*.json") if p.stem.replace("-", "").isdigit()),
                    key=lambda s: tuple(int(x) for x in s.split("-")))
     if not names:
@@ -212,7 +212,7 @@ def load_voisard(directory: Path, failed: list, limit: int | None, foot_referenc
 
 
 def load_mobilised(root: Path, failed: list) -> list[Rec]:
-    from pipeline.formats.mobilised import find_mobilised_files, read_mobilised
+    from stridelab.pipeline.formats.mobilised import find_mobilised_files, read_mobilised
     try:
         files = find_mobilised_files(root)
     except ValueError as e:
@@ -266,7 +266,7 @@ def _with_cadence(d: Det, method: str | None) -> Det:
 def _ic_counts(rec: Rec, ic_s: np.ndarray, whole: bool = False) -> tuple[int, int, int, np.ndarray]:
     """Contacts scored inside the reference's walking (± the tolerance): the Voisard trial, the Mobilise-D
     reference walking bouts (``whole``: the whole recording, as before 2026-12-07)."""
-    from estimators.trunk_gait.evaluation import match_initial_contacts
+    from stridelab.estimators.trunk_gait.evaluation import match_initial_contacts
     win = (np.array([rec.window_s]) if whole or rec.ic_windows_s is None or not len(rec.ic_windows_s)
            else rec.ic_windows_s)
     m = match_initial_contacts(ic_s, rec.ref_ic_s, windows_s=win)
@@ -274,7 +274,7 @@ def _ic_counts(rec: Rec, ic_s: np.ndarray, whole: bool = False) -> tuple[int, in
 
 
 def _bout_errs(rec: Rec, det: Det, sl_scale: float = 1.0) -> dict:
-    from estimators.trunk_gait.evaluation import bout_errors, match_bouts
+    from stridelab.estimators.trunk_gait.evaluation import bout_errors, match_bouts
     b = det.bouts
     m = match_bouts(b["start_s"], b["end_s"], rec.ref_bouts["start_s"], rec.ref_bouts["end_s"])
     d = {"cadence_spm": b["cadence_spm"], "stride_length_m": np.asarray(b["stride_length_m"]) * sl_scale,
@@ -288,7 +288,7 @@ def _bout_errs(rec: Rec, det: Det, sl_scale: float = 1.0) -> dict:
 def score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0, sl_scale: float = 1.0,
           whole: bool = False) -> dict:
     """The six keys (None where no reference) pooled over ``recs``, plus counts."""
-    from estimators.trunk_gait.evaluation import summarise_bout_errors
+    from stridelab.estimators.trunk_gait.evaluation import summarise_bout_errors
     tp = fp = fn = 0
     errs, berrs = [], []
     n_ref_b = n_match_b = 0
@@ -353,7 +353,7 @@ def sl_mae(recs: list[Rec], dets: list[Det], sl_scale: float = 1.0) -> float:
 def ic_loss(s: dict) -> float:
     """Timing cost per reference contact, ms: a matched contact costs its timing error, a missed or an extra one
     the matching tolerance (250 ms), i.e. (Σ|e| + 250 (FN + FP)) / (TP + FN)."""
-    from estimators.trunk_gait.evaluation import IC_TOLERANCE_S
+    from stridelab.estimators.trunk_gait.evaluation import IC_TOLERANCE_S
     n_ref = s["ic_tp"] + s["ic_fn"]
     if s["ic_timing_mae_ms"] is None or not n_ref:
         return float("inf")
@@ -376,10 +376,10 @@ def _detector_name(p) -> str:
 
 
 def run_ours(rec: Rec, params) -> Det:
-    from estimators.trunk_gait import analyse_trunk_gait
+    from stridelab.estimators.trunk_gait import analyse_trunk_gait
     res = analyse_trunk_gait(rec.acc, rec.gyr, rec.fs, placement="lower_back", height_m=rec.height_m,
                              leg_length_m=rec.leg_length_m, params=params)
-    from estimators.trunk_gait._pipeline import bout_cadence
+    from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
     ic = res.initial_contacts_s
     cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
@@ -543,7 +543,7 @@ def sensor_height_check(recs: list[Rec], shipped) -> dict | None:
 
 def tune_and_score(recs: list[Rec], show: bool) -> dict:
     """Run our estimator for the IC grid, choose constants by LOGO, score shipped / CV / in-sample."""
-    from estimators.trunk_gait import TrunkGaitParams
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
     shipped = TrunkGaitParams()
     # group-level means of the IC loss: each candidate = (IC detector candidate, offset)
     dets: dict[int, list[Det]] = {}
@@ -653,7 +653,7 @@ def mobgap_inputs(recs: list[Rec], measured_sensor_height: bool = True) -> tuple
     ``measured_sensor_height``: mobgap's pendulum length = the recording's measured sensor height where it has one
     (mobgap's own use), else 0.53 x height (as its MsProject loader; False = 0.53 x height everywhere, the length
     StrideLab's sl_correction is calibrated with)."""
-    from estimators.trunk_gait import detect_trunk_frame
+    from stridelab.estimators.trunk_gait import detect_trunk_frame
     arrays = {}
     names = []
     for i, r in enumerate(recs):
@@ -864,7 +864,7 @@ def foot_reference_summary(recs: list[Rec]) -> dict:
 
 def day_speed(recs: list[Rec]) -> dict:
     """CPU seconds of analyse_trunk_gait + daily_outcomes on a synthetic 24 h lower-back day at 100 Hz."""
-    from estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
+    from stridelab.estimators.trunk_gait import analyse_trunk_gait, daily_outcomes
     fs = 100.0
     src = [r for r in recs if r.dataset == "mobilised" and abs(r.fs - fs) < 1e-6] or \
           [r for r in recs if abs(r.fs - fs) < 1e-6]
@@ -890,7 +890,7 @@ def day_speed(recs: list[Rec]) -> dict:
         gyr[s:s + m] = r.gyr[:m] @ r.mobgap_axes.T if r.dataset == "voisard" else r.gyr[:m]
         inserted += 1
         walking_src_s += m / fs
-    from estimators.trunk_gait import TrunkGaitParams
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
     analyse_trunk_gait(acc[: int(600 * fs)], gyr[: int(600 * fs)], fs, params=TrunkGaitParams())   # warm-up
     t0 = time.process_time()
     w0 = time.perf_counter()
@@ -949,7 +949,7 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
          "chosen_on": "Voisard subjects (foot-INS stride length) + Mobilise-D HA-001 (INDIP stride length), "
                       "leave-one-group-out for the cross-validated figure"}]
     res["spatial_references"] = {
-        "voisard": "derived: mean stride length / speed of both foot MTws by StrideLab's foot INS (estimators.gait."
+        "voisard": "derived: mean stride length / speed of both foot MTws by StrideLab's foot INS (stridelab.estimators.gait."
                    "foot_kinematics, stride length MAE 1.6-1.9 cm vs optical markers on the gaitmap walk, docs/gait.md)"
                    "; strides heel strike to heel strike inside TrialBoundaries, U-turn included",
         "mobilised": "INDIP MicroWB AverageStrideLength / WalkingSpeed"}

@@ -1,21 +1,21 @@
 """``stridelab bench violations``: what each assumption violation of the simulator does to calibration, joint
-angles, gait events and daily activity (issue 16 point 7; scenarios in :mod:`validation.simulator.violations`).
+angles, gait events and daily activity (issue 16 point 7; scenarios in :mod:`stridelab.validation.simulator.violations`).
 
 Per scenario, ``--participants`` simulated lab sessions of the demo study (calibration trial + one walking trial,
 default sensor model) are scored with the project's own scorers:
 
 * calibration: helical angle between the estimated and the true sensor-to-segment rotation of the calibration
-  trial (``estimators.calibration.helical_angle_deg``, thesis Eq. 19), median over thighs and shanks, method
+  trial (``stridelab.estimators.calibration.helical_angle_deg``, thesis Eq. 19), median over thighs and shanks, method
   ``auto`` (hip flexion/extension), on the true sensor orientations (so only calibration is scored);
 * joint angles: RMSE of hip/knee/ankle in the walking trial after the quiet-standing offset removal
-  (``estimators.joints.angle_errors``), true sensor orientations and the calibration of the calibration trial:
+  (``stridelab.estimators.joints.angle_errors``), true sensor orientations and the calibration of the calibration trial:
   max over joints of the median over participants, sagittal and out of plane;
 * gait events: ``foot_kinematics`` on the measured foot signals of the walking trial, IC/TC sensitivity,
-  precision and timing MAE within ±0.1 s of the simulated contacts (``estimators.gait.evaluation.event_accuracy``),
+  precision and timing MAE within ±0.1 s of the simulated contacts (``stridelab.estimators.gait.evaluation.event_accuracy``),
   stride-length MAE against the true sensor displacement between the detected stride borders;
 * activity (``--activity-days N``): the pipeline's default classifier on N simulated 24 h days whose stairs cadence
   and sit/stand heights come from published ranges (``validation/simulator/_chest_day.py``): per-second
-  agreement and balanced accuracy over the reference classes (``estimators.activity.evaluation.scores``).
+  agreement and balanced accuracy over the reference classes (``stridelab.estimators.activity.evaluation.scores``).
 
 Run-to-run figures are deterministic (seeded); the violation magnitudes are scenario choices stated in
 ``SCENARIOS``, not measurements.
@@ -28,14 +28,14 @@ from dataclasses import replace
 import click
 import numpy as np
 
-from pipeline.console import emit_json, err_console, progress
+from stridelab.pipeline.console import emit_json, err_console, progress
 
 LEGS = ("thigh_left", "thigh_right", "shank_left", "shank_right")
 EVENT_TOL_S = 0.1
 
 
 def _lab_trials(manifest, person, index: int, seed: int, violations):
-    from validation.simulator import simulate_lab_session
+    from stridelab.validation.simulator import simulate_lab_session
     out = []
     for rec, truth in simulate_lab_session(manifest, person, index, seed=seed, violations=violations):
         out.append({"trial": rec.metadata.get("trial"), "fs": manifest.sampling_rate_hz, "truth": truth,
@@ -45,8 +45,8 @@ def _lab_trials(manifest, person, index: int, seed: int, violations):
 
 
 def _events(walks) -> dict:
-    from estimators.gait import foot_kinematics
-    from estimators.gait.evaluation import event_accuracy, paired_errors
+    from stridelab.estimators.gait import foot_kinematics
+    from stridelab.estimators.gait.evaluation import event_accuracy, paired_errors
     det = {"IC": [], "TC": []}
     ref = {"IC": [], "TC": []}
     est_len, ref_len = [], []
@@ -79,10 +79,10 @@ def _events(walks) -> dict:
 
 def lab_scenario(violations, participants: int, seed: int = 0) -> dict:
     """Calibration, joint-angle and gait-event figures of one scenario (module docstring)."""
-    from estimators.calibration import helical_angle_deg
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
-    from validation.bench.calibration import _sim_calibrate, _sim_joint_rmse, _true_r_sensor_af
-    from validation.simulator import study_participants
+    from stridelab.estimators.calibration import helical_angle_deg
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.bench.calibration import _sim_calibrate, _sim_joint_rmse, _true_r_sensor_af
+    from stridelab.validation.simulator import study_participants
     m = load_manifest(DEFAULT_MANIFEST)
     m = replace(m, lab=replace(m.lab, walking_trials=1, distance_sensors=False, optical_reference=False))
     cal_err, rmse, qc, walks_all = [], [], [], []
@@ -106,8 +106,8 @@ def lab_scenario(violations, participants: int, seed: int = 0) -> dict:
 
 
 def activity_scenario(n: int) -> dict:
-    from estimators.activity.evaluation import scores
-    from validation.bench.activity import simulated_days
+    from stridelab.estimators.activity.evaluation import scores
+    from stridelab.validation.bench.activity import simulated_days
     r = simulated_days(n)
     C = np.sum([np.asarray(v["confusion"]) for v in r["per_participant"].values()], axis=0)
     s = scores(C)
@@ -133,11 +133,11 @@ def command(participants, only, activity_days, seed, as_json) -> None:
       stridelab bench violations --json
       stridelab bench violations -n 1 --scenario baseline --scenario strap_slip --activity-days 0
     """
-    from validation.simulator import SCENARIOS
+    from stridelab.validation.simulator import SCENARIOS
     names = list(only) or list(SCENARIOS)
     bad = [n for n in names if n not in SCENARIOS]
     if bad:
-        from pipeline.console import UserError
+        from stridelab.pipeline.console import UserError
         raise UserError(f"unknown scenario {bad[0]!r}; choose from {', '.join(SCENARIOS)}")
     out = {"participants": participants, "seed": seed, "event_tolerance_s": EVENT_TOL_S, "scenarios": {}}
     with progress(not as_json or err_console.is_terminal) as pb:

@@ -3,7 +3,7 @@
 Public API
 ----------
 ``simulate_study(manifest, *, seed=None, participants=None)``
-    Iterator of ``validation.simulator.Recording`` (field for field the recording layout the format writers read), one at a time (never more than one 24 h day in
+    Iterator of ``stridelab.validation.simulator.Recording`` (field for field the recording layout the format writers read), one at a time (never more than one 24 h day in
     memory): per participant and visit of the programme (``[study] visits``) the lab session (calibration
     trial, then the walking trials), then the free-living chest day after it.
 ``simulate_lab_session(manifest, participant, index, *, seed=None, sensor_model=None)``
@@ -35,7 +35,7 @@ from typing import Iterator
 import numpy as np
 
 from ._records import Recording
-from studies.manifest import ParticipantSpec, StudyManifest, load_manifest
+from stridelab.studies.manifest import ParticipantSpec, StudyManifest, load_manifest
 
 from ._chest_day import ChestDayTruth, simulate_chest_day
 from ._lab import LabTrialTruth, simulate_lab_session

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._records import ImuData, Recording
-from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
+from stridelab.studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._kinematics import bump, heading_frame, rot_x, rot_y, rot_z, smoothstep
 from ._lab import LOWER_BACK_MOUNT, local_to_utc_ns

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from studies.manifest import ParticipantSpec
+from stridelab.studies.manifest import ParticipantSpec
 
 
 @dataclass(frozen=True)

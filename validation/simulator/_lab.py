@@ -10,7 +10,7 @@ import numpy as np
 from ._jcs_truth import jcs_angles_deg
 from ._records import ImuData, PoseData, RangeData, Recording
 from ._rotations import quat_from_matrix
-from studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
+from stridelab.studies.manifest import ParticipantSpec, SensorModelSpec, StudyManifest
 
 from ._gait_patterns import BodyGeometry, GaitParams, body_geometry, gait_params
 from ._kinematics import SEGMENTS, SIDES, HipWindow, LowerBodyModel, TrialPlan, WalkPath, rot_z, smoothstep
@@ -94,7 +94,7 @@ def range_geometry(geo: BodyGeometry) -> dict[str, tuple[np.ndarray, np.ndarray]
 
 def joint_angles_deg(R_prox, R_dist, side: str, joint: str) -> np.ndarray:
     """ISB/Grood & Suntay angles (FE, AA, IE) in degrees with the clinical signs of spec §5.3
-    (:func:`validation.simulator._jcs_truth.jcs_angles_deg`, the simulator's own JCS)."""
+    (:func:`stridelab.validation.simulator._jcs_truth.jcs_angles_deg`, the simulator's own JCS)."""
     return jcs_angles_deg(R_prox, R_dist, joint=joint, side=side)
 
 
@@ -462,7 +462,7 @@ def simulate_lab_session(manifest: StudyManifest, participant: ParticipantSpec, 
     index days + (session − 1) · visit_interval_days, trials from lab_start_local on; visit ``session`` of a
     programme simulates :meth:`ParticipantSpec.at_visit`). ``sensor_model`` overrides the manifest's (e.g.
     ``SensorModelSpec.ideal()`` for noise-free signals); ``violations`` puts the session beyond the methods'
-    assumptions (:mod:`validation.simulator.violations`; None = none)."""
+    assumptions (:mod:`stridelab.validation.simulator.violations`; None = none)."""
     vio = violations or Violations()
     spec = sensor_model or manifest.sensor_model
     seed = manifest.seed if seed is None else int(seed)

@@ -1,5 +1,5 @@
 """What the simulator emits: one recording as plain arrays, field for field the recording layout the format
-writers read (``pipeline.formats.mcap_write``; DESIGN.md "Recording format"). Defined here so the simulator
+writers read (``stridelab.pipeline.formats.mcap_write``; DESIGN.md "Recording format"). Defined here so the simulator
 depends on no estimator code; ``tests/validation/test_simulator_independence.py`` checks the fields agree with
 the layout of the numerical layer. Units: time int64 ns (UTC, sensor clock), acc m/s², gyr rad/s, mag µT, m,
 quaternions ``[w, x, y, z]`` segment/sensor frame -> ENU.

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._rotations import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix
-from studies.manifest import SensorModelSpec
+from stridelab.studies.manifest import SensorModelSpec
 
 G = 9.81
 FD_STEP_S = 2.5e-4

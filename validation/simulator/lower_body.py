@@ -5,7 +5,7 @@ east) is driven by known clinical joint angles through the simulator's own JCS (
 IMUs sit on the segments with known mounting rotations ``R_sensor_af``; angular velocity is the body
 rate of the sensor orientation and specific force the rotated second derivative of the sensor
 position plus gravity. Used by the unit tests and as a fallback scene of ``stridelab bench
-calibration``; the platform study simulator (``validation.simulator``) is the primary benchmark scene.
+calibration``; the platform study simulator (``stridelab.validation.simulator``) is the primary benchmark scene.
 """
 from __future__ import annotations
 

@@ -9,9 +9,9 @@ from zoneinfo import ZoneInfo
 import numpy as np
 import pytest
 
-from estimators.activity import (CLASSES, PRESETS, ActivityParams, chest_height_change_m, classify_day,
+from stridelab.estimators.activity import (CLASSES, PRESETS, ActivityParams, chest_height_change_m, classify_day,
                                  cumulative_svm_sign, daily_summaries, ga_filter_sos, inclination_deg, vertical_acc_g)
-from estimators.activity._types import LEVEL
+from stridelab.estimators.activity._types import LEVEL
 from tests.conftest import PROJECT_ROOT, shared_data
 
 G = 9.80665
@@ -233,7 +233,7 @@ def test_params_documented_and_stampable():
 
 
 def test_autocalibration_recovers_gain_and_offset():
-    from estimators.activity import autocalibrate
+    from stridelab.estimators.activity import autocalibrate
     rng = np.random.default_rng(3)
     dirs = rng.normal(size=(60, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
@@ -251,7 +251,7 @@ def test_autocalibration_recovers_gain_and_offset():
 def test_uci_bench_runs_on_real_data(tmp_path):
     """Three real participants (links, not copies) of the default's training set: the default is scored by
     nested LOPO outer folds among them (never by the shipped model, which has seen them)."""
-    from validation.bench.activity import run_benchmark
+    from stridelab.validation.bench.activity import run_benchmark
     d = shared_data("uci_chest")
     for q in ("1", "2", "3"):
         (tmp_path / f"{q}.csv").symlink_to(d / f"{q}.csv")
@@ -270,8 +270,8 @@ def test_uci_bench_runs_on_real_data(tmp_path):
 
 @pytest.mark.slow
 def test_simulated_day_agreement_and_steps():
-    from studies.manifest import load_manifest
-    from validation.simulator import simulate_chest_day, study_participants
+    from stridelab.studies.manifest import load_manifest
+    from stridelab.validation.simulator import simulate_chest_day, study_participants
     m = load_manifest(None)
     p = study_participants(m, 1)[0]
     rec, _ = simulate_chest_day(m, p, 0)
@@ -279,7 +279,7 @@ def test_simulated_day_agreement_and_steps():
     t0 = int(imu.t_ns[0])
     r = classify_day(imu.acc, sampling_rate_hz=m.sampling_rate_hz, t0_ns=t0, timezone=m.timezone,
                      params=ActivityParams(thigh_length_m=float(rec.metadata["thigh_length_m"])))
-    from validation.bench.activity import reference_seconds
+    from stridelab.validation.bench.activity import reference_seconds
     ref, steps_ref = reference_seconds(rec.events, t0, r.second_class.size)
     scored = ref >= 0                               # "transition" seconds are not scored
     assert (r.second_class[scored] == ref[scored]).mean() >= 0.95
@@ -349,8 +349,8 @@ def test_sequence_check_keeps_consistent_days_and_bows():
 def test_dy_from_norm_is_lag_free():
     """ΔY (Eq. 56) from ‖a‖ recovers a 0.40 m sit-to-stand within 10 % over the θ-minima window, better than the
     projection on the lagging causal GA direction (the window and the lean are those of the synthetic SiSt)."""
-    from estimators.activity._detect import _window_dy
-    from estimators.activity._signals import gravitational_component
+    from stridelab.estimators.activity._detect import _window_dy
+    from stridelab.estimators.activity._signals import gravitational_component
     a = np.vstack([_posture(10, 300), _sit_stand(+1, lean_start=10, lean_end=5), _posture(5, 300)]) / G
     ga = gravitational_component(a, FS)
     i0, i1 = 300, 500
@@ -363,7 +363,7 @@ def test_dy_from_norm_is_lag_free():
 def test_bench_reference_seconds_and_no_uci_shape():
     """Per-second reference of the simulated-day bench: whole seconds inside each labelled interval,
     transitions unscored, scripted steps summed; the UCI part can be skipped without breaking the JSON keys."""
-    from validation.bench.activity import reference_seconds, run_benchmark
+    from stridelab.validation.bench.activity import reference_seconds, run_benchmark
     s = 1_000_000_000
     ev = [{"t_ns": 0, "end_ns": 3 * s, "label": "sitting"},
           {"t_ns": 3 * s, "end_ns": int(5.5 * s), "label": "transition"},
@@ -400,8 +400,8 @@ def test_sequence_check_uses_reclined_trunk_as_sitting_evidence():
 def test_resolve_sitstand_lean_evidence_without_any_candidate():
     """No excursion candidate at all, walking before and after a 10-min reclined (30°) still period: the lean
     run's onset and end become StSi / SiSt."""
-    from estimators.activity._timeline import resolve_sitstand
-    from estimators.activity._types import Bouts, Transitions
+    from stridelab.estimators.activity._timeline import resolve_sitstand
+    from stridelab.estimators.activity._types import Bouts, Transitions
     z = np.zeros(0)
     empty = Transitions(z, np.zeros(0, np.int8), z, z, z)
     bouts = Bouts(np.array([0.0, 720.0]), np.array([60.0, 780.0]), np.array([60, 60]), np.zeros(2, np.int8),
@@ -442,7 +442,7 @@ def test_overwrite_input_gives_the_same_result_and_reuses_the_array():
     """``overwrite_input=True`` (the stage's memory saving) changes where the calibrated signal lives, not the
     result; without it the caller's samples stay untouched. Also through the window model, whose posterior
     must be computed before the rules overwrite the samples."""
-    from pipeline.activity_model import classify_recording
+    from stridelab.pipeline.activity_model import classify_recording
     p = ActivityParams(thigh_length_m=0.45)
     acc = _day([_posture(5, 3000), _walk(20), _posture(5, 3000), _sit_stand(-1), _posture(10, 6000),
                 _sit_stand(+1, lean_start=10, lean_end=10), _posture(10, 3000), _walk(20), _posture(5, 2000)])

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from estimators.activity._resample import resample_poly_axis0
+from stridelab.estimators.activity._resample import resample_poly_axis0
 from tests.conftest import shared_data
 
 RATIOS = [(13, 50), (1, 2), (2, 1), (3, 7), (26, 100)]
@@ -37,7 +37,7 @@ def test_zeros_and_signed_zeros_as_scipy():
 
 @pytest.mark.realdata
 def test_identical_to_scipy_on_a_real_chest_recording():
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     p = load_uci_participant(shared_data("uci_chest") / "1.csv")
     x = p.acc[:300_000] / 9.80665
     for up, down in ((1, 2), (13, 50)):

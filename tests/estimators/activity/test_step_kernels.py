@@ -7,9 +7,9 @@ import pytest
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
-from estimators.activity import PRESETS
-from estimators.activity import _detect as D
-from estimators.activity._kernels import prominent_peaks, step_threshold_kernel
+from stridelab.estimators.activity import PRESETS
+from stridelab.estimators.activity import _detect as D
+from stridelab.estimators.activity._kernels import prominent_peaks, step_threshold_kernel
 from tests.conftest import shared_data
 
 FS = 100.0
@@ -65,8 +65,8 @@ def test_detected_steps_are_find_peaks_with_prominence():
 
 @pytest.mark.realdata
 def test_detected_steps_on_a_real_chest_recording():
-    from estimators.activity import gravitational_component
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.estimators.activity import gravitational_component
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     rec = load_uci_participant(shared_data("uci_chest") / "1.csv")
     fs = rec.sampling_rate_hz
     acc_g = rec.acc[:150_000] / 9.80665

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from estimators.activity import _window_kernels as WK
-from estimators.activity import windows as W
-from estimators.activity._signals import autocalibrate
+from stridelab.estimators.activity import _window_kernels as WK
+from stridelab.estimators.activity import windows as W
+from stridelab.estimators.activity._signals import autocalibrate
 from tests.conftest import shared_data
 
 G = 9.80665
@@ -144,8 +144,8 @@ def test_calibrated_g_without_still_windows_and_short():
 @pytest.mark.realdata
 def test_identical_on_a_real_chest_recording():
     """UCI chest participant 1 at the model's rate: calibration and every kernel moment as NumPy's."""
-    from estimators.activity.window_model import RATE_HZ, WINDOW_S, resample_to_model_rate
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.estimators.activity.window_model import RATE_HZ, WINDOW_S, resample_to_model_rate
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     p = load_uci_participant(shared_data("uci_chest") / "1.csv")
     acc = resample_to_model_rate(p.acc, p.sampling_rate_hz)
     a, status = W.calibrated_g(acc, RATE_HZ)

@@ -1,11 +1,11 @@
-"""Window-model refinement of the rule timeline (estimators.activity.window_model) and the shipped model."""
+"""Window-model refinement of the rule timeline (stridelab.estimators.activity.window_model) and the shipped model."""
 import json
 
 import numpy as np
 import pytest
 
-from estimators.activity._types import DOWN, LEVEL, LYING, NON_WEAR, SITTING, STANDING, UP
-from estimators.activity.window_model import FEATURE_SETS, WindowModel, merge_window_posterior
+from stridelab.estimators.activity._types import DOWN, LEVEL, LYING, NON_WEAR, SITTING, STANDING, UP
+from stridelab.estimators.activity.window_model import FEATURE_SETS, WindowModel, merge_window_posterior
 from tests.conftest import shared_data
 
 
@@ -106,7 +106,7 @@ def test_model_file_roundtrip_shape_check_and_clipping():
 
 
 def test_missing_model_file_is_one_clear_line(tmp_path):
-    from pipeline.activity_model import load_model
+    from stridelab.pipeline.activity_model import load_model
     with pytest.raises(ValueError, match="not a window-model file.*--fit-model"):
         load_model(tmp_path / "nope.json")
 
@@ -115,9 +115,9 @@ def test_missing_model_file_is_one_clear_line(tmp_path):
 def test_shipped_model_is_reproduced_by_refitting_its_design_on_its_participants():
     """The shipped file is what the documented fit gives: the final design refitted on the same UCI
     participants (deterministic newton-cg) reproduces its coefficients."""
-    from pipeline.activity_model import design_x, fit_model, load_model, raw_features
-    from validation.bench.activity import WINDOW_S, window_labels
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.pipeline.activity_model import design_x, fit_model, load_model, raw_features
+    from stridelab.validation.bench.activity import WINDOW_S, window_labels
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     d = shared_data("uci_chest")
     shipped = load_model()
     assert shipped.trained_on == tuple(str(k) for k in range(1, 9))

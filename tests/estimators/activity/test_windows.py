@@ -1,10 +1,10 @@
-"""Window features of the learned chest-activity classifier (estimators.activity.windows) and its LOSO bench."""
+"""Window features of the learned chest-activity classifier (stridelab.estimators.activity.windows) and its LOSO bench."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from estimators.activity.windows import (FEATURE_NAMES, add_context, gait_windows, lean_deg, posture_clusters,
+from stridelab.estimators.activity.windows import (FEATURE_NAMES, add_context, gait_windows, lean_deg, posture_clusters,
                                          window_features)
 from tests.conftest import shared_data
 
@@ -89,8 +89,8 @@ def test_input_checks():
 
 @pytest.mark.realdata
 def test_learned_loso_on_two_uci_participants():
-    from validation.bench.activity import LEARNED, learned_loso
-    from pipeline.formats.uci_chest import load_uci_participant
+    from stridelab.validation.bench.activity import LEARNED, learned_loso
+    from stridelab.pipeline.formats.uci_chest import load_uci_participant
     d = shared_data("uci_chest")
     parts = [load_uci_participant(d / "1.csv"), load_uci_participant(d / "2.csv")]
     out = learned_loso(parts)
@@ -103,7 +103,7 @@ def test_learned_loso_on_two_uci_participants():
 
 
 def test_moving_fraction_separates_still_from_walking_seconds():
-    from estimators.activity.windows import moving_fraction
+    from stridelab.estimators.activity.windows import moving_fraction
     acc = np.vstack([_still(3.0, 100, 4), _walk(100), _still(3.0, 5, 5), _walk(5), _still(3.0, 90, 6)])
     mf = moving_fraction(acc, FS, 10.0, gait_level_g=0.25)
     assert mf.shape == (acc.shape[0] // 520,)
@@ -116,8 +116,8 @@ def test_moving_fraction_separates_still_from_walking_seconds():
 def test_label_consistency_counts_windows_the_signal_contradicts():
     """Walking labelled over a still stretch and standing labelled over walking are counted; the ceiling is the
     mean consistent fraction per class, not a fitted figure."""
-    from validation.bench.activity import label_consistency
-    from pipeline.formats.uci_chest import UciParticipant
+    from stridelab.validation.bench.activity import label_consistency
+    from stridelab.pipeline.formats.uci_chest import UciParticipant
     acc = np.vstack([_still(20.0, 200, 1), _still(3.0, 100, 2), _walk(200), _still(3.0, 100, 3)])
     lab = np.concatenate([np.full(200 * 52, 1), np.full(100 * 52, 3), np.full(200 * 52, 4), np.full(100 * 52, 3)])
     lab[300 * 52:350 * 52] = 3           # the first 50 s of walking labelled standing (5 windows)
@@ -133,7 +133,7 @@ def test_label_consistency_counts_windows_the_signal_contradicts():
 def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
     import numpy as np
     import pytest
-    from estimators.activity.evaluation import window_confusion, window_samples
+    from stridelab.estimators.activity.evaluation import window_confusion, window_samples
     rng = np.random.default_rng(3)
     fs, n = 50.0, 400_000
     second_class = rng.integers(0, 7, size=int(n / fs) + 1)
@@ -151,7 +151,7 @@ def test_window_confusion_of_consecutive_slices_adds_up_to_the_whole():
 
 def _literal_window_confusion(second_class, labels, fs, code_to_class, first_sample=0):
     """The scorer's definition written window by window (as it was before the numba kernel)."""
-    from estimators.activity.evaluation import CLASS_MAP, window_samples
+    from stridelab.estimators.activity.evaluation import CLASS_MAP, window_samples
     n, w = labels.shape[0], window_samples(fs)
     sec = np.minimum((np.arange(first_sample, first_sample + n) / fs).astype(np.int64), second_class.shape[0] - 1)
     C = np.zeros((4, 4), dtype=np.int64)
@@ -166,7 +166,7 @@ def _literal_window_confusion(second_class, labels, fs, code_to_class, first_sam
 def test_window_confusion_equals_its_window_by_window_definition():
     """Label runs starting and ending inside windows, unscored codes, a partial last window, seconds past the
     prediction's end, ties in the vote (constant-class runs of 5 s over 10-s windows), slices."""
-    from estimators.activity.evaluation import window_confusion, window_samples
+    from stridelab.estimators.activity.evaluation import window_confusion, window_samples
     rng = np.random.default_rng(0)
     for t in range(200):
         fs = float(rng.choice([20.0, 26.0, 50.0, 100.0, 12.5]))
@@ -188,7 +188,7 @@ def test_periodogram_and_regularity_match_their_reference_definitions():
     detrends, even and odd nfft) and the regularity kernel equals the direct normalised autocorrelation,
     including out-of-range lags."""
     from scipy import signal as sg
-    from estimators.activity.windows import _acf_at, _band_spectrum
+    from stridelab.estimators.activity.windows import _acf_at, _band_spectrum
     rng = np.random.default_rng(3)
     v = rng.standard_normal((40, 260)) + np.linspace(0, 2, 260) + np.sin(2 * np.pi * 1.7 * np.arange(260) / 26.0)
     bands = [(0.1, 0.5), (0.5, 1.4), (1.4, 2.4), (2.4, 6.0), (0.3, 6.0), (0.0, 13.1)]

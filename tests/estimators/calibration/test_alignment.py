@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from estimators.calibration import (body_rate_from_quat, constant_offset_rotation, helical_angle_deg,
+from stridelab.estimators.calibration import (body_rate_from_quat, constant_offset_rotation, helical_angle_deg,
                                     imu_to_cluster_rotation, sync_by_angular_rate)
-from validation.simulator.lower_body import random_mounts, walking_trial
-from estimators.quaternion import quat_from_matrix, quat_mul
+from stridelab.validation.simulator.lower_body import random_mounts, walking_trial
+from stridelab.estimators.quaternion import quat_from_matrix, quat_mul
 
 FS = 100.0
 

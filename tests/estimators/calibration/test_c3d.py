@@ -4,7 +4,7 @@ import pytest
 
 ezc3d = pytest.importorskip("ezc3d")
 
-from pipeline.formats.c3d import C3DFormatError, cluster_orientation, read_c3d_markers  # noqa: E402
+from stridelab.pipeline.formats.c3d import C3DFormatError, cluster_orientation, read_c3d_markers  # noqa: E402
 
 
 def _write(path, xyz_mm, labels, rate, missing=None):

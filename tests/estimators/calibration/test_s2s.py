@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from estimators.calibration import (CalibrationError, calibrate_imu, heading_calibration, helical_angle_deg,
+from stridelab.estimators.calibration import (CalibrationError, calibrate_imu, heading_calibration, helical_angle_deg,
                                     vertical_calibration)
-from validation.simulator.lower_body import random_mounts
+from stridelab.validation.simulator.lower_body import random_mounts
 
 G = 9.81
 

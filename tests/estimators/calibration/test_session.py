@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from estimators.calibration import (CalibrationParams, CalibrationWindows, calibrate_session,
+from stridelab.estimators.calibration import (CalibrationParams, CalibrationWindows, calibrate_session,
                                     detect_calibration_windows, helical_angle_deg)
-from validation.simulator.lower_body import calibration_trial, random_mounts
+from stridelab.validation.simulator.lower_body import calibration_trial, random_mounts
 
 FS = 100.0
 

@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from estimators.calibration import (CalibrationParams, CalibrationWindows, calibrate_session, count_cycles,
+from stridelab.estimators.calibration import (CalibrationParams, CalibrationWindows, calibrate_session, count_cycles,
                                     helical_angle_deg)
-from estimators.quaternion import quat_to_matrix
+from stridelab.estimators.quaternion import quat_to_matrix
 
 pytestmark = pytest.mark.slow
 
@@ -17,13 +17,13 @@ LEGS = ("thigh_left", "thigh_right", "shank_left", "shank_right")
 
 
 def _manifest(**lab):
-    from studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     m = load_manifest(DEFAULT_MANIFEST)
     return replace(m, lab=replace(m.lab, walking_trials=0, distance_sensors=False, optical_reference=False, **lab))
 
 
 def _calibration_trial(m, index):
-    from validation.simulator import simulate_lab_session, study_participants
+    from stridelab.validation.simulator import simulate_lab_session, study_participants
     person = study_participants(m, index + 1)[index]
     rec, truth = next(simulate_lab_session(m, person, index))
     acc = {p: d.acc for p, d in rec.imu.items()}

@@ -1,4 +1,4 @@
-"""Between-session MDC95 of a change (estimators.gait.clinical.change_mdc95): repeated baselines, published values,
+"""Between-session MDC95 of a change (stridelab.estimators.gait.clinical.change_mdc95): repeated baselines, published values,
 nothing otherwise; never the within-session SEM."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from estimators.gait.clinical import PUBLISHED_MDC95, change_mdc95, repeated_baseline_sem
+from stridelab.estimators.gait.clinical import PUBLISHED_MDC95, change_mdc95, repeated_baseline_sem
 
 
 def test_repeated_baselines_pooled_within_participant_sd():

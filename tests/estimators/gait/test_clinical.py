@@ -1,4 +1,4 @@
-"""Clinical measures (estimators.gait.clinical) on hand-made event sequences whose answers are known by
+"""Clinical measures (stridelab.estimators.gait.clinical) on hand-made event sequences whose answers are known by
 construction: asymmetric step times, missing contralateral events, turns, unknown paretic side, feet in their own
 rotated frames."""
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.gait.clinical import (ClinicalParams, FootEvents, FootStrides, clinical_summary, common_walking_frame,
+from stridelab.estimators.gait.clinical import (ClinicalParams, FootEvents, FootStrides, clinical_summary, common_walking_frame,
                                       mdc95, step_phases)
 
 

@@ -1,8 +1,8 @@
-"""estimators.gait.evaluation.event_accuracy: spans and unscored spans (the scorer of the gait stage and bench)."""
+"""stridelab.estimators.gait.evaluation.event_accuracy: spans and unscored spans (the scorer of the gait stage and bench)."""
 import numpy as np
 import pytest
 
-from estimators.gait.evaluation import event_accuracy
+from stridelab.estimators.gait.evaluation import event_accuracy
 
 
 def test_unscored_spans_move_unmatched_detections_out_of_the_false_positives():

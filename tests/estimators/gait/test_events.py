@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from estimators.gait import GaitEventDetector, IcTcParams, detect_ic_tc, pitch_signal
-from estimators.gait.evaluation import match_events, match_strides
-from estimators.quaternion import quat_from_axis_angle, quat_mul
+from stridelab.estimators.gait import GaitEventDetector, IcTcParams, detect_ic_tc, pitch_signal
+from stridelab.estimators.gait.evaluation import match_events, match_strides
+from stridelab.estimators.quaternion import quat_from_axis_angle, quat_mul
 
 FS = 100.0
 
@@ -168,7 +168,7 @@ def _push_off_gyr(n, tc, dec_len, fs, axis):
 
 
 def test_refine_toe_off_finds_the_onset_of_the_plantarflexion_deceleration():
-    from estimators.gait import refine_toe_off
+    from stridelab.estimators.gait import refine_toe_off
     fs = 200.0
     axis = np.array([0.3, 0.9, 0.1])
     axis /= np.linalg.norm(axis)
@@ -190,8 +190,8 @@ def test_refine_toe_off_finds_the_onset_of_the_plantarflexion_deceleration():
 def test_foot_kinematics_toe_off_refinement_is_optional_and_only_moves_tcs_earlier():
     from dataclasses import replace
 
-    from estimators.gait import FootParams, foot_kinematics
-    from validation.simulator.foot_walk_yun import simulate_yun_walk
+    from stridelab.estimators.gait import FootParams, foot_kinematics
+    from stridelab.validation.simulator.foot_walk_yun import simulate_yun_walk
     sim = simulate_yun_walk(12, noise_scale=1.0, seed=3, sampling_rate_hz=100)
     plain = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100, params=replace(FootParams(), toe_off_refine=False))
     ref = foot_kinematics(sim.gyr, sim.acc, sampling_rate_hz=100)

@@ -9,7 +9,7 @@ from tests.conftest import shared_data
 
 @pytest.mark.realdata
 def test_bench_gait_on_gaitmap_example():
-    from validation.bench.gait import run_benchmark
+    from stridelab.validation.bench.gait import run_benchmark
     res = run_benchmark(shared_data("gaitmap_example"), show_progress=False, speed=False)
     for k in ("stride_length_mae_m", "ic_timing_mae_ms", "tc_timing_mae_ms", "ic_sensitivity", "ic_precision",
               "tc_sensitivity", "tc_precision"):
@@ -33,12 +33,12 @@ def test_bench_gait_on_gaitmap_example():
 
 
 def _foot(markers, strides):
-    from pipeline.formats.gaitmap import GaitmapFoot
+    from stridelab.pipeline.formats.gaitmap import GaitmapFoot
     return GaitmapFoot(side="left", gyr=np.zeros((1, 3)), acc=np.zeros((1, 3)), markers=markers, strides=strides)
 
 
 def test_unannotated_spans_only_where_the_foot_stands_still_in_a_reference_swing():
-    from validation.bench.gait import unannotated_spans
+    from stridelab.validation.bench.gait import unannotated_spans
     fs, mfs = 200.0, 100.0
     t = np.arange(600) / mfs
     # heel and toe move forward at 1 m/s except a still period 2.0-2.5 s (inside the 2nd reference swing)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.gait import FootParams, foot_kinematics, refine_heel_strike
+from stridelab.estimators.gait import FootParams, foot_kinematics, refine_heel_strike
 from tests.conftest import shared_data
 
 
@@ -38,8 +38,8 @@ def test_voisard_trial_ic_bias_of_the_pitch_maximum_is_removed():
     the ICs are early by more than 20 ms on average (the definition gap of issue 43); the shipped defaults cut the
     bias by more than half and lower the MAE. In-sample for H1's fraction (chosen by leave-one-subject-out over these
     subjects); the figures against the target are the bench's."""
-    from estimators.gait.evaluation import event_accuracy
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.estimators.gait.evaluation import event_accuracy
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     tr = load_voisard_trial(shared_data("voisard_gait"), "4-2")
     a = tr.annotation
     fs = tr.left.sampling_rate_hz
@@ -64,8 +64,8 @@ def test_voisard_trial_ic_bias_of_the_pitch_maximum_is_removed():
 def test_refine_events_equals_foot_kinematics(toe_off, heel, min_step):
     """The bench scores its grid with ``refine_events`` on one unrefined run: it must give exactly the events
     ``foot_kinematics`` gives with the same parameters (gaitmap walk, left foot)."""
-    from estimators.gait import refine_events
-    from pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.estimators.gait import refine_events
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
     ex = load_gaitmap_example(shared_data("gaitmap_example"))
     f, fs = ex.left, ex.sampling_rate_hz
     params = FootParams(toe_off_refine=toe_off is not None, toe_off_onset_fraction=toe_off or 0.2,
@@ -91,8 +91,8 @@ def test_weak_push_off_step_is_added_and_ordinary_strides_are_not_touched():
     """(R5) Voisard 1-1 right foot in miniature: a weight shift Algorithm 1 took for a step (TC 40, IC 80 at
     s = 0.05), then the first real step whose push-off only reaches s = −0.03 (> T = −0.1, so no TC, and strict
     alternation blocks its heel strike at s = 0.3), then stance and an ordinary push-off (TC 300)."""
-    from estimators.gait import GaitEvents, IcTcParams
-    from estimators.gait._kinematics import _weak_push_off_steps
+    from stridelab.estimators.gait import GaitEvents, IcTcParams
+    from stridelab.estimators.gait._kinematics import _weak_push_off_steps
     fs = 100.0
     s = _pitch([(0, 0), (40, -0.15), (80, 0.05), (120, -0.03), (160, 0.3), (200, 0.0), (260, 0.0), (300, -0.4),
                 (340, 0.3), (399, 0.0)])

@@ -9,8 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
-from estimators.gait import FootParams, GaitEvents, IcTcParams, foot_kinematics
-from estimators.gait._kinematics import drop_in_place_steps
+from stridelab.estimators.gait import FootParams, GaitEvents, IcTcParams, foot_kinematics
+from stridelab.estimators.gait._kinematics import drop_in_place_steps
 from tests.conftest import shared_data
 
 
@@ -46,7 +46,7 @@ def test_voisard_pre_step_lift_is_not_an_initial_contact():
     """Voisard 4-4, right foot: before the first annotated toe-off (503) the foot is lifted and put back (TC ≈ 401,
     IC ≈ 444 in place). Without R6 that IC lies inside the trial (it starts at 444) and is a false IC; with the
     shipped defaults it is gone, and every annotated IC is still found within ±0.1 s."""
-    from pipeline.formats.xsens_mt import load_voisard_dir
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_dir
     src = shared_data("voisard_gait")
     tr = [t for t in load_voisard_dir(src, skipped=[]) if t.name == "4-4"][0]
     a, fs = tr.annotation, tr.right.sampling_rate_hz

@@ -8,8 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from estimators.gait import FootParams, GaitEvents, IcTcParams, foot_kinematics
-from estimators.gait._kinematics import _after_last, _refine_tcs
+from stridelab.estimators.gait import FootParams, GaitEvents, IcTcParams, foot_kinematics
+from stridelab.estimators.gait._kinematics import _after_last, _refine_tcs
 from tests.conftest import shared_data
 
 
@@ -54,7 +54,7 @@ def test_toe_off_refinement_on_any_event_sequence(ic, tc):
 def test_recording_cut_mid_stride_anywhere():
     """The gaitmap walk cut at ten points over one stride at both ends: no crash, and every stride it reports is
     complete (TC then IC between two mid-stances inside the cut)."""
-    from pipeline.formats.gaitmap import load_gaitmap_example
+    from stridelab.pipeline.formats.gaitmap import load_gaitmap_example
     ex = load_gaitmap_example(shared_data("gaitmap_example"))
     foot, fs = ex.left, ex.sampling_rate_hz
     first = int(foot.strides[1, 0])
@@ -76,7 +76,7 @@ def test_recording_cut_mid_stride_anywhere():
     ([], []),
 ])
 def test_heel_strike_refinement_on_any_event_sequence(ic, tc):
-    from estimators.gait._kinematics import _refine_ics
+    from stridelab.estimators.gait._kinematics import _refine_ics
     gyr, traj, mids, fs = _fake_foot()
     ic, tc = np.array(ic, np.int64), np.array(tc, np.int64)
     s = -np.cos(2 * np.pi * np.arange(len(gyr)) / fs)       # any pitch signal: falls after some ICs, not others

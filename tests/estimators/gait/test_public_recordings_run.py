@@ -12,7 +12,7 @@ import pytest
 
 from tests.conftest import shared_data
 
-STRIDELAB = [sys.executable, "-m", "pipeline"]
+STRIDELAB = [sys.executable, "-m", "stridelab"]
 
 
 def _cli(*args):
@@ -37,7 +37,7 @@ def test_every_development_recording_imports_and_runs_without_a_failed_stage(tmp
     assert summary["failed"] == [], summary["failed"]
     assert r.returncode == 0, r.stderr[-2000:]
     assert summary["ingested"] == len(imported["written"]) and not summary["quarantined"]
-    from warehouse.read import connect_snapshot
+    from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(wh)
     runs = dict(con.execute("SELECT status, count(*) FROM stage_runs GROUP BY 1").fetchall())
     assert set(runs) <= {"ok", "skipped"} and runs.get("ok", 0) > 0, runs

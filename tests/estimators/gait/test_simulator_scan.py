@@ -11,7 +11,7 @@ import pytest
 
 @pytest.mark.slow
 def test_simulator_scan_strides_are_accurate_and_c_a_is_neutral_without_impacts():
-    from validation.bench.gait import simulator_scan
+    from stridelab.validation.bench.gait import simulator_scan
     r = simulator_scan(participants=1, acc_noise_rel=(0.0, 0.3))["by_acc_noise_rel"]
     assert r["0.3"]["strides"] > 40 and r["0.0"]["strides"] == r["0.3"]["strides"]
     assert r["0.0"]["stride_length_mae_m"] < 0.02 and r["0.3"]["stride_length_mae_m"] < 0.02

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.gait import IcTcParams, detect_ic_tc
-from estimators.gait._swing import complete_swing_events, swing_runs
+from stridelab.estimators.gait import IcTcParams, detect_ic_tc
+from stridelab.estimators.gait._swing import complete_swing_events, swing_runs
 
 FS = 100.0
 
@@ -95,9 +95,9 @@ def test_foot_kinematics_keeps_the_simulated_paretic_strides(severity):
     """On the issue-18 simulator (subject 150: neither a bench nor a held-out subject): strides found with TC and IC
     within 0.1 s; the first stride out of 3 s standing is kept (K2b) except on the severe paretic foot, whose first
     step (a flat lift, a pause in the air before a near-flat landing) is a known miss."""
-    from estimators.gait import foot_kinematics
-    from estimators.gait.evaluation import match_strides
-    from validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
+    from stridelab.estimators.gait import foot_kinematics
+    from stridelab.estimators.gait.evaluation import match_strides
+    from stridelab.validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
     tr = simulate_hemiparetic_trial(severity, 150, strides=8)
     for f in tr.feet.values():
         fk = foot_kinematics(f.gyr, f.acc, sampling_rate_hz=tr.rate_hz)
@@ -111,8 +111,8 @@ def test_foot_kinematics_keeps_the_simulated_paretic_strides(severity):
 def test_first_stride_after_long_standing_is_kept():
     """K2b: 7 s of quiet standing before the walk; the first stride (no previous IC) is timed from leaving that
     stance, not from its mid-stance, which may lie > 3 s before the next one (the old rule dropped it)."""
-    from estimators.gait import foot_kinematics
-    from validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
+    from stridelab.estimators.gait import foot_kinematics
+    from stridelab.validation.simulator.hemiparetic_gait import simulate_hemiparetic_trial
     tr = simulate_hemiparetic_trial("moderate", 151, strides=6)
     f = tr.feet[tr.paretic_side]
     n = int(4 * tr.rate_hz)

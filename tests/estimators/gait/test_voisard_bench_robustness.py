@@ -12,7 +12,7 @@ from tests.conftest import shared_data
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_voisard_bench_lists_the_bad_trial_and_scores_the_rest(tmp_path):
-    from validation.bench.gait import voisard_benchmark
+    from stridelab.validation.bench.gait import voisard_benchmark
     src = shared_data("voisard_gait")
     d = tmp_path / "voisard"
     d.mkdir()

@@ -6,10 +6,10 @@ import warnings
 import numpy as np
 import pytest
 
-from estimators.gait import foot_kinematics
-from validation.simulator.foot_walk_yun import simulate_yun_walk
-from estimators.gait._yun import yun_foot_trajectory, yun_stance_fsm, yun_zvu
-from estimators.trajectory import EskfParams, eskf_trajectory
+from stridelab.estimators.gait import foot_kinematics
+from stridelab.validation.simulator.foot_walk_yun import simulate_yun_walk
+from stridelab.estimators.gait._yun import yun_foot_trajectory, yun_stance_fsm, yun_zvu
+from stridelab.estimators.trajectory import EskfParams, eskf_trajectory
 
 
 def test_fsm_finds_every_swing_and_zvu_zero_in_stance():
@@ -26,7 +26,7 @@ def test_fsm_finds_every_swing_and_zvu_zero_in_stance():
 
 @pytest.mark.slow
 def test_yun_100_steps_noise1_under_0p1_percent_and_constant_gain():
-    from estimators.orientation import YunCFParams
+    from stridelab.estimators.orientation import YunCFParams
     errs = []
     for seed in range(3):
         sim = simulate_yun_walk(100, noise_scale=1.0, seed=seed)

@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from estimators.calibration import CalibrationParams, calibrate_session, missing_calibration
-from validation.simulator.lower_body import R_G_AF0, calibration_trial, random_mounts, walking_trial
-from estimators.joints import (angle_errors, clinical_to_matrix, compute_joint_angles, joint_angles_deg,
+from stridelab.estimators.calibration import CalibrationParams, calibrate_session, missing_calibration
+from stridelab.validation.simulator.lower_body import R_G_AF0, calibration_trial, random_mounts, walking_trial
+from stridelab.estimators.joints import (angle_errors, clinical_to_matrix, compute_joint_angles, joint_angles_deg,
                                normalise_cycles, remove_standing_offset, session_gait_curves, zxy_angles_deg,
                                zxy_matrix)
-from estimators.quaternion import quat_from_matrix
+from stridelab.estimators.quaternion import quat_from_matrix
 
 FS = 100.0
 

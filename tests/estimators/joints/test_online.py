@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.joints import JOINTS, calibrated_joint_angles_deg, joint_angles_deg
-from estimators.quaternion import quat_mul, quat_normalize
+from stridelab.estimators.joints import JOINTS, calibrated_joint_angles_deg, joint_angles_deg
+from stridelab.estimators.quaternion import quat_mul, quat_normalize
 
 
 def _rand_quat(rng, n):

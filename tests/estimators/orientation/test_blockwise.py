@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_dilation, binary_opening
 
-from estimators.orientation import dcf, dcf_offline
-from estimators.orientation._dcf import dilate, keep_long_runs
-from estimators.orientation.blockwise import blockwise
-from estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
-from estimators.quaternion import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
+from stridelab.estimators.orientation import dcf, dcf_offline
+from stridelab.estimators.orientation._dcf import dilate, keep_long_runs
+from stridelab.estimators.orientation.blockwise import blockwise
+from stridelab.estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
+from stridelab.estimators.quaternion import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from tests.estimators.orientation.test_dcf import B_ENU, G, _moving
 
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimators.orientation import (DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, DCFFilter, DCFOfflineParams, MadgwickParams, MahonyParams,
+from stridelab.estimators.orientation import (DEFAULT_OFFLINE, DEFAULT_ONLINE, ESTIMATORS, DCFFilter, DCFOfflineParams, MadgwickParams, MahonyParams,
                                     DCFParams, YunCFParams, dcf, dcf_offline)
-from estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
-from estimators.quaternion import quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_mul, quat_rotate
+from stridelab.estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
+from stridelab.estimators.quaternion import quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_mul, quat_rotate
 
 G = 9.81
 B_ENU = 48.0 * np.array([0.0, np.cos(np.radians(63.0)), -np.sin(np.radians(63.0))])
@@ -139,7 +139,7 @@ def test_registry_defaults_exist():
 def broad_trials():
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
-    from pipeline.formats.broad import load_broad
+    from stridelab.pipeline.formats.broad import load_broad
     return load_broad(BROAD)
 
 
@@ -168,7 +168,7 @@ def test_shipped_tuned_gains_are_the_defaults():
 
 
 def test_leave_trials_out_picks_on_training_folds_only():
-    from estimators.orientation.tuning import leave_trials_out
+    from stridelab.estimators.orientation.tuning import leave_trials_out
     err = np.array([[1.0, 1.0, 1.0, 1.0, 1.0, 1.0], [0.5, 2.0, 2.0, 0.5, 2.0, 2.0]])
     cv = leave_trials_out(err, ["a", "b"], n_folds=3)
     assert cv.folds == ((0, 3), (1, 4), (2, 5)) and cv.chosen_per_fold == (0, 0, 0) and cv.cv_error_deg == 1.0
@@ -179,7 +179,7 @@ def test_bench_orientation_json_format():
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
     from click.testing import CliRunner
-    from validation.bench.orientation import command
+    from stridelab.validation.bench.orientation import command
     one = sorted(BROAD.glob("*.hdf5"))[0]
     r = CliRunner().invoke(command, ["--broad", str(one), "--estimator", "dcf", "--estimator", "vqf", "--json"])
     assert r.exit_code != 0 and "at least two groups" in r.output          # one trial: no fold to hold out
@@ -208,9 +208,9 @@ def test_bench_cross_validation_holds_each_group_out():
     is the error of the candidate chosen on the *other* trials, for ours and for the tuned baselines."""
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
-    from validation.bench.orientation import candidate_grids, run_cross_validation
-    from pipeline.formats.broad import load_broad
-    from estimators.orientation.tuning import trial_groups
+    from stridelab.validation.bench.orientation import candidate_grids, run_cross_validation
+    from stridelab.pipeline.formats.broad import load_broad
+    from stridelab.estimators.orientation.tuning import trial_groups
     names = ("05_undisturbed_slow_rotation_with_breaks_B", "18_undisturbed_fast_translation_with_breaks_B",
              "24_disturbed_tapping_A")
     trials = []
@@ -236,7 +236,7 @@ def test_bench_cross_validation_holds_each_group_out():
 
 
 def test_leave_groups_out_chooses_without_the_held_out_group():
-    from estimators.orientation.tuning import leave_groups_out, trial_groups
+    from stridelab.estimators.orientation.tuning import leave_groups_out, trial_groups
     err = np.array([[1.0, 1.0, 3.0, 3.0], [2.0, 2.0, 0.5, 0.5], [0.9, 5.0, 5.0, 0.9]])
     cv = leave_groups_out(err, ["a", "b", "c"], ["g1", "g1", "g2", "g2"])
     assert cv.folds == ((0, 1), (2, 3)) and cv.chosen_per_fold == (1, 0)

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from estimators.orientation import (FullStateLKFFilter, FullStateLKFParams, RobustEKFFilter, RobustEKFParams,
+from stridelab.estimators.orientation import (FullStateLKFFilter, FullStateLKFParams, RobustEKFFilter, RobustEKFParams,
                                     full_state_lkf, full_state_lkf_literal, robust_ekf)
-from estimators.orientation._fullstate_kernel import (NX, STATE_LEN, ekf_series, f_taylor, h_jac_q, h_model,
+from stridelab.estimators.orientation._fullstate_kernel import (NX, STATE_LEN, ekf_series, f_taylor, h_jac_q, h_model,
                                                       process_jac, _level)
-from estimators.orientation.evaluation import orientation_rmse_deg
-from estimators.quaternion import quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_mul, quat_rotate
+from stridelab.estimators.orientation.evaluation import orientation_rmse_deg
+from stridelab.estimators.quaternion import quat_conj, quat_from_axis_angle, quat_from_rotvec, quat_mul, quat_rotate
 
 G = 9.81
 B_ENU = np.array([0.0, 20.0, -40.0])

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.orientation.evaluation import align_reference, orientation_rmse_deg, segment_alignment
-from estimators.quaternion import quat_from_axis_angle, quat_from_rotvec, quat_mul
+from stridelab.estimators.orientation.evaluation import align_reference, orientation_rmse_deg, segment_alignment
+from stridelab.estimators.quaternion import quat_from_axis_angle, quat_from_rotvec, quat_mul
 from tests.estimators.orientation.test_dcf import _moving
 
 
@@ -54,7 +54,7 @@ def test_a_lab_heading_far_from_the_imus_is_found(heading_deg):
 def _literal_alternation(q_est, q_ref, h, iterations, tol=1e-12):
     """The alternation written per sample (four quaternion products and a 4x4 scatter per iteration), as
     segment_alignment computed it before its sums were formed once."""
-    from estimators.quaternion import quat_conj, quat_normalize
+    from stridelab.estimators.quaternion import quat_conj, quat_normalize
 
     def mean(q):
         q = q[np.all(np.isfinite(q), axis=1)]
@@ -79,7 +79,7 @@ def _literal_alternation(q_est, q_ref, h, iterations, tol=1e-12):
 def test_sums_formed_once_equal_the_per_sample_alternation(heading_deg, iterations):
     """Same heading, mounting and residual as the alternation computed sample by sample, with NaN rows in
     either input and a 5° error that leaves a residual, from a start far from the answer."""
-    from estimators.orientation.evaluation import _alternate, _Scatter
+    from stridelab.estimators.orientation.evaluation import _alternate, _Scatter
     rng = np.random.default_rng(11)
     _, _, _, q_seg = _moving(n=2500, seed=4)
     mount = quat_from_axis_angle([0.5, 1.0, -0.2], np.radians(60.0))
@@ -103,7 +103,7 @@ def test_no_finite_pair_is_refused():
 
 
 def _scatter_case(seed: int, n: int = 400):
-    from estimators.orientation.evaluation import _Scatter
+    from stridelab.estimators.orientation.evaluation import _Scatter
     rng = np.random.default_rng(seed)
     _, _, _, q_seg = _moving(n=n, seed=seed)
     mount = quat_from_axis_angle(rng.normal(size=3), rng.uniform(0, np.pi))
@@ -116,7 +116,7 @@ def _scatter_case(seed: int, n: int = 400):
 def test_the_contraction_kernel_is_einsum_bit_for_bit():
     """``_contract`` replaces ``np.einsum("ajbk,j,k->ab", ...)`` in the alternation's inner loop: identical values
     and layout (Fortran order, as einsum returns it) on the tensors ``_Scatter`` forms."""
-    from estimators.orientation.evaluation import _contract
+    from stridelab.estimators.orientation.evaluation import _contract
     for seed in range(8):
         sc, rng = _scatter_case(seed)
         assert sc._kernel
@@ -130,7 +130,7 @@ def test_the_contraction_kernel_is_einsum_bit_for_bit():
 def test_stacked_starts_equal_one_alternation_each_bit_for_bit():
     """``segment_alignment`` runs its 12 starts together (one stacked ``eigh`` per step); each start's heading,
     mounting and cost are those of its own ``_alternate``, to the last bit, including starts that stop early."""
-    from estimators.orientation.evaluation import _alternate, _alternate_many
+    from stridelab.estimators.orientation.evaluation import _alternate, _alternate_many
     for seed in range(6):
         sc, _ = _scatter_case(seed)
         starts = [np.array([np.cos(a), 0.0, 0.0, np.sin(a)]) for a in np.pi * np.arange(12) / 12]
@@ -142,8 +142,8 @@ def test_stacked_starts_equal_one_alternation_each_bit_for_bit():
 
 def test_product_matrices_are_the_hamilton_product():
     """``_left(p) q = p ⊗ q`` and ``_right(q) p = p ⊗ q``; L(p)ᵀ = L(p*) exactly (every entry is ± a component)."""
-    from estimators.orientation.evaluation import _left, _right
-    from estimators.quaternion import quat_conj
+    from stridelab.estimators.orientation.evaluation import _left, _right
+    from stridelab.estimators.quaternion import quat_conj
     rng = np.random.default_rng(9)
     p, q = rng.normal(size=(50, 4)), rng.normal(size=(50, 4))
     ref = quat_mul(p, q)

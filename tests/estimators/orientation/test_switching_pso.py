@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from estimators.orientation import (MadgwickFilter, MadgwickParams, MahonyFilter, MahonyParams, madgwick, mahony)
-from estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
-from estimators.orientation.pso import SwarmData, SwitchingSpace, pso_minimize, swarm_errors, tune_pso
+from stridelab.estimators.orientation import (MadgwickFilter, MadgwickParams, MahonyFilter, MahonyParams, madgwick, mahony)
+from stridelab.estimators.orientation.evaluation import orientation_error_deg, orientation_rmse_deg
+from stridelab.estimators.orientation.pso import SwarmData, SwitchingSpace, pso_minimize, swarm_errors, tune_pso
 from tests.estimators.orientation.test_fullstate import simulate
 
 G = 9.81
@@ -123,8 +123,8 @@ def test_shipped_adaptive_gains_beat_fixed_gains_on_broad():
     Not asserted because it is not true: Madgwick VST1 loses to FOG in CV (3.31° vs 3.11°, docs/orientation.md)."""
     if not BROAD.is_dir():
         pytest.skip(f"BROAD data not found at {BROAD}; see DESIGN.md 'Real data'")
-    from estimators.orientation import MADGWICK_BROAD_VST2, MAHONY_BROAD_VST2
-    from pipeline.formats.broad import load_broad
+    from stridelab.estimators.orientation import MADGWICK_BROAD_VST2, MAHONY_BROAD_VST2
+    from stridelab.pipeline.formats.broad import load_broad
     tuned = json.loads(TUNED.read_text())
     trials = load_broad(BROAD)
     tup = lambda d: {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
@@ -175,8 +175,8 @@ def test_adaptive_beats_fixed_gains_on_held_out_synthetic_trials(filt):
 
 
 def test_ekf_swarm_scores_equal_the_public_filter():
-    from estimators.orientation import RobustEKFParams, robust_ekf
-    from estimators.orientation.pso import EKFSwarmData, ekf_decode, ekf_encode, ekf_swarm_errors
+    from stridelab.estimators.orientation import RobustEKFParams, robust_ekf
+    from stridelab.estimators.orientation.pso import EKFSwarmData, ekf_decode, ekf_encode, ekf_swarm_errors
     trials = _trials(k=2, n=1500)
     data = EKFSwarmData.from_trials(trials)
     x = ekf_encode(RobustEKFParams())

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.orientation import ESTIMATORS, YunCFParams, enu_to_ned, fqa, yun_cf
-from estimators.quaternion import (quat_conj, quat_from_axis_angle, quat_mul, quat_rotate, quat_to_matrix)
+from stridelab.estimators.orientation import ESTIMATORS, YunCFParams, enu_to_ned, fqa, yun_cf
+from stridelab.estimators.quaternion import (quat_conj, quat_from_axis_angle, quat_mul, quat_rotate, quat_to_matrix)
 
 G = 9.81
 B_ENU = 48.0 * np.array([0.0, np.cos(np.radians(63.0)), -np.sin(np.radians(63.0))])   # north = +y, dip down

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.orientation import YunCFParams, detect_rest
-from estimators.orientation._frames import ned_to_enu
-from estimators.orientation._yun_cf import YunCFFilter, _yun_series, initial_attitude_ned, yun_cf
+from stridelab.estimators.orientation import YunCFParams, detect_rest
+from stridelab.estimators.orientation._frames import ned_to_enu
+from stridelab.estimators.orientation._yun_cf import YunCFFilter, _yun_series, initial_attitude_ned, yun_cf
 from tests.estimators.orientation.test_fullstate import simulate
 
 

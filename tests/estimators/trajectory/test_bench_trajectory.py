@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from validation.simulator.foot_walk_yun import simulate_yun_walk
-from estimators.quaternion import quat_from_axis_angle, quat_rotate
-from pipeline.formats.loop_csv import COLUMNS, load_loop_csv
+from stridelab.validation.simulator.foot_walk_yun import simulate_yun_walk
+from stridelab.estimators.quaternion import quat_from_axis_angle, quat_rotate
+from stridelab.pipeline.formats.loop_csv import COLUMNS, load_loop_csv
 
 
 def _write_loop_csv(path, seed=0):
@@ -38,7 +38,7 @@ def test_loop_reader(tmp_path):
 
 @pytest.mark.slow
 def test_bench_trajectory_cli(tmp_path):
-    from validation.bench.trajectory import command
+    from stridelab.validation.bench.trajectory import command
     paths = []
     for seed in (0, 1):
         p = tmp_path / f"loop{seed}.csv"
@@ -50,7 +50,7 @@ def test_bench_trajectory_cli(tmp_path):
     assert [r["file"] for r in out["files"]] == [str(paths[1]), str(paths[0])]
     for r in out["files"]:
         assert abs(r["distance_m"] - 36.0) < 0.5
-        # horizontal: this simulator (validation.simulator.foot_walk_yun) holds each angular rate constant over the
+        # horizontal: this simulator (stridelab.validation.simulator.foot_walk_yun) holds each angular rate constant over the
         # sample interval that follows it (θ piecewise linear, rate steps at the sample instants), for which the
         # forward-Euler attitude is exact; the shipped midpoint rule with PyShoe's 2.5 ms gyro delay (issue 43,
         # chosen on real recordings, where rates are continuous) lifts its foot ~17 mm per stride. The height
@@ -59,7 +59,7 @@ def test_bench_trajectory_cli(tmp_path):
 
 
 def test_bench_trajectory_bad_file(tmp_path):
-    from validation.bench.trajectory import command
+    from stridelab.validation.bench.trajectory import command
     p = tmp_path / "bad.csv"
     p.write_text("a,b\n1,2\n")
     res = CliRunner().invoke(command, ["--loop", str(p), "--json"])
@@ -70,7 +70,7 @@ def test_bench_trajectory_bad_file(tmp_path):
 def test_bench_loop_lists_an_unreadable_file_and_goes_on(tmp_path):
     """Issue 43 point 3: one bad file among good ones is listed with its reason; the others are scored, exit 0;
     the loop blocks carry the horizontal and 3-D final errors."""
-    from validation.bench.trajectory import command
+    from stridelab.validation.bench.trajectory import command
     good = tmp_path / "loop0.csv"
     _write_loop_csv(good, 0)
     bad = tmp_path / "bad.csv"
@@ -91,7 +91,7 @@ def test_bench_loop_lists_an_unreadable_file_and_goes_on(tmp_path):
 @pytest.mark.realdata
 def test_bench_pyshoe_lists_an_unreadable_file_and_goes_on(tmp_path):
     from tests.conftest import shared_data
-    from validation.bench.trajectory import pyshoe_benchmark
+    from stridelab.validation.bench.trajectory import pyshoe_benchmark
     src = sorted(shared_data("pyshoe_vicon").glob("*.mat"))[0]
     (tmp_path / src.name).symlink_to(src)
     (tmp_path / "broken.mat").write_bytes(b"not a mat file")

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from estimators.quaternion import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix
-from estimators.trajectory import (EQ24_GEOMETRY, TABLE1_GEOMETRY, DuongSuhParams, RangeGeometry,
+from stridelab.estimators.quaternion import quat_from_matrix, quat_from_rotvec, quat_mul, quat_to_matrix
+from stridelab.estimators.trajectory import (EQ24_GEOMETRY, TABLE1_GEOMETRY, DuongSuhParams, RangeGeometry,
                                    duong_suh_trajectory)
-from estimators.trajectory._duong_suh import _range_row
-from validation.simulator.duong_suh_walk import R_FLAT, simulate_ds_walk
-from estimators.trajectory.evaluation import rms_error_per_axis
+from stridelab.estimators.trajectory._duong_suh import _range_row
+from stridelab.validation.simulator.duong_suh_walk import R_FLAT, simulate_ds_walk
+from stridelab.estimators.trajectory.evaluation import rms_error_per_axis
 
 ZUPT_ONLY = DuongSuhParams(use_ranges=False, estimate_calibration=False)
 ZUPT_HEIGHT = DuongSuhParams(use_ranges=False, estimate_calibration=False, height_update_var=1e-4)
@@ -138,7 +138,7 @@ def test_params_are_hashable_and_geometry_round_trips():
 
 
 def test_bench_cli_prints_the_b12_figures():
-    from validation.bench.trajectory import command
+    from stridelab.validation.bench.trajectory import command
     res = CliRunner().invoke(command, ["--duong-suh", "--seeds", "2", "--json"])
     assert res.exit_code == 0, res.output
     d = json.loads(res.output)["duong_suh"]

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.gait.evaluation import event_accuracy
-from estimators.trajectory import ZuptParams, detect_zupt
-from estimators.trajectory._saturation import repair_gyro_saturation
-from estimators.trajectory.evaluation import armse_2d_aligned
-from validation.bench._cv import logo_choose
+from stridelab.estimators.gait.evaluation import event_accuracy
+from stridelab.estimators.trajectory import ZuptParams, detect_zupt
+from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
+from stridelab.estimators.trajectory.evaluation import armse_2d_aligned
+from stridelab.validation.bench._cv import logo_choose
 
 
 def _path(n=1000):

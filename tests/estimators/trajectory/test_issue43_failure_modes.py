@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.trajectory import EskfParams, ZuptParams, detect_zupt, eskf_trajectory
-from estimators.trajectory._saturation import repair_gyro_saturation
+from stridelab.estimators.trajectory import EskfParams, ZuptParams, detect_zupt, eskf_trajectory
+from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
 from tests.conftest import shared_data
 
 FS = 200.0
@@ -74,7 +74,7 @@ def test_running_trials_miss_few_still_phases():
     """PyShoe running trials 2017-11-27-11-1*: every still phase of the oracle labels (PyShoe's zv_shoe_opt,
     thresholds optimised per trial against Vicon; runs ≥ 3 samples) should hold at least one detected
     stance sample. Pre-issue-43: 34 of 115 missed on these files. Bound: at most one in ten (a priori)."""
-    from pipeline.formats.pyshoe import load_pyshoe_trial
+    from stridelab.pipeline.formats.pyshoe import load_pyshoe_trial
     d = shared_data("pyshoe_vicon")
     files = sorted(d.glob("2017-11-27-11-1*.mat"))
     if not files:
@@ -99,8 +99,8 @@ def test_running_trajectory_meets_the_issue_target():
     """The shipped defaults on the PyShoe running trials 2017-11-27-11-1* (fast running, clipped gyro, 60–100 m/s²
     impacts): mean 2-D ARMSE ≤ 0.20 m (issue 43's running target). Pre-issue-43 defaults (c_a = 0.3 on every
     sample, c_g = 0.01, ±1 s detector): 0.22 m. In-sample for the defaults (chosen on these trials, among others)."""
-    from estimators.trajectory.evaluation import armse_2d_aligned
-    from pipeline.formats.pyshoe import load_pyshoe_trial
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned
+    from stridelab.pipeline.formats.pyshoe import load_pyshoe_trial
     d = shared_data("pyshoe_vicon")
     files = sorted(d.glob("2017-11-27-11-1*.mat"))
     if not files:
@@ -163,7 +163,7 @@ def test_flat_plateaus_near_full_scale_are_clipping():
 def test_gyro_bias_is_not_taken_from_one_stance():
     """True bias 0.005 rad/s on z; the first stance (1 s) holds a settling rotation of 0.05 rad/s. The mean of
     that stance (the pre-issue-43 ``initial_gyro_bias``) is off by 10×; the all-stance median is within 2 mrad/s."""
-    from estimators.trajectory import stance_gyro_bias
+    from stridelab.estimators.trajectory import stance_gyro_bias
     rng = np.random.default_rng(1)
     b = np.array([0.0, 0.0, 0.005])
     gyr, acc, truth = _running_like(n_cycles=40, quiet=(0.0, 0.0))
@@ -178,7 +178,7 @@ def test_gyro_bias_is_not_taken_from_one_stance():
 
 
 def test_gyro_bias_needs_enough_stance():
-    from estimators.trajectory import stance_gyro_bias
+    from stridelab.estimators.trajectory import stance_gyro_bias
     gyr, acc, truth = _running_like(n_cycles=2)
     truth[int(FS):] = False                                                # one 1 s stance only
     np.testing.assert_array_equal(stance_gyro_bias(gyr + 0.01, truth, sampling_rate_hz=FS), np.zeros(3))
@@ -190,7 +190,7 @@ def test_flat_floor_stance_height_update_removes_height_drift():
     """A level walk with an accelerometer z bias of 0.2 m/s²: without the option the stance height drifts
     (the ZUPT alone does not see it); with ``stance_height_var`` (E5c, off by default) every stance is at the
     first one's height within 5 mm. Horizontal accuracy is unchanged (within 2 cm)."""
-    from validation.simulator.foot_walk_yun import simulate_yun_walk
+    from stridelab.validation.simulator.foot_walk_yun import simulate_yun_walk
     sim = simulate_yun_walk(20, sampling_rate_hz=200, noise_scale=1.0, seed=3, stride_m=1.2, height_m=0.12)
     acc = sim.acc + np.array([0.0, 0.0, 0.2])
     z = np.asarray(sim.stance, bool)
@@ -206,7 +206,7 @@ def test_flat_floor_stance_height_update_removes_height_drift():
 
 
 def test_armse_3d_sees_the_height_error_2d_hides():
-    from estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned, final_position_error
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned, final_position_error
     t = np.linspace(0, 10, 1001)
     ref = np.column_stack([t, np.zeros_like(t), np.zeros_like(t)])
     est = ref.copy()
@@ -218,7 +218,7 @@ def test_armse_3d_sees_the_height_error_2d_hides():
 
 
 def test_gait_cycle_period_finds_the_stride_and_not_noise():
-    from estimators.trajectory import gait_cycle_period
+    from stridelab.estimators.trajectory import gait_cycle_period
     gyr, _, _ = _running_like(n_cycles=20, period_s=0.7)
     per = gait_cycle_period(gyr, sampling_rate_hz=FS)
     assert np.nanmedian(per[int(2 * FS):]) == pytest.approx(0.7, abs=0.02)
@@ -281,7 +281,7 @@ def test_gyro_delay_shifts_the_attitude_rate_by_the_stated_time():
     as c·(t_k + T/2 + d) with the midpoint rule and c·t_k with Euler and no delay (interpolation, held at the end)."""
     import dataclasses
 
-    from estimators.trajectory._api import _attitude_gyro
+    from stridelab.estimators.trajectory._api import _attitude_gyro
     fs = 100.0
     t = np.arange(50) / fs
     gyr = np.column_stack([0.3 * t, np.zeros(50), np.zeros(50)])

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfreqz
 
-from estimators.trunk_gait import TrunkGaitParams, analyse_trunk_gait
-from estimators.trunk_gait._icd import detect_initial_contacts, fill_missed_steps
-from estimators.trunk_gait._icd_ionescu import (IONESCU_BAND_HZ, IONESCU_SIGMA_S, detect_initial_contacts_ionescu,
+from stridelab.estimators.trunk_gait import TrunkGaitParams, analyse_trunk_gait
+from stridelab.estimators.trunk_gait._icd import detect_initial_contacts, fill_missed_steps
+from stridelab.estimators.trunk_gait._icd_ionescu import (IONESCU_BAND_HZ, IONESCU_SIGMA_S, detect_initial_contacts_ionescu,
                                                 ionescu_signal, lobe_minima)
 from tests.estimators.trunk_gait._signals import walking_body
 
@@ -152,7 +152,7 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
 
 
 def test_bout_cadence_count_is_steps_over_walking_time_and_counts_a_missed_contact():
-    from estimators.trunk_gait._pipeline import bout_cadence
+    from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     ic = np.cumsum(np.r_[0.0, 0.7, 0.5, 0.5, 0.5, 0.5, 0.7])        # slower first and last steps (1.4 T)
     assert bout_cadence(ic, max_step_s=1.5, method="median") == pytest.approx(120.0)
     assert bout_cadence(ic, max_step_s=1.5, method="count") == pytest.approx(60 * 6 / 3.4)

@@ -1,4 +1,4 @@
-"""Known answers for the inverted-pendulum stride length (estimators.trunk_gait._spatial, Zijlstra & Hof 2003 Eq. 1).
+"""Known answers for the inverted-pendulum stride length (stridelab.estimators.trunk_gait._spatial, Zijlstra & Hof 2003 Eq. 1).
 
 A hand-made vertical trunk trajectory whose excursion per step is known (h1 for 15 steps, then h2) is turned into an
 upward acceleration (second derivative, plus sensor noise); double integration, per-step excursion and Eq. 1 must
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.trunk_gait._spatial import step_lengths, vertical_position
+from stridelab.estimators.trunk_gait._spatial import step_lengths, vertical_position
 
 FS = 100.0
 L = 0.9          # pendulum length, m
@@ -74,7 +74,7 @@ def test_standing_gives_no_length_and_short_input_is_safe():
 
 
 def test_foot_stride_reference_counts_contact_to_contact_strides_inside_the_trial():
-    from validation.bench.trunk_gait import foot_stride_reference
+    from stridelab.validation.bench.trunk_gait import foot_stride_reference
     fs = 100.0
     # left foot: strides [100 -> 220] 1.2 m, [220 -> 340] 1.4 m, [-1 -> 100] first step out of standing (no stride),
     # [340 -> 460] ends after the trial (s1 = 400); right foot: [160 -> 280] 1.0 m, [50 -> 160] starts before s0
@@ -89,7 +89,7 @@ def test_foot_stride_reference_counts_contact_to_contact_strides_inside_the_tria
 
 
 def test_step_heading_change_cancels_pelvic_sway_and_finds_a_turn():
-    from estimators.trunk_gait._spatial import step_heading_change, turn_shortened
+    from stridelab.estimators.trunk_gait._spatial import step_heading_change, turn_shortened
     n_steps = 20
     ic = (2.0 + STEP_S * np.arange(n_steps + 1)) * FS
     ic = np.round(ic).astype(np.int64)

@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from estimators.trunk_gait import (DURATION_CLASSES_S, TrunkGaitParams, analyse_trunk_gait, daily_outcomes,
+from stridelab.estimators.trunk_gait import (DURATION_CLASSES_S, TrunkGaitParams, analyse_trunk_gait, daily_outcomes,
                                    detect_trunk_frame)
-from estimators.trunk_gait._icd import assign_sides, regular_runs
-from estimators.trunk_gait._wba import assemble_bouts
-from estimators.trunk_gait.evaluation import ic_metrics, match_bouts, match_initial_contacts
+from stridelab.estimators.trunk_gait._icd import assign_sides, regular_runs
+from stridelab.estimators.trunk_gait._wba import assemble_bouts
+from stridelab.estimators.trunk_gait.evaluation import ic_metrics, match_bouts, match_initial_contacts
 from tests.estimators.trunk_gait._signals import rot, walking_body
 
 FS = 100.0
@@ -194,7 +194,7 @@ def test_params_documented_and_json_round_trip():
 
 
 def test_turns_found_with_angle_and_direction():
-    from estimators.trunk_gait._turns import detect_turns
+    from stridelab.estimators.trunk_gait._turns import detect_turns
     t = np.arange(int(20 * FS)) / FS
     yaw = np.zeros_like(t)
     m1 = (t >= 5) & (t < 7)                                        # 90 deg to the left in 2 s (half-sine rate)
@@ -235,7 +235,7 @@ def test_slow_small_steps_are_still_walking():
 
 
 def test_hampel_replaces_an_isolated_step_but_keeps_a_change_of_pace_and_runs_apart():
-    from estimators.trunk_gait._spatial import hampel
+    from stridelab.estimators.trunk_gait._spatial import hampel
     x = np.array([0.60, 0.62, 0.61, 1.30, 0.60, 0.62, 0.61])   # one step measured twice as long
     y = hampel(x, 1, 3.0)
     assert y[3] == pytest.approx(0.61) and np.array_equal(np.delete(y, 3), np.delete(x, 3))
@@ -259,7 +259,7 @@ def test_bout_average_must_be_mean_or_median():
 
 
 def test_fill_missed_steps_adds_the_rhythm_s_missing_contact_and_edge_steps_only_when_asked():
-    from estimators.trunk_gait._icd import fill_missed_steps
+    from stridelab.estimators.trunk_gait._icd import fill_missed_steps
     kept = np.array([100, 150, 200, 300, 350, 400])          # T = 50 samples; the contact near 250 was missed
     cand = np.array([120, 248, 262, 58, 445, 520])            # 248 (prominent) and 262 in the gap; 58 / 445 at edges
     prom = np.array([0.9, 0.5, 0.3, 0.4, 0.4, 0.9])
@@ -273,7 +273,7 @@ def test_fill_missed_steps_adds_the_rhythm_s_missing_contact_and_edge_steps_only
 
 
 def test_fill_finds_a_weak_step_inside_a_synthetic_walk():
-    from estimators.trunk_gait._icd import detect_initial_contacts
+    from stridelab.estimators.trunk_gait._icd import detect_initial_contacts
     fs = 100.0
     t = np.arange(0, 12, 1 / fs)
     ic = np.arange(0.5, 11.6, 0.55)

@@ -7,15 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.trunk_gait import analyse_trunk_gait
-from estimators.trunk_gait.evaluation import bout_errors, ic_metrics, match_bouts, match_initial_contacts
+from stridelab.estimators.trunk_gait import analyse_trunk_gait
+from stridelab.estimators.trunk_gait.evaluation import bout_errors, ic_metrics, match_bouts, match_initial_contacts
 from tests.conftest import shared_data
 
 pytestmark = pytest.mark.realdata
 
 
 def test_voisard_trial_contacts_and_cadence():
-    from pipeline.formats.xsens_mt import load_voisard_trial
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_trial
     t = load_voisard_trial(shared_data("voisard_gait"), "1-1")
     a, lb = t.annotation, t.lower_back
     res = analyse_trunk_gait(lb.acc, lb.gyr, lb.sampling_rate_hz, height_m=a.height_cm / 100)
@@ -33,7 +33,7 @@ def test_voisard_trial_contacts_and_cadence():
 
 
 def test_mobilised_straight_walk_contacts_sides_and_stride_length():
-    from pipeline.formats.mobilised import read_mobilised
+    from stridelab.pipeline.formats.mobilised import read_mobilised
     trials = read_mobilised(shared_data("mobilised_lab") / "HA" / "001" / "data.mat")
     t = next(x for x in trials if x.test == "Test5" and x.trial == "Trial1")
     ref = t.reference("INDIP")

@@ -2,7 +2,7 @@
 ``PYTHONPATH`` of the ``stridelab`` process it starts, so that process and every worker it spawns (``spawn``
 start method: each is a fresh interpreter, which imports ``sitecustomize`` as it starts) load this module.
 
-With ``STRIDELAB_TEST_KILL_WORKER_ONCE=<marker>``, the first stage task (``pipeline.runner._stage_task``, in a
+With ``STRIDELAB_TEST_KILL_WORKER_ONCE=<marker>``, the first stage task (``stridelab.pipeline.runner._stage_task``, in a
 worker) that finds no marker file creates it and SIGKILLs its own process. With
 ``STRIDELAB_TEST_KILL_COORDINATOR_IN_COMMIT=<marker>``, the coordinator SIGKILLs itself the first time it inserts
 a stage's rows, i.e. inside the stage's commit transaction, after its DELETE and before its INSERT. Production
@@ -26,19 +26,19 @@ def _kill_once(marker: str) -> None:
 
 
 def _install() -> None:
-    from pipeline import runner
+    from stridelab.pipeline import runner
     if _WORKER:
         task = runner._stage_task
 
         def _stage_task(*args):
             _kill_once(_WORKER)
             return task(*args)
-        # pickled by reference as pipeline.runner._stage_task, which is this wrapper in every process
+        # pickled by reference as stridelab.pipeline.runner._stage_task, which is this wrapper in every process
         _stage_task.__module__, _stage_task.__qualname__ = task.__module__, task.__qualname__
         runner._stage_task = _stage_task
     if _COMMIT:
-        from pipeline.stages import registry
-        from warehouse.catalog import Warehouse
+        from stridelab.pipeline.stages import registry
+        from stridelab.warehouse.catalog import Warehouse
         insert = Warehouse.insert
 
         def _insert(self, table, rows, *args, **kw):
