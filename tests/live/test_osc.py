@@ -92,6 +92,7 @@ def test_ngimus_streaming_over_loopback_udp_are_seen_live(lab_streams, lab_calib
     assert sum(e["type"] == "IC" for e in ev) >= 6 and {e["side"] for e in ev} == {"left", "right"}
 
 
+@pytest.mark.slow
 def test_a_drifting_ngimu_clock_is_corrected_over_loopback_udp():
     """Two NGIMUs send the same samples at the same instants over 127.0.0.1 in real time; one device clock is
     exact, the other runs 2000 ppm fast (exaggerated: what 50 ppm does in 40 s of session it does here in 1 s).

@@ -259,6 +259,7 @@ def test_every_topic_of_every_file_is_in_the_ingest_ledger_with_its_outcome(tmp_
     assert len(full) == 4 and set(full["outcome"]) == {"ingested", "skipped", "quarantined"}
 
 
+@pytest.mark.slow
 def test_run_takes_skip_topic_and_require_crc_like_ingest(tmp_path):
     """``stridelab run`` ingests the inbox with the same --skip-topic / --require-crc semantics as ``ingest``."""
     inbox = tmp_path / "inbox"
