@@ -47,18 +47,16 @@ if snap is not None:
                    "docs/live.md")
         sid = st.selectbox("Live session", sorted(live["session_id"].unique()), key="live_session")
         one = live[live["session_id"] == sid]
-        ang = one[one["quantity"] == "joint_angle"]
-        if not ang.empty:
-            t = ang.pivot_table(index="key", columns=["comparison", "metric"], values="value", aggfunc="first")
+        for quantity, title, key_name, widget in (
+                ("joint_angle", "**Joint angles (deg)**", "joint", "live_angles"),
+                ("event", "**Gait events (live − other, ms; matched within 0.5 s)**", "foot · event", "live_events")):
+            rows = one[one["quantity"] == quantity]
+            if rows.empty:
+                continue
+            t = rows.pivot_table(index="key", columns=["comparison", "metric"], values="value", aggfunc="first")
             t.columns = [f"{c} · {m}" for c, m in t.columns]
-            st.markdown("**Joint angles (deg)**")
-            st.dataframe(t.reset_index().rename(columns={"key": "joint"}), hide_index=True, key="live_angles")
-        ev = one[one["quantity"] == "event"]
-        if not ev.empty:
-            t = ev.pivot_table(index="key", columns=["comparison", "metric"], values="value", aggfunc="first")
-            t.columns = [f"{c} · {m}" for c, m in t.columns]
-            st.markdown("**Gait events (live − other, ms; matched within 0.5 s)**")
-            st.dataframe(t.reset_index().rename(columns={"key": "foot · event"}), hide_index=True, key="live_events")
+            st.markdown(title)
+            st.dataframe(t.reset_index().rename(columns={"key": key_name}), hide_index=True, key=widget)
         with st.expander("Per stride and joint plane"):
             st.dataframe(snap.q(Q.live_agreement_strides, sid), hide_index=True, key="live_strides")
     skipped = snap.q(Q.skipped_topics)
