@@ -129,6 +129,22 @@ def _gather(src, src_off, sizes, order, dst, dst_off):
         q += n
 
 
+def in_log_time(parts, sizes_l, times_l, ids_l):
+    """One chunk's message records of all channels (``parts[k]``: channel ``ids_l[k]``'s records, ``sizes_l[k]``
+    bytes each, at ``times_l[k]``) merged in log-time order (ties: channel order) -> (records bytes, times,
+    channel ids, where each record landed)."""
+    src = np.frombuffer(b"".join(parts), dtype=np.uint8)
+    sizes = np.concatenate(sizes_l)
+    times = np.concatenate(times_l)
+    ids = np.concatenate(ids_l)
+    src_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    order = np.lexsort((ids, times))
+    dst = np.empty(len(src), dtype=np.uint8)
+    dst_off = np.empty(len(sizes), dtype=np.int64)
+    _gather(src, src_off, sizes, order, dst, dst_off)
+    return dst.tobytes(), times, ids, dst_off
+
+
 def _message_index(channel_id: int, log_time: np.ndarray, offsets: np.ndarray) -> bytes:
     n = len(log_time)
     head = np.zeros(1, dtype=np.dtype({"names": ["op", "len", "ch", "blen"], "formats": ["u1", "<u8", "<u2", "<u4"],
@@ -268,17 +284,7 @@ def _write_file(tmp, channels, metadata, comp, schema_recs, channel_recs, edges,
                 counts[ch_id] += b - a
             if not parts:
                 continue
-            # messages of all channels in log-time order (ties: channel order) inside the chunk
-            src = np.frombuffer(b"".join(parts), dtype=np.uint8)
-            sizes = np.concatenate(sizes_l)
-            times = np.concatenate(times_l)
-            ids = np.concatenate(ids_l)
-            src_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-            order = np.lexsort((ids, times))
-            dst = np.empty(len(src), dtype=np.uint8)
-            dst_off = np.empty(len(sizes), dtype=np.int64)
-            _gather(src, src_off, sizes, order, dst, dst_off)
-            raw = dst.tobytes()
+            raw, times, ids, dst_off = in_log_time(parts, sizes_l, times_l, ids_l)
             index_parts = [(int(cid), times[ids == cid], dst_off[ids == cid]) for cid in np.unique(ids)]
             c_start, c_end = int(times.min()), int(times.max())
             compressed = comp.compress(raw)

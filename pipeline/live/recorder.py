@@ -34,7 +34,7 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
 
 from stridelab.pipeline.formats import ros2_cdr
 from stridelab.pipeline.formats.mcap_read import crc32
-from stridelab.pipeline.formats.mcap_write import (MAGIC, _gather, _message_index, _message_records, _record,
+from stridelab.pipeline.formats.mcap_write import (MAGIC, _message_index, in_log_time, _message_records, _record,
                                          summary_and_footer)
 
 LIVE_DIR = ".live"
@@ -180,16 +180,7 @@ class McapRecorder:
             times_l.append(t)
             ids_l.append(np.full(len(t), cid, dtype=np.int64))
         self._pending, self._pending_t0, self._pending_t1 = {}, None, -1
-        src = np.frombuffer(b"".join(parts), dtype=np.uint8)
-        sizes = np.concatenate(sizes_l)
-        times = np.concatenate(times_l)
-        ids = np.concatenate(ids_l)
-        src_off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        order = np.lexsort((ids, times))
-        dst = np.empty(len(src), dtype=np.uint8)
-        dst_off = np.empty(len(sizes), dtype=np.int64)
-        _gather(src, src_off, sizes, order, dst, dst_off)
-        raw = dst.tobytes()
+        raw, times, ids, dst_off = in_log_time(parts, sizes_l, times_l, ids_l)
         index = {int(cid): (times[ids == cid], dst_off[ids == cid]) for cid in np.unique(ids)}
         c_start, c_end = int(times.min()), int(times.max())
         self._t_min = c_start if self._t_min is None else min(self._t_min, c_start)
