@@ -31,7 +31,8 @@ from stridelab.studies.privacy import (PrivacyPolicy, code_problem, identifier_p
 
 ID_FIELDS = ("participant", "session", "trial")
 #: closed values (checked here or, ``kind``, ``timezone``, ``reference_frame``, by stridelab.pipeline.ingest)
-ENUMS = {"paretic_side": ("left", "right", "none"), "pseudonymised": ("hmac-sha256",)}
+ENUMS = {"paretic_side": ("left", "right", "none"), "pseudonymised": ("hmac-sha256",),
+         "live_source": ("replay", "ngimu_osc")}        # what fed a `stridelab live` session (pipeline/live/command.py)
 #: values of ``condition`` every study knows (a study adds its own with ``[privacy] conditions``)
 CONDITIONS = ("healthy", "hemiparetic", "stroke", "parkinson", "multiple_sclerosis", "osteoarthritis",
               "amputee", "cerebral_palsy", "elderly", "unknown")
@@ -42,7 +43,7 @@ NUMERIC_FIELDS = tuple(dict.fromkeys(("height_m", "mass_kg", "sampling_rate_hz",
 #: the session schema of the recording format: field -> type
 SCHEMA = {"study": "identifier", "participant": "identifier", "session": "identifier", "trial": "identifier",
           "kind": "closed", "timezone": "closed", "reference_frame": "closed", "accelerometer_only": "closed",
-          "paretic_side": "enum", "pseudonymised": "enum", "condition": "condition", "protocol": "label",
+          "paretic_side": "enum", "pseudonymised": "enum", "live_source": "enum", "condition": "condition", "protocol": "label",
           "reference": "label"}   # reference: which reference system an importer recorded ("scored against")
 #: reference-event labels every study knows (activity classes, calibration windows, importer annotations)
 EVENT_LABELS = ("sitting", "standing", "walking", "stairs", "lying", "level_walking", "stairs_up", "stairs_down",

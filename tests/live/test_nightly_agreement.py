@@ -30,7 +30,8 @@ def test_live_session_enters_the_nightly_and_its_agreement_is_stored(tmp_path, l
     try:
         kinds = dict(con.execute("SELECT kind, n_rows FROM live_outputs").fetchall())
         assert kinds["angles"] == live_summary["frames"] == 3000 and kinds["events"] > 20, kinds
-        skipped = con.execute("SELECT skipped_topics FROM recordings").fetchone()[0]
+        skipped, meta = con.execute("SELECT skipped_topics, metadata FROM recordings").fetchone()
+        assert json.loads(meta).get("live_source") == "replay", meta      # kept, not dropped as an undeclared field
         assert "/live/" not in (skipped or ""), skipped          # stored, so not listed as skipped
         runs = dict(con.execute("SELECT stage, status FROM stage_runs").fetchall())
         assert runs["live_agreement"] == "ok", runs
