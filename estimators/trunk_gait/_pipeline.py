@@ -13,8 +13,8 @@ from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes,
 from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
 from stridelab.estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
 from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
-from stridelab.estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, turn_shortened,
-                                            vertical_position)
+from stridelab.estimators.trunk_gait._spatial import (hampel, local_vertical, step_heading_change, step_lengths,
+                                                      turn_shortened, vertical_position)
 from stridelab.estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from stridelab.estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
@@ -50,6 +50,50 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
         raise ValueError(f"cadence_method must be 'median' or 'count', got {method!r}")
     n = np.maximum(1.0, np.rint(d / T))
     return 60.0 * float(n.sum()) / float(d.sum())
+
+
+def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray, cadence_spm: np.ndarray, *,
+                 average: str, strides: str, speed_method: str) -> tuple[np.ndarray, np.ndarray]:
+    """(stride length m, walking speed m/s) per bout from its strides: (S,) ``length_m``, ``duration_s``, ``bout``
+    (index 0..B-1) and the bouts' (B,) ``cadence_spm``.
+
+    ``strides``: "regular" = only strides lasting ≤ 1.5 x the bout's median stride duration (a longer one may span
+    a missed contact, three steps measured as two), "all" = every stride of the bout (the reference definitions:
+    INDIP's bout stride length and walking speed are the means over all its strides, Voisard's foot-INS reference
+    likewise). ``average``: "mean" | "median" over those strides, or "time" = their mean weighted by stride
+    duration (the bout's time average of the stride values; mobgap interpolates the stride values onto one value per
+    second and averages those over the bout, Micó-Amigo et al. 2023, which weighs strides by duration as well).
+    ``speed_method``: "stride" = the same average of
+    the stride speeds (length / duration); "cadence" = bout stride length x cadence / 120 (steps/min -> strides/s;
+    mobgap's walking speed, Micó-Amigo et al. 2023 / Kirk et al. 2024: speed = cadence x stride length / 2 per
+    second), which does not divide a noisy length by a noisy duration stride by stride."""
+    if average not in ("mean", "median", "time"):
+        raise ValueError(f"bout_average must be 'mean', 'median' or 'time', got {average!r}")
+    if strides not in ("regular", "all"):
+        raise ValueError(f"bout_strides must be 'regular' or 'all', got {strides!r}")
+    if speed_method not in ("stride", "cadence"):
+        raise ValueError(f"speed_method must be 'stride' or 'cadence', got {speed_method!r}")
+    n_b = len(cadence_spm)
+    length_m = np.asarray(length_m, float)
+    duration_s = np.asarray(duration_s, float)
+    sl = np.full(n_b, np.nan)
+    sp = np.full(n_b, np.nan)
+    for b in range(n_b):
+        m = bout == b
+        if not m.any():
+            continue
+        if strides == "regular":
+            m = m & (duration_s <= 1.5 * np.median(duration_s[m]))
+        x, d = length_m[m], duration_s[m]
+        if average == "median":
+            sl[b], sp[b] = np.median(x), np.median(x / d)
+        elif average == "mean":
+            sl[b], sp[b] = np.mean(x), np.mean(x / d)
+        else:
+            sl[b], sp[b] = np.sum(x * d) / np.sum(d), np.sum(x) / np.sum(d)
+        if speed_method == "cadence":
+            sp[b] = sl[b] * cadence_spm[b] / 120.0
+    return sl, sp
 
 
 def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams,
@@ -146,7 +190,8 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
             runs[closing] = runs.max() + 1 + np.arange(int(closing.sum()))
         run_offset = int(runs.max()) + 1 if len(runs) else run_offset
         left = assign_sides(gb[:, 1], fs_hz, peaks, runs, lag_s=p.side_lag_s, lowpass_hz=p.side_lowpass_hz)
-        pos = vertical_position(v, fs_hz, p.sl_highpass_hz)
+        v_sl = v if p.sl_vertical_lowpass_hz <= 0 else local_vertical(ab, fs_hz, p.sl_vertical_lowpass_hz)
+        pos = vertical_position(v_sl, fs_hz, p.sl_highpass_hz)
         sl = step_lengths(pos, peaks, leg, p.sl_correction)
         if p.sl_turn_per_rad > 0 and len(sl):
             sl = turn_shortened(sl, step_heading_change(gb[:, 1], fs_hz, peaks), p.sl_turn_per_rad)
@@ -190,19 +235,8 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     cadence = np.array([bout_cadence(ic[(ic_bout == b) & ~closing], max_step_s=p.stride_max_s / 2.0,
                                      method=p.cadence_method) for b in range(n_b)])
     n_str = np.bincount(strides.bout, minlength=n_b)
-    # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
-    # (three steps measured as two) and would inflate length and speed
-    med = np.array([np.median(dur[in_b][strides.bout == b]) for b in range(n_b)])
-    reg = (dur[in_b] <= 1.5 * med[strides.bout]) if n_b else np.zeros(0, bool)
-    n_reg = np.bincount(strides.bout[reg], minlength=n_b)
-    if p.bout_average == "median":
-        sl_b = np.array([np.median(strides.length_m[reg & (strides.bout == b)]) for b in range(n_b)])
-        sp_b = np.array([np.median(strides.speed_m_s[reg & (strides.bout == b)]) for b in range(n_b)])
-    elif p.bout_average == "mean":
-        sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
-        sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
-    else:
-        raise ValueError(f"bout_average must be 'mean' or 'median', got {p.bout_average!r}")
+    sl_b, sp_b = bout_spatial(strides.length_m, dur[in_b], strides.bout, cadence, average=p.bout_average,
+                              strides=p.bout_strides, speed_method=p.speed_method)
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []

@@ -30,6 +30,26 @@ def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.
     return sosfiltfilt(sos, cumulative_trapezoid(vel, dx=dt, initial=0.0), padlen=pad)
 
 
+def local_vertical(acc_body: np.ndarray, fs_hz: float, lowpass_hz: float) -> np.ndarray:
+    """(N,) upward acceleration, m/s² (mean removed), along the local direction of gravity.
+
+    The tilt correction of Moe-Nilssen 1998 (Clin Biomech 13:320, doi:10.1016/S0268-0033(98)00089-8) made
+    time-varying: the specific force low-passed at ``lowpass_hz`` (2nd-order zero-lag Butterworth, below the step
+    frequency) gives the up direction at each sample, and the acceleration is projected on it. A trunk that bends
+    forward (standing up, starting, turning, slowing down) no longer leaks its forward acceleration and a changing
+    share of gravity into the vertical that the pendulum integrates (the gait sequence's mean up direction
+    otherwise; mobgap rotates the signal into the global frame by a Madgwick orientation for the same reason)."""
+    a = np.asarray(acc_body, float)
+    n = len(a)
+    if n < 16:
+        return np.zeros(n)
+    sos = butter_sos(2, lowpass_hz, "lowpass", fs_hz)
+    g = sosfiltfilt(sos, a, axis=0, padlen=min(n - 1, int(3 * fs_hz)))
+    u = g / np.maximum(np.linalg.norm(g, axis=1), 1e-9)[:, None]
+    v = np.einsum("ij,ij->i", a, u)
+    return v - v.mean()
+
+
 def hampel(x: np.ndarray, half_width: int, n_sigma: float, groups: np.ndarray | None = None) -> np.ndarray:
     """Hampel identifier (Pearson et al. 2016, "Generalized Hampel filters", EURASIP J Adv Signal Process 2016:87,
     doi:10.1186/s13634-016-0383-6): a value further than ``n_sigma`` × 1.4826 × MAD from the median of the

@@ -60,11 +60,19 @@ class TrunkGaitParams:
         by cross-validation on foot-INS and INDIP references, validation/provenance.toml; Zijlstra & Hof 2003 give
         1.25).
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
+      sl_vertical_lowpass_hz: the vertical the pendulum integrates: 0 = the gait sequence's mean up direction (as the
+        contacts), > 0 = the local gravity direction, the acceleration low-passed at this cut-off, Hz
+        (``_spatial.local_vertical``).
       sl_hampel_half_width: half width (steps) of the Hampel filter on the step lengths within a run of regular
         steps (0 = off; Soltani et al. 2021 use 2 steps, 3 MAD).
       sl_turn_per_rad: turning steps are shortened to step / (1 + sl_turn_per_rad · |heading change of the step,
         rad|) (0 = off; ``_spatial.turn_shortened``).
-      bout_average: "mean" or "median" of the bout's regular strides for its stride length and walking speed.
+      bout_average: "mean", "median" or "time" (mean weighted by stride duration, as mobgap's per-second values) of
+        the bout's strides (``bout_strides``) for its stride length and walking speed.
+      bout_strides: "regular" (strides lasting ≤ 1.5 x the bout's median stride duration) or "all" strides of the
+        bout (``_pipeline.bout_spatial``).
+      speed_method: bout walking speed as the average of the stride speeds ("stride") or as bout stride length x
+        cadence / 120 ("cadence", mobgap's definition).
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
@@ -99,9 +107,12 @@ class TrunkGaitParams:
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.27
     sl_highpass_hz: float = 0.1
+    sl_vertical_lowpass_hz: float = 0.0
     sl_hampel_half_width: int = 1
     sl_turn_per_rad: float = 0.2
     bout_average: str = "median"
+    bout_strides: str = "regular"
+    speed_method: str = "stride"
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
@@ -144,8 +155,9 @@ class Bouts:
     start_s, end_s: first and last initial contact of the bout's strides, s from the first sample (closing steps
       added by the fill, ``ic_fill_end_steps``, may follow ``end_s``: contacts of the bout, but no stride).
     n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
-    cadence_spm: steps per minute (``TrunkGaitParams.cadence_method``); stride_length_m: mean stride length, m;
-    walking_speed_m_s: mean stride speed, m/s.
+    cadence_spm: steps per minute (``TrunkGaitParams.cadence_method``); stride_length_m: the bout's stride length,
+    m; walking_speed_m_s: its walking speed, m/s (``TrunkGaitParams.bout_average`` / ``bout_strides`` /
+    ``speed_method``).
     n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
     flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
     """

@@ -96,8 +96,13 @@ CADENCE_METHODS = ("median", "count")   # TrunkGaitParams.cadence_method, chosen
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.061, 0.01), 3))   # the jerk minimum lags the heel strike more
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
 GRID_MOBGAP_SL = tuple(np.round(np.arange(0.80, 1.401, 0.01), 3))   # x mobgap's shipped factor 4.587/4
-# (sl_hampel_half_width, bout_average, sl_turn_per_rad)
-SL_VARIANTS = tuple((h, a, c) for h in (0, 1, 2) for a in ("mean", "median") for c in (0.0, 0.2, 0.4))
+# sl_turn_per_rad, chosen first at the stride level (choose_turn); 0.3, 0.5 and 0.6 added on 2026-12-07 (U-turn
+# strides came out at 1.16 x the foot reference with 0.2; 0.4 won 3/10 folds of the 0 / 0.2 / 0.4 grid)
+SL_TURN_GRID = (0.0, 0.2, 0.3, 0.4, 0.5, 0.6)
+# (sl_hampel_half_width, bout_average, sl_turn_per_rad, bout_strides)
+SL_VARIANTS = tuple((h, a, c, b) for h in (0, 1, 2) for a in ("mean", "median", "time") for c in SL_TURN_GRID
+                    for b in ("regular", "all"))
+SPEED_METHODS = ("stride", "cadence")    # TrunkGaitParams.speed_method, chosen after the stride-length constants
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
 
 
@@ -343,11 +348,7 @@ def _score_idx(recs, dets, idx, offsets, sl_scales, whole: bool = False) -> dict
 
 def sl_mae(recs: list[Rec], dets: list[Det], sl_scale: float = 1.0) -> float:
     """Per-bout stride-length MAE (m) of matched bouts pooled over ``recs`` (inf when none has a reference)."""
-    e = [np.asarray(_bout_errs(r, d, sl_scale).get("stride_length_m", {}).get("abs_error", []), float)
-         for r, d in zip(recs, dets)]
-    x = np.concatenate(e) if e else np.empty(0)
-    x = x[np.isfinite(x)]
-    return float(np.mean(x)) if len(x) else float("inf")
+    return spatial_mae(recs, dets, sl_scale, "stride_length_m")
 
 
 def ic_loss(s: dict) -> float:
@@ -388,7 +389,21 @@ def run_ours(rec: Rec, params) -> Det:
     return Det(ic_s=ic, bouts={"start_s": b.start_s, "end_s": b.end_s,
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
-               strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m})
+               strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout})
+
+
+def respatial(det: Det, average: str, strides: str, speed_method: str) -> Det:
+    """``det`` with its bouts' stride length and speed recomputed from its strides by the estimator's
+    ``bout_spatial`` (bout average, strides used, speed method; the bouts' cadence as in ``det``, so after
+    ``_with_cadence`` the speed follows the chosen cadence method)."""
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    st = det.strides
+    if st is None:
+        return det
+    sl, sp = bout_spatial(st["length_m"], st["end_s"] - st["start_s"], st["bout"],
+                          np.asarray(det.bouts["cadence_spm"], float), average=average, strides=strides,
+                          speed_method=speed_method)
+    return dataclasses.replace(det, bouts={**det.bouts, "stride_length_m": sl, "walking_speed_m_s": sp})
 
 
 def turn_check(recs: list[Rec], shipped) -> dict | None:
@@ -448,7 +463,7 @@ def choose_turn(recs: list[Rec], shipped, groups: list[str]) -> float:
     groups, loss = mean over groups of the stride-length MAE after K. Bout means cannot tell it: every Voisard
     trial holds one U-turn, so sl_correction absorbs a constant turning bias. The shipped value when no group has
     foot strides."""
-    grid = sorted({v[2] for v in SL_VARIANTS})
+    grid = sorted(SL_TURN_GRID)
     pairs = {c: {} for c in grid}
     for i, r in enumerate(recs):
         if r.group in groups and r.foot_strides is not None:
@@ -484,39 +499,59 @@ def _turn_det(r: Rec, shipped, c: float) -> Det:
     return _TURN_DETS[key]
 
 
+def spatial_mae(recs: list[Rec], dets: list[Det], sl_scale: float, key: str) -> float:
+    """Per-bout MAE of ``key`` ("stride_length_m" | "walking_speed_m_s") of the matched bouts pooled over ``recs``
+    (inf when none has a reference)."""
+    e = [np.asarray(_bout_errs(r, d, sl_scale).get(key, {}).get("abs_error", []), float) for r, d in zip(recs, dets)]
+    x = np.concatenate(e) if e else np.empty(0)
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if len(x) else float("inf")
+
+
 def choose_spatial(recs: list[Rec], shipped) -> tuple[dict, tuple | None]:
     """Stride length and speed: every recording with a spatial reference (Voisard: foot INS; Mobilise-D: INDIP);
     leave-one-group-out over the same groups as the IC constants (9 Voisard subjects + the Mobilise-D participant).
     Per fold, first the turn shortening ``sl_turn_per_rad`` at the stride level (``choose_turn``), then, with it,
-    the Hampel half width x bout mean/median (SL_VARIANTS) and the factor sl_correction (GRID_SL) at the bout level;
-    the IC constants as shipped; bout loss = mean over groups of the group's per-bout stride-length MAE.
-    Returns ({group: ((half_width, average, turn_per_rad), sl_correction) chosen without it}, the in-sample choice
-    or None)."""
+    the Hampel half width x bout mean/median x regular/all strides (SL_VARIANTS) and the factor sl_correction
+    (GRID_SL) at the bout level (loss = mean over groups of the group's per-bout stride-length MAE), then with those
+    the speed method (SPEED_METHODS; loss = mean over groups of the group's per-bout speed MAE); the IC constants as
+    shipped. Returns ({group: ((half_width, average, turn_per_rad, bout_strides), sl_correction, speed_method)
+    chosen without it}, the in-sample choice or None)."""
     sp = [i for i, r in enumerate(recs) if np.isfinite(np.asarray(r.ref_bouts["stride_length_m"], float)).any()]
     if not sp:
         return {}, None
-    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1],
-                                                             sl_turn_per_rad=v[2]))
-                    for i in sp} for v in SL_VARIANTS}
+    # the estimator runs once per (Hampel, turn); the bout aggregation is recomputed from its strides
+    base = {(h, c): {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=h, sl_turn_per_rad=c))
+                     for i in sp} for h in sorted({v[0] for v in SL_VARIANTS}) for c in SL_TURN_GRID}
+
+    def det_of(v: tuple, i: int, speed_method: str) -> Det:
+        return respatial(base[(v[0], v[2])][i], v[1], v[3], speed_method)
+    var_dets = {v: {i: det_of(v, i, shipped.speed_method) for i in sp} for v in SL_VARIANTS}
     sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
     sl_cache: dict = {}
 
     def sl_group(g, c):
         if (g, c) not in sl_cache:
             v, k = sl_cands[c]
-            sl_cache[(g, c)] = sl_mae([recs[i] for i in sp if recs[i].group == g],
-                                      [var_dets[v][i] for i in sp if recs[i].group == g], k / shipped.sl_correction)
+            sl_cache[(g, c)] = spatial_mae([recs[i] for i in sp if recs[i].group == g],
+                                           [var_dets[v][i] for i in sp if recs[i].group == g],
+                                           k / shipped.sl_correction, "stride_length_m")
         return sl_cache[(g, c)]
+
+    def mean_finite(x: list[float]) -> float:
+        x = [y for y in x if np.isfinite(y)]
+        return float(np.mean(x)) if x else float("inf")
 
     def choose(train: list[str]) -> tuple:
         turn = choose_turn(recs, shipped, train)
         cs = [c for c, (v, _k) in enumerate(sl_cands) if v[2] == turn]
+        v, k = sl_cands[cs[int(np.argmin([mean_finite([sl_group(g, c) for g in train]) for c in cs]))]]
 
-        def loss(c):
-            x = [sl_group(g, c) for g in train]
-            x = [y for y in x if np.isfinite(y)]
-            return float(np.mean(x)) if x else float("inf")
-        return sl_cands[cs[int(np.argmin([loss(c) for c in cs]))]]
+        def speed_loss(m: str) -> float:
+            return mean_finite([spatial_mae([recs[i] for i in sp if recs[i].group == g],
+                                            [det_of(v, i, m) for i in sp if recs[i].group == g],
+                                            k / shipped.sl_correction, "walking_speed_m_s") for g in train])
+        return v, k, min(SPEED_METHODS, key=speed_loss)
     groups = sorted({recs[i].group for i in sp})
     held = {g: choose([x for x in groups if x != g] or [g]) for g in groups}
     return held, choose(groups)
@@ -576,11 +611,16 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                            **{k: sc[k] for k in ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms")}})
     ship_dets = [run_ours(r, shipped) for r in recs]
     sl_held, sl_ins = choose_spatial(recs, shipped)
-    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad)
+    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad, shipped.bout_strides)
+    ship_sp = (ship_v, shipped.sl_correction, shipped.speed_method)
 
-    def with_sl(r: Rec, ci: int, v: tuple) -> Det:
-        return run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
-                                               sl_hampel_half_width=v[0], bout_average=v[1], sl_turn_per_rad=v[2]))
+    def with_sl(r: Rec, ci: int, v: tuple, cad: str, speed_method: str) -> Det:
+        """The fold's IC candidate and spatial variant; the speed after the fold's cadence method."""
+        d = (dets[ci][i_of[r.name]] if v[0] == ship_v[0] and v[2] == ship_v[2] else
+             run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+                                             sl_hampel_half_width=v[0], sl_turn_per_rad=v[2])))
+        return respatial(_with_cadence(d, cad), v[1], v[3], speed_method)
+    i_of = {r.name: i for i, r in enumerate(recs)}
     # cadence method: leave-one-group-out on the cadence MAPE of the bouts of the fold's IC choice (nested: the
     # held-out group's IC choice was made without it, its cadence method too)
     def cad_loss(ci: int, gs: list[str], m: str) -> float:
@@ -599,14 +639,13 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     cv_dets, cv_off, cv_scale = [], [], []
     for i, r in enumerate(recs):
         ci, o = full[logo["held_out_choice"][r.group]]
-        v, k = sl_held.get(r.group, (ship_v, shipped.sl_correction))
-        cv_dets.append(_with_cadence(dets[ci][i] if v == ship_v else with_sl(r, ci, v), cad_held[r.group]))
+        v, k, spm = sl_held.get(r.group, ship_sp)
+        cv_dets.append(with_sl(r, ci, v, cad_held[r.group], spm))
         cv_off.append(o)
         cv_scale.append(k / shipped.sl_correction)
     cii, oi = full[logo["in_sample_choice"]]
-    vi, ki = sl_ins or (ship_v, shipped.sl_correction)
-    ins_dets = [_with_cadence(dets[cii][i] if vi == ship_v else with_sl(r, cii, vi), cad_ins)
-                for i, r in enumerate(recs)]
+    vi, ki, spi = sl_ins or ship_sp
+    ins_dets = [with_sl(r, cii, vi, cad_ins, spi) for r in recs]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
     by_group = {g: {**IC_CANDIDATES[full[c][0]], "ic_offset_s": full[c][1], "cadence_method": cad_held[g]}
                 for g, c in logo["held_out_choice"].items()}
@@ -616,7 +655,8 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                              "params": {k: getattr(shipped, k) for k in (*IC_FIELDS,
                                                                           "sl_correction",
                                                                           "sl_hampel_half_width",
-                                                                          "bout_average", "sl_turn_per_rad")}},
+                                                                          "bout_average", "sl_turn_per_rad",
+                                                                          "bout_strides", "speed_method")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
                             "scheme": "IC constants (ic_method and its constants, IC_CANDIDATES, x ic_offset_s): "
                                       "leave-one-group-out (then cadence_method, median/count, on the cadence MAPE "
@@ -628,15 +668,15 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                       "Mobilise-D: INDIP), loss = mean of the groups' per-bout stride-length MAE",
                             "held_out_choice_by_group": by_group, "sl_held_out_by_group": {
                                 g: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_turn_per_rad": v[2],
-                                    "sl_correction": k}
-                                for g, (v, k) in sl_held.items()},
+                                    "bout_strides": v[3], "sl_correction": k, "speed_method": m}
+                                for g, (v, k, m) in sl_held.items()},
                             **({"note": "only one group: nothing could be held out, this block is in-sample"}
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {**IC_CANDIDATES[cii], "ic_offset_s": oi, "cadence_method": cad_ins,
                                  "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1],
-                                 "sl_turn_per_rad": vi[2]}},
+                                 "sl_turn_per_rad": vi[2], "bout_strides": vi[3], "speed_method": spi}},
         "ic_grid_in_sample": {"marked": "in-sample: every IC candidate at its best offset, group-mean loss over all "
                                         "groups (the loss of the leave-one-group-out), overall figures",
                               "candidates": sorted(grid_table, key=lambda x: x["loss_ms"])},
