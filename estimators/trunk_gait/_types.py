@@ -60,9 +60,6 @@ class TrunkGaitParams:
         by cross-validation on foot-INS and INDIP references, validation/provenance.toml; Zijlstra & Hof 2003 give
         1.25).
       sl_highpass_hz: high-pass cut-off before and after the double integration, Hz.
-      sl_vertical_lowpass_hz: the vertical the pendulum integrates: 0 = the gait sequence's mean up direction (as the
-        contacts), > 0 = the local gravity direction, the acceleration low-passed at this cut-off, Hz
-        (``_spatial.local_vertical``).
       sl_hampel_half_width: half width (steps) of the Hampel filter on the step lengths within a run of regular
         steps (0 = off; Soltani et al. 2021 use 2 steps, 3 MAD).
       sl_turn_per_rad: turning steps are shortened to step / (1 + sl_turn_per_rad · |heading change of the step,
@@ -71,6 +68,9 @@ class TrunkGaitParams:
         the bout's strides (``bout_strides``) for its stride length and walking speed.
       bout_strides: "regular" (strides lasting ≤ 1.5 x the bout's median stride duration) or "all" strides of the
         bout (``_pipeline.bout_spatial``).
+      sl_max_tilt_deg: strides whose trunk leans more than this from the gait sequence's walking posture (mean
+        up) are left out of the bout's stride length and speed (not pendular: rising from a chair, stooping;
+        ``_spatial.step_tilt_deg``), deg (0 = off).
       speed_method: bout walking speed as the average of the stride speeds ("stride") or as bout stride length x
         cadence / 120 ("cadence", mobgap's definition).
     Walking-bout assembly (Kluge et al. 2021 consensus):
@@ -107,12 +107,12 @@ class TrunkGaitParams:
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.27
     sl_highpass_hz: float = 0.1
-    sl_vertical_lowpass_hz: float = 0.0
     sl_hampel_half_width: int = 1
-    sl_turn_per_rad: float = 0.2
+    sl_turn_per_rad: float = 0.3
     bout_average: str = "median"
-    bout_strides: str = "regular"
-    speed_method: str = "stride"
+    bout_strides: str = "all"
+    speed_method: str = "cadence"
+    sl_max_tilt_deg: float = 0.0
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
@@ -191,13 +191,15 @@ class Bouts:
 @dataclass(frozen=True)
 class Strides:
     """Strides kept in walking bouts (arrays of length S): start_s, end_s (same-side initial contacts), side
-    ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``)."""
+    ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``), tilt_deg (the trunk's mean lean
+    from the walking posture over the stride, ``_spatial.step_tilt_deg``)."""
     start_s: np.ndarray
     end_s: np.ndarray
     side: np.ndarray
     length_m: np.ndarray
     speed_m_s: np.ndarray
     bout: np.ndarray
+    tilt_deg: np.ndarray
 
     def __len__(self) -> int:
         return int(len(self.start_s))

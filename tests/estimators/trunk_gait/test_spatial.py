@@ -168,3 +168,28 @@ def test_bout_spatial_averages_the_strides_as_the_references_define_them():
         with pytest.raises(ValueError, match=next(iter(bad)).replace("average", "bout_average")
                            .replace("strides", "bout_strides")):
             bout_spatial(length, dur, bout, cad, **args)
+
+
+def test_step_tilt_and_the_lean_gate_leave_out_a_sit_to_walk_stride():
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    from stridelab.estimators.trunk_gait._spatial import step_tilt_deg
+    # gravity seen by a trunk leaning 20° forward for the first two steps (still rising from a chair), upright after
+    g = 9.80665
+    ic = np.arange(0, 700, 100)
+    lean = np.where(np.arange(700) < 200, np.deg2rad(20.0), 0.0)
+    acc = np.column_stack([g * np.sin(lean), g * np.cos(lean), np.zeros(700)])
+    acc[:, 1] += 1.5 * np.sin(2 * np.pi * np.arange(700) / 100)      # step oscillation averages out per step
+    tilt = step_tilt_deg(acc, ic)
+    np.testing.assert_allclose(tilt, [20, 20, 0, 0, 0, 0], atol=0.5)
+    # the strides that lean are left out of the bout value when the gate is on, kept when off
+    length = np.array([1.9, 1.4, 1.0, 1.0, 1.02])
+    stride_tilt = np.array([20.0, 10.0, 0.0, 0.0, 0.0])
+    dur = np.ones(5)
+    kw = dict(average="mean", strides="all", speed_method="stride", tilt_deg=stride_tilt)
+    assert bout_spatial(length, dur, np.zeros(5, int), np.array([110.0]), max_tilt_deg=0.0, **kw)[0][0] == \
+        pytest.approx(length.mean())
+    assert bout_spatial(length, dur, np.zeros(5, int), np.array([110.0]), max_tilt_deg=15.0, **kw)[0][0] == \
+        pytest.approx(length[1:].mean())
+    # a bout whose every stride leans keeps them all (no empty bout)
+    assert np.isfinite(bout_spatial(length[:1], dur[:1], np.zeros(1, int), np.array([110.0]), max_tilt_deg=15.0,
+                                    **(kw | dict(tilt_deg=stride_tilt[:1])))[0][0])
