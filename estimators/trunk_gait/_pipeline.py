@@ -13,8 +13,8 @@ from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes,
 from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
 from stridelab.estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
 from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
-from stridelab.estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, turn_shortened,
-                                            vertical_position)
+from stridelab.estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, step_tilt_deg,
+                                                      turn_shortened, vertical_position)
 from stridelab.estimators.trunk_gait._turns import EMPTY_TURNS, detect_turns
 from stridelab.estimators.trunk_gait._types import (DEFAULT_HEIGHT_M, LEG_LENGTH_PER_HEIGHT, PLACEMENTS, Bouts, Strides,
                                           TrunkFrame, TrunkGaitParams, TrunkGaitResult, Turns)
@@ -50,6 +50,55 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
         raise ValueError(f"cadence_method must be 'median' or 'count', got {method!r}")
     n = np.maximum(1.0, np.rint(d / T))
     return 60.0 * float(n.sum()) / float(d.sum())
+
+
+def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray, cadence_spm: np.ndarray, *,
+                 average: str, strides: str, speed_method: str, tilt_deg: np.ndarray | None = None,
+                 max_tilt_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(stride length m, walking speed m/s) per bout from its strides: (S,) ``length_m``, ``duration_s``, ``bout``
+    (index 0..B-1) and the bouts' (B,) ``cadence_spm``.
+
+    ``strides``: "regular" = only strides lasting ≤ 1.5 x the bout's median stride duration (a longer one may span
+    a missed contact, three steps measured as two), "all" = every stride of the bout (the reference definitions:
+    INDIP's bout stride length and walking speed are the means over all its strides, Voisard's foot-INS reference
+    likewise). ``average``: "mean" | "median" over those strides, or "time" = their mean weighted by stride
+    duration (the bout's time average of the stride values; mobgap interpolates the stride values onto one value per
+    second and averages those over the bout, Micó-Amigo et al. 2023, which weighs strides by duration as well).
+    ``speed_method``: "stride" = the same average of
+    the stride speeds (length / duration); "cadence" = bout stride length x cadence / 120 (steps/min -> strides/s;
+    mobgap's walking speed, Micó-Amigo et al. 2023 / Kirk et al. 2024: speed = cadence x stride length / 2 per
+    second), which does not divide a noisy length by a noisy duration stride by stride. ``max_tilt_deg`` > 0: strides
+    whose trunk leans more than that from the walking posture (``tilt_deg`` (S,), ``_spatial.step_tilt_deg``) are
+    left out, unless that would leave the bout without a stride (0 = off)."""
+    if average not in ("mean", "median", "time"):
+        raise ValueError(f"bout_average must be 'mean', 'median' or 'time', got {average!r}")
+    if strides not in ("regular", "all"):
+        raise ValueError(f"bout_strides must be 'regular' or 'all', got {strides!r}")
+    if speed_method not in ("stride", "cadence"):
+        raise ValueError(f"speed_method must be 'stride' or 'cadence', got {speed_method!r}")
+    n_b = len(cadence_spm)
+    length_m = np.asarray(length_m, float)
+    duration_s = np.asarray(duration_s, float)
+    sl = np.full(n_b, np.nan)
+    sp = np.full(n_b, np.nan)
+    for b in range(n_b):
+        m = bout == b
+        if not m.any():
+            continue
+        if strides == "regular":
+            m = m & (duration_s <= 1.5 * np.median(duration_s[m]))
+        if max_tilt_deg > 0 and tilt_deg is not None and (m & (tilt_deg <= max_tilt_deg)).any():
+            m = m & (tilt_deg <= max_tilt_deg)
+        x, d = length_m[m], duration_s[m]
+        if average == "median":
+            sl[b], sp[b] = np.median(x), np.median(x / d)
+        elif average == "mean":
+            sl[b], sp[b] = np.mean(x), np.mean(x / d)
+        else:
+            sl[b], sp[b] = np.sum(x * d) / np.sum(d), np.sum(x) / np.sum(d)
+        if speed_method == "cadence":
+            sp[b] = sl[b] * cadence_spm[b] / 120.0
+    return sl, sp
 
 
 def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams,
@@ -118,7 +167,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     seqs = _sequences(acc, fs_hz, p)
     frame = frame_from_sequences(acc, fs_hz, seqs) if len(acc) else None
     warnings = list(frame.warnings) if frame is not None else ["no samples"]
-    ic_all, left_all, run_all, step_all, closing_all = [], [], [], [], []
+    ic_all, left_all, run_all, step_all, closing_all, tilt_all = [], [], [], [], [], []
     turns: list[Turns] = []
     run_offset = 0
     offset_n = p.ic_offset_s
@@ -159,6 +208,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         left_all.append(left)
         run_all.append(runs)
         step_all.append(np.r_[sl, np.nan] if len(peaks) else np.empty(0))   # step i -> i+1; last has none
+        tilt_all.append(np.r_[step_tilt_deg(ab, peaks), np.nan] if len(peaks) else np.empty(0))
         turns.append(tt)
     cat = lambda xs, dt: np.concatenate(xs) if xs else np.empty(0, dt)  # noqa: E731
     ic = cat(ic_all, float)
@@ -170,13 +220,15 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
                    for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
 
     first, st, en, length = strides_from_contacts(ic, runs, step_len)
+    stride_tilt = strides_from_contacts(ic, runs, cat(tilt_all, float))[3] / 2.0     # mean of its two steps
     dur = en - st
     valid = (dur >= p.stride_min_s) & (dur <= p.stride_max_s) & (np.nan_to_num(length) >= p.stride_min_length_m)
     bout_of = assemble_bouts(st, en, valid, max_break_s=p.wb_max_break_s, min_strides=p.wb_min_strides)
     in_b = bout_of >= 0
     n_b = int(bout_of.max()) + 1 if in_b.any() else 0
     strides = Strides(start_s=st[in_b], end_s=en[in_b], side=np.where(left[first[in_b]], "left", "right"),
-                      length_m=length[in_b], speed_m_s=length[in_b] / dur[in_b], bout=bout_of[in_b])
+                      length_m=length[in_b], speed_m_s=length[in_b] / dur[in_b], bout=bout_of[in_b],
+                      tilt_deg=stride_tilt[in_b])
     b_start = np.array([strides.start_s[strides.bout == b].min() for b in range(n_b)])
     b_end = np.array([strides.end_s[strides.bout == b].max() for b in range(n_b)])
     ic_bout = np.full(len(ic), -1, np.int64)
@@ -190,19 +242,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     cadence = np.array([bout_cadence(ic[(ic_bout == b) & ~closing], max_step_s=p.stride_max_s / 2.0,
                                      method=p.cadence_method) for b in range(n_b)])
     n_str = np.bincount(strides.bout, minlength=n_b)
-    # bout means over its regular strides: a stride lasting > 1.5 x the bout's median stride spans a missed contact
-    # (three steps measured as two) and would inflate length and speed
-    med = np.array([np.median(dur[in_b][strides.bout == b]) for b in range(n_b)])
-    reg = (dur[in_b] <= 1.5 * med[strides.bout]) if n_b else np.zeros(0, bool)
-    n_reg = np.bincount(strides.bout[reg], minlength=n_b)
-    if p.bout_average == "median":
-        sl_b = np.array([np.median(strides.length_m[reg & (strides.bout == b)]) for b in range(n_b)])
-        sp_b = np.array([np.median(strides.speed_m_s[reg & (strides.bout == b)]) for b in range(n_b)])
-    elif p.bout_average == "mean":
-        sl_b = np.bincount(strides.bout[reg], weights=strides.length_m[reg], minlength=n_b) / np.maximum(n_reg, 1)
-        sp_b = np.bincount(strides.bout[reg], weights=strides.speed_m_s[reg], minlength=n_b) / np.maximum(n_reg, 1)
-    else:
-        raise ValueError(f"bout_average must be 'mean' or 'median', got {p.bout_average!r}")
+    sl_b, sp_b = bout_spatial(strides.length_m, dur[in_b], strides.bout, cadence, average=p.bout_average,
+                              strides=p.bout_strides, speed_method=p.speed_method, tilt_deg=strides.tilt_deg,
+                              max_tilt_deg=p.sl_max_tilt_deg)
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []

@@ -64,7 +64,15 @@ class TrunkGaitParams:
         steps (0 = off; Soltani et al. 2021 use 2 steps, 3 MAD).
       sl_turn_per_rad: turning steps are shortened to step / (1 + sl_turn_per_rad · |heading change of the step,
         rad|) (0 = off; ``_spatial.turn_shortened``).
-      bout_average: "mean" or "median" of the bout's regular strides for its stride length and walking speed.
+      bout_average: "mean", "median" or "time" (mean weighted by stride duration, as mobgap's per-second values) of
+        the bout's strides (``bout_strides``) for its stride length and walking speed.
+      bout_strides: "regular" (strides lasting ≤ 1.5 x the bout's median stride duration) or "all" strides of the
+        bout (``_pipeline.bout_spatial``).
+      sl_max_tilt_deg: strides whose trunk leans more than this from the gait sequence's walking posture (mean
+        up) are left out of the bout's stride length and speed (not pendular: rising from a chair, stooping;
+        ``_spatial.step_tilt_deg``), deg (0 = off).
+      speed_method: bout walking speed as the average of the stride speeds ("stride") or as bout stride length x
+        cadence / 120 ("cadence", mobgap's definition).
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
@@ -100,8 +108,11 @@ class TrunkGaitParams:
     sl_correction: float = 1.27
     sl_highpass_hz: float = 0.1
     sl_hampel_half_width: int = 1
-    sl_turn_per_rad: float = 0.2
+    sl_turn_per_rad: float = 0.3
     bout_average: str = "median"
+    bout_strides: str = "all"
+    speed_method: str = "cadence"
+    sl_max_tilt_deg: float = 0.0
     wb_min_strides: int = 4
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
@@ -144,8 +155,9 @@ class Bouts:
     start_s, end_s: first and last initial contact of the bout's strides, s from the first sample (closing steps
       added by the fill, ``ic_fill_end_steps``, may follow ``end_s``: contacts of the bout, but no stride).
     n_steps, n_strides: counts (steps = initial contacts - 1; strides = complete same-side IC pairs).
-    cadence_spm: steps per minute (``TrunkGaitParams.cadence_method``); stride_length_m: mean stride length, m;
-    walking_speed_m_s: mean stride speed, m/s.
+    cadence_spm: steps per minute (``TrunkGaitParams.cadence_method``); stride_length_m: the bout's stride length,
+    m; walking_speed_m_s: its walking speed, m/s (``TrunkGaitParams.bout_average`` / ``bout_strides`` /
+    ``speed_method``).
     n_turns: turns (≥ turn_min_angle_deg) overlapping the bout.
     flags: per bout a tuple of quality flags ("default_height", "low_frame_confidence", ...).
     """
@@ -179,13 +191,15 @@ class Bouts:
 @dataclass(frozen=True)
 class Strides:
     """Strides kept in walking bouts (arrays of length S): start_s, end_s (same-side initial contacts), side
-    ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``)."""
+    ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``), tilt_deg (the trunk's mean lean
+    from the walking posture over the stride, ``_spatial.step_tilt_deg``)."""
     start_s: np.ndarray
     end_s: np.ndarray
     side: np.ndarray
     length_m: np.ndarray
     speed_m_s: np.ndarray
     bout: np.ndarray
+    tilt_deg: np.ndarray
 
     def __len__(self) -> int:
         return int(len(self.start_s))

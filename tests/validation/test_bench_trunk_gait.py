@@ -38,3 +38,26 @@ def test_bench_skips_a_broken_file_and_reports_every_block(tmp_path):
     assert res["voisard_foot_reference"]["trials"] == 1 and res["voisard_foot_reference"]["strides"] > 10
     s = res["shipped_defaults"]["voisard"]
     assert s["ic_sensitivity"] > 0.8 and s["ic_precision"] > 0.8 and s["ic_timing_mae_ms"] < 50
+
+
+def test_bench_recomputes_bout_values_as_the_estimator_does():
+    # the spatial grid recomputes the bouts' stride length and speed from one run's strides (respatial); with the
+    # shipped options it must give the estimator's own bout values, and the other options must change them
+    import dataclasses
+
+    import numpy as np
+
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
+    from stridelab.validation.bench.trunk_gait import load_voisard, respatial, run_ours
+    rec = load_voisard(shared_data("voisard_gait"), [], 1, foot_reference=False)[0]
+    p = TrunkGaitParams()
+    det = run_ours(rec, p)
+    assert len(det.bouts["start_s"]) >= 1
+    same = respatial(det, p.bout_average, p.bout_strides, p.speed_method, p.sl_max_tilt_deg)
+    np.testing.assert_allclose(same.bouts["stride_length_m"], det.bouts["stride_length_m"])
+    np.testing.assert_allclose(same.bouts["walking_speed_m_s"], det.bouts["walking_speed_m_s"])
+    other = run_ours(rec, dataclasses.replace(p, bout_average="mean", speed_method="stride"))
+    re = respatial(det, "mean", p.bout_strides, "stride")
+    np.testing.assert_allclose(re.bouts["stride_length_m"], other.bouts["stride_length_m"])
+    np.testing.assert_allclose(re.bouts["walking_speed_m_s"], other.bouts["walking_speed_m_s"])
+    assert not np.allclose(re.bouts["walking_speed_m_s"], det.bouts["walking_speed_m_s"])

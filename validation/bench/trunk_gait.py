@@ -23,11 +23,12 @@ one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_sm
 ``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, ``ic_turn_prominence``, or "ionescu" with
 ``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then ``cadence_method``; the block
 ``shipped_defaults`` names the detector that ships under ``ic_detector``, ``ic_grid_in_sample`` scores every
-candidate in-sample); the stride-length factor ``sl_correction``, jointly with the step-length
-Hampel filter ``sl_hampel_half_width``, the bout average ``bout_average`` (mean/median) and the turn shortening
-``sl_turn_per_rad`` (0 / 0.2 / 0.4), by the same
-leave-one-group-out against the spatial references (loss = mean over groups of the group's per-bout stride-length
-MAE). ``in_sample``: the same grid chosen on everything scored
+candidate in-sample); the turn shortening ``sl_turn_per_rad`` (SL_TURN_GRID, at the stride level), then the
+stride-length factor ``sl_correction`` jointly with the step-length Hampel filter ``sl_hampel_half_width``, the bout
+average ``bout_average`` (mean / median / time-weighted) and the strides averaged ``bout_strides`` (regular / all),
+by the same leave-one-group-out against the spatial references (loss = mean over groups of the group's per-bout
+stride-length MAE), then the walking-speed definition ``speed_method`` (stride speeds / stride length x cadence) on
+the groups' per-bout speed MAE. ``in_sample``: the same grid chosen on everything scored
 (marked in-sample). ``anchor``: mobgap's MobilisedPipelineHealthy and ...Impaired on the same recordings, scored by
 the same matcher, each as shipped, plus mobgap given the same tuning effort: the pipeline (healthy / impaired), the
 input frame (as worn, mapped once per device to mobgap's axes / aligned by our detected frame) and a constant IC
@@ -96,8 +97,17 @@ CADENCE_METHODS = ("median", "count")   # TrunkGaitParams.cadence_method, chosen
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.061, 0.01), 3))   # the jerk minimum lags the heel strike more
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
 GRID_MOBGAP_SL = tuple(np.round(np.arange(0.80, 1.401, 0.01), 3))   # x mobgap's shipped factor 4.587/4
-# (sl_hampel_half_width, bout_average, sl_turn_per_rad)
-SL_VARIANTS = tuple((h, a, c) for h in (0, 1, 2) for a in ("mean", "median") for c in (0.0, 0.2, 0.4))
+# sl_turn_per_rad, chosen first at the stride level (choose_turn); 0.3, 0.5 and 0.6 added on 2026-12-07 (U-turn
+# strides came out at 1.16 x the foot reference with 0.2; 0.4 won 3/10 folds of the 0 / 0.2 / 0.4 grid)
+SL_TURN_GRID = (0.0, 0.2, 0.3, 0.4, 0.5, 0.6)
+# sl_max_tilt_deg is not in the grid: no Voisard stride leans more than 10.2° (no chair in those trials), so the
+# fold that holds out the one Mobilise-D participant cannot choose it (2026-12-07 run with (0, 20, 15, 12, 10, 8):
+# off in that fold, 15 in the other 9 and in-sample); ``tilt_gate_check`` prints its in-sample effect
+SL_TILT_GATES = (20.0, 15.0, 12.0, 10.0, 8.0)
+# (sl_hampel_half_width, bout_average, sl_turn_per_rad, bout_strides, sl_max_tilt_deg)
+SL_VARIANTS = tuple((h, a, c, b, 0.0) for h in (0, 1, 2) for a in ("mean", "median", "time") for c in SL_TURN_GRID
+                    for b in ("regular", "all"))
+SPEED_METHODS = ("stride", "cadence")    # TrunkGaitParams.speed_method, chosen after the stride-length constants
 XSENS_TO_MOBGAP = np.diag([1.0, -1.0, -1.0])   # Xsens MTw at L5: x up, z out of the back -> mobgap x up, z forward
 
 
@@ -343,11 +353,7 @@ def _score_idx(recs, dets, idx, offsets, sl_scales, whole: bool = False) -> dict
 
 def sl_mae(recs: list[Rec], dets: list[Det], sl_scale: float = 1.0) -> float:
     """Per-bout stride-length MAE (m) of matched bouts pooled over ``recs`` (inf when none has a reference)."""
-    e = [np.asarray(_bout_errs(r, d, sl_scale).get("stride_length_m", {}).get("abs_error", []), float)
-         for r, d in zip(recs, dets)]
-    x = np.concatenate(e) if e else np.empty(0)
-    x = x[np.isfinite(x)]
-    return float(np.mean(x)) if len(x) else float("inf")
+    return spatial_mae(recs, dets, sl_scale, "stride_length_m")
 
 
 def ic_loss(s: dict) -> float:
@@ -388,7 +394,22 @@ def run_ours(rec: Rec, params) -> Det:
     return Det(ic_s=ic, bouts={"start_s": b.start_s, "end_s": b.end_s,
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
-               strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m})
+               strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout,
+                        "tilt_deg": st.tilt_deg})
+
+
+def respatial(det: Det, average: str, strides: str, speed_method: str, max_tilt_deg: float = 0.0) -> Det:
+    """``det`` with its bouts' stride length and speed recomputed from its strides by the estimator's
+    ``bout_spatial`` (bout average, strides used, speed method; the bouts' cadence as in ``det``, so after
+    ``_with_cadence`` the speed follows the chosen cadence method)."""
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    st = det.strides
+    if st is None:
+        return det
+    sl, sp = bout_spatial(st["length_m"], st["end_s"] - st["start_s"], st["bout"],
+                          np.asarray(det.bouts["cadence_spm"], float), average=average, strides=strides,
+                          speed_method=speed_method, tilt_deg=st["tilt_deg"], max_tilt_deg=max_tilt_deg)
+    return dataclasses.replace(det, bouts={**det.bouts, "stride_length_m": sl, "walking_speed_m_s": sp})
 
 
 def turn_check(recs: list[Rec], shipped) -> dict | None:
@@ -448,7 +469,7 @@ def choose_turn(recs: list[Rec], shipped, groups: list[str]) -> float:
     groups, loss = mean over groups of the stride-length MAE after K. Bout means cannot tell it: every Voisard
     trial holds one U-turn, so sl_correction absorbs a constant turning bias. The shipped value when no group has
     foot strides."""
-    grid = sorted({v[2] for v in SL_VARIANTS})
+    grid = sorted(SL_TURN_GRID)
     pairs = {c: {} for c in grid}
     for i, r in enumerate(recs):
         if r.group in groups and r.foot_strides is not None:
@@ -484,42 +505,112 @@ def _turn_det(r: Rec, shipped, c: float) -> Det:
     return _TURN_DETS[key]
 
 
+def matched_values(recs: list[Rec], dets: list[Det], key: str) -> tuple[np.ndarray, np.ndarray]:
+    """(ours, reference) ``key`` of every matched bout with a finite reference, pooled over ``recs``."""
+    from stridelab.estimators.trunk_gait.evaluation import match_bouts
+    det, ref = [], []
+    for r, d in zip(recs, dets):
+        b = d.bouts
+        m = match_bouts(b["start_s"], b["end_s"], r.ref_bouts["start_s"], r.ref_bouts["end_s"])
+        x = np.asarray(b[key], float)[m.det_idx]
+        y = np.asarray(r.ref_bouts[key], float)[m.ref_idx]
+        ok = np.isfinite(x) & np.isfinite(y)
+        det.append(x[ok])
+        ref.append(y[ok])
+    return (np.concatenate(det), np.concatenate(ref)) if det else (np.empty(0), np.empty(0))
+
+
+def spatial_mae(recs: list[Rec], dets: list[Det], sl_scale: float, key: str) -> float:
+    """Per-bout MAE of ``key`` ("stride_length_m" | "walking_speed_m_s") of the matched bouts pooled over ``recs``
+    (inf when none has a reference)."""
+    e = [np.asarray(_bout_errs(r, d, sl_scale).get(key, {}).get("abs_error", []), float) for r, d in zip(recs, dets)]
+    x = np.concatenate(e) if e else np.empty(0)
+    x = x[np.isfinite(x)]
+    return float(np.mean(x)) if len(x) else float("inf")
+
+
 def choose_spatial(recs: list[Rec], shipped) -> tuple[dict, tuple | None]:
     """Stride length and speed: every recording with a spatial reference (Voisard: foot INS; Mobilise-D: INDIP);
     leave-one-group-out over the same groups as the IC constants (9 Voisard subjects + the Mobilise-D participant).
     Per fold, first the turn shortening ``sl_turn_per_rad`` at the stride level (``choose_turn``), then, with it,
-    the Hampel half width x bout mean/median (SL_VARIANTS) and the factor sl_correction (GRID_SL) at the bout level;
-    the IC constants as shipped; bout loss = mean over groups of the group's per-bout stride-length MAE.
-    Returns ({group: ((half_width, average, turn_per_rad), sl_correction) chosen without it}, the in-sample choice
-    or None)."""
+    the Hampel half width x bout mean/median x regular/all strides (SL_VARIANTS) and the factor sl_correction
+    (GRID_SL) at the bout level (loss = mean over groups of the group's per-bout stride-length MAE), then with those
+    the speed method (SPEED_METHODS; loss = mean over groups of the group's per-bout speed MAE); the IC constants as
+    shipped. Returns ({group: ((half_width, average, turn_per_rad, bout_strides), sl_correction, speed_method)
+    chosen without it}, the in-sample choice or None)."""
     sp = [i for i, r in enumerate(recs) if np.isfinite(np.asarray(r.ref_bouts["stride_length_m"], float)).any()]
     if not sp:
         return {}, None
-    var_dets = {v: {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=v[0], bout_average=v[1],
-                                                             sl_turn_per_rad=v[2]))
-                    for i in sp} for v in SL_VARIANTS}
-    sl_cands = [(v, k) for v in SL_VARIANTS for k in GRID_SL]
+    # the estimator runs once per (Hampel, turn); the bout aggregation is recomputed from its strides
+    base = {(h, c): {i: run_ours(recs[i], dataclasses.replace(shipped, sl_hampel_half_width=h, sl_turn_per_rad=c))
+                     for i in sp} for h in sorted({v[0] for v in SL_VARIANTS}) for c in SL_TURN_GRID}
+
+    def det_of(v: tuple, i: int, speed_method: str) -> Det:
+        return respatial(base[(v[0], v[2])][i], v[1], v[3], speed_method, v[4])
+    ks = np.asarray(GRID_SL, float)
     sl_cache: dict = {}
 
-    def sl_group(g, c):
-        if (g, c) not in sl_cache:
-            v, k = sl_cands[c]
-            sl_cache[(g, c)] = sl_mae([recs[i] for i in sp if recs[i].group == g],
-                                      [var_dets[v][i] for i in sp if recs[i].group == g], k / shipped.sl_correction)
-        return sl_cache[(g, c)]
+    def sl_group(g, v) -> np.ndarray:
+        """(len(GRID_SL),) the group's per-bout stride-length MAE for every K (the bout values scale with K)."""
+        if (g, v) not in sl_cache:
+            idx = [i for i in sp if recs[i].group == g]
+            det, ref = matched_values([recs[i] for i in idx], [det_of(v, i, shipped.speed_method) for i in idx],
+                                      "stride_length_m")
+            sl_cache[(g, v)] = (np.mean(np.abs(np.outer(ks / shipped.sl_correction, det) - ref[None, :]), axis=1)
+                                if len(det) else np.full(len(ks), np.inf))
+        return sl_cache[(g, v)]
+
+    def mean_finite(x: list[float]) -> float:
+        x = [y for y in x if np.isfinite(y)]
+        return float(np.mean(x)) if x else float("inf")
 
     def choose(train: list[str]) -> tuple:
         turn = choose_turn(recs, shipped, train)
-        cs = [c for c, (v, _k) in enumerate(sl_cands) if v[2] == turn]
+        best = (np.inf, None, None)
+        for v in (v for v in SL_VARIANTS if v[2] == turn):       # first minimum in grid order wins ties
+            per_g = np.array([sl_group(g, v) for g in train])
+            per_g = np.where(np.isfinite(per_g), per_g, np.nan)
+            loss = np.nanmean(per_g, axis=0) if np.isfinite(per_g).any() else np.full(len(ks), np.inf)
+            j = int(np.nanargmin(loss)) if np.isfinite(loss).any() else 0
+            if loss[j] < best[0]:
+                best = (float(loss[j]), v, float(ks[j]))
+        _l, v, k = best
 
-        def loss(c):
-            x = [sl_group(g, c) for g in train]
-            x = [y for y in x if np.isfinite(y)]
-            return float(np.mean(x)) if x else float("inf")
-        return sl_cands[cs[int(np.argmin([loss(c) for c in cs]))]]
+        def speed_loss(m: str) -> float:
+            return mean_finite([spatial_mae([recs[i] for i in sp if recs[i].group == g],
+                                            [det_of(v, i, m) for i in sp if recs[i].group == g],
+                                            k / shipped.sl_correction, "walking_speed_m_s") for g in train])
+        return v, k, min(SPEED_METHODS, key=speed_loss)
     groups = sorted({recs[i].group for i in sp})
     held = {g: choose([x for x in groups if x != g] or [g]) for g in groups}
     return held, choose(groups)
+
+
+def tilt_gate_check(recs: list[Rec], shipped) -> dict | None:
+    """In-sample: the shipped defaults with the trunk-lean gate ``sl_max_tilt_deg`` on (strides leaning more than
+    the gate from the walking posture left out of the bout values) per data set, and how far strides lean
+    (``Strides.tilt_deg`` percentiles). Not chosen by the leave-one-group-out (see SL_TILT_GATES)."""
+    idx = [i for i, r in enumerate(recs) if np.isfinite(np.asarray(r.ref_bouts["stride_length_m"], float)).any()]
+    if not idx:
+        return None
+    dets = {i: run_ours(recs[i], shipped) for i in idx}
+    out = {"marked": "in-sample, shipped defaults, no re-tuning of K", "tilt_deg_percentiles_50_90_99_max": {}}
+    for ds in ("voisard", "mobilised"):
+        ii = [i for i in idx if recs[i].dataset == ds]
+        if not ii:
+            continue
+        t = np.concatenate([dets[i].strides["tilt_deg"] for i in ii])
+        t = t[np.isfinite(t)]
+        if len(t):
+            out["tilt_deg_percentiles_50_90_99_max"][ds] = [round(float(x), 1) for x in
+                                                            np.percentile(t, [50, 90, 99, 100])]
+        for g in (0.0, *SL_TILT_GATES):
+            d = [respatial(dets[i], shipped.bout_average, shipped.bout_strides, shipped.speed_method, g) for i in ii]
+            sub = [recs[i] for i in ii]
+            out.setdefault(f"gate_{g:g}_deg" if g else "gate_off", {})[ds] = {
+                "stride_length_mae_m": round(spatial_mae(sub, d, 1.0, "stride_length_m"), 4),
+                "walking_speed_mae_m_s": round(spatial_mae(sub, d, 1.0, "walking_speed_m_s"), 4)}
+    return out
 
 
 def sensor_height_check(recs: list[Rec], shipped) -> dict | None:
@@ -576,11 +667,17 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                            **{k: sc[k] for k in ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms")}})
     ship_dets = [run_ours(r, shipped) for r in recs]
     sl_held, sl_ins = choose_spatial(recs, shipped)
-    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad)
+    ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad, shipped.bout_strides,
+              shipped.sl_max_tilt_deg)
+    ship_sp = (ship_v, shipped.sl_correction, shipped.speed_method)
 
-    def with_sl(r: Rec, ci: int, v: tuple) -> Det:
-        return run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
-                                               sl_hampel_half_width=v[0], bout_average=v[1], sl_turn_per_rad=v[2]))
+    def with_sl(r: Rec, ci: int, v: tuple, cad: str, speed_method: str) -> Det:
+        """The fold's IC candidate and spatial variant; the speed after the fold's cadence method."""
+        d = (dets[ci][i_of[r.name]] if v[0] == ship_v[0] and v[2] == ship_v[2] else
+             run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+                                             sl_hampel_half_width=v[0], sl_turn_per_rad=v[2])))
+        return respatial(_with_cadence(d, cad), v[1], v[3], speed_method, v[4])
+    i_of = {r.name: i for i, r in enumerate(recs)}
     # cadence method: leave-one-group-out on the cadence MAPE of the bouts of the fold's IC choice (nested: the
     # held-out group's IC choice was made without it, its cadence method too)
     def cad_loss(ci: int, gs: list[str], m: str) -> float:
@@ -599,14 +696,13 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     cv_dets, cv_off, cv_scale = [], [], []
     for i, r in enumerate(recs):
         ci, o = full[logo["held_out_choice"][r.group]]
-        v, k = sl_held.get(r.group, (ship_v, shipped.sl_correction))
-        cv_dets.append(_with_cadence(dets[ci][i] if v == ship_v else with_sl(r, ci, v), cad_held[r.group]))
+        v, k, spm = sl_held.get(r.group, ship_sp)
+        cv_dets.append(with_sl(r, ci, v, cad_held[r.group], spm))
         cv_off.append(o)
         cv_scale.append(k / shipped.sl_correction)
     cii, oi = full[logo["in_sample_choice"]]
-    vi, ki = sl_ins or (ship_v, shipped.sl_correction)
-    ins_dets = [_with_cadence(dets[cii][i] if vi == ship_v else with_sl(r, cii, vi), cad_ins)
-                for i, r in enumerate(recs)]
+    vi, ki, spi = sl_ins or ship_sp
+    ins_dets = [with_sl(r, cii, vi, cad_ins, spi) for r in recs]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
     by_group = {g: {**IC_CANDIDATES[full[c][0]], "ic_offset_s": full[c][1], "cadence_method": cad_held[g]}
                 for g, c in logo["held_out_choice"].items()}
@@ -616,33 +712,39 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                              "params": {k: getattr(shipped, k) for k in (*IC_FIELDS,
                                                                           "sl_correction",
                                                                           "sl_hampel_half_width",
-                                                                          "bout_average", "sl_turn_per_rad")}},
+                                                                          "bout_average", "sl_turn_per_rad",
+                                                                          "bout_strides", "sl_max_tilt_deg",
+                                                                          "speed_method")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
                             "scheme": "IC constants (ic_method and its constants, IC_CANDIDATES, x ic_offset_s): "
                                       "leave-one-group-out (then cadence_method, median/count, on the cadence MAPE "
                                       "of the fold's IC choice, same folds) "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
-                                      "sl_hampel_half_width, bout_average, sl_turn_per_rad, sl_correction: "
-                                      "leave-one-group-out over "
+                                      "sl_turn_per_rad (stride level), then sl_hampel_half_width, "
+                                      "bout_average, bout_strides, sl_correction: leave-one-group-out over "
                                       "the same groups against the spatial references (Voisard: foot INS; "
-                                      "Mobilise-D: INDIP), loss = mean of the groups' per-bout stride-length MAE",
+                                      "Mobilise-D: INDIP), loss = mean of the groups' per-bout stride-length MAE; "
+                                      "then speed_method on the groups' per-bout speed MAE",
                             "held_out_choice_by_group": by_group, "sl_held_out_by_group": {
                                 g: {"sl_hampel_half_width": v[0], "bout_average": v[1], "sl_turn_per_rad": v[2],
-                                    "sl_correction": k}
-                                for g, (v, k) in sl_held.items()},
+                                    "bout_strides": v[3], "sl_max_tilt_deg": v[4], "sl_correction": k,
+                                    "speed_method": m}
+                                for g, (v, k, m) in sl_held.items()},
                             **({"note": "only one group: nothing could be held out, this block is in-sample"}
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
                       "choice": {**IC_CANDIDATES[cii], "ic_offset_s": oi, "cadence_method": cad_ins,
                                  "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1],
-                                 "sl_turn_per_rad": vi[2]}},
+                                 "sl_turn_per_rad": vi[2], "bout_strides": vi[3], "sl_max_tilt_deg": vi[4],
+                                 "speed_method": spi}},
         "ic_grid_in_sample": {"marked": "in-sample: every IC candidate at its best offset, group-mean loss over all "
                                         "groups (the loss of the leave-one-group-out), overall figures",
                               "candidates": sorted(grid_table, key=lambda x: x["loss_ms"])},
         "_ship_dets": ship_dets,
         "sensor_height_check": sensor_height_check(recs, shipped),
         "turn_check": turn_check(recs, shipped),
+        "tilt_gate_check": tilt_gate_check(recs, shipped),
     }
 
 
@@ -945,7 +1047,8 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
                  "ic_fill_edge_steps / ic_fill_end_steps / ic_zc_sigma_s / ic_zc_min_depth / cadence_method",
          "grid": "IC_CANDIDATES x GRID_OFFSET_S of validation/bench/trunk_gait.py",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
-        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average / sl_turn_per_rad",
+        {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average / bout_strides / "
+                 "sl_turn_per_rad / speed_method",
          "chosen_on": "Voisard subjects (foot-INS stride length) + Mobilise-D HA-001 (INDIP stride length), "
                       "leave-one-group-out for the cross-validated figure"}]
     res["spatial_references"] = {

@@ -112,3 +112,84 @@ def test_step_heading_change_cancels_pelvic_sway_and_finds_a_turn():
     np.testing.assert_allclose(short[:6], 0.6, rtol=0.002)
     np.testing.assert_array_equal(turn_shortened(steps, d, 0.0), steps)
     assert len(step_heading_change(sway_rate, FS, ic[:1])) == 0
+
+
+def _pendulum_walk(speed_m_s: float, step_s: float, leg_m: float, n_steps: int, seed: int = 0):
+    """(upward acc (N,), contact samples (K+1,)) of an inverted pendulum walking at a constant forward speed: in
+    each step the trunk is at sqrt(l² - x²) above the stance foot, x the forward distance from it (-s/2 .. s/2,
+    s = speed x step time), the stance foot changes at each contact (the trunk is lowest there); 2 s of standing
+    before and after, sensor noise. The physics, not Eq. 1 itself: the excursion of each step is l - sqrt(l² - s²/4)."""
+    fs = FS
+    t_ic = 2.0 + step_s * np.arange(n_steps + 1)
+    n = int((t_ic[-1] + 2.0) * fs)
+    t = np.arange(n) / fs
+    z = np.full(n, np.sqrt(leg_m ** 2 - (speed_m_s * step_s / 2) ** 2))
+    w = (t >= t_ic[0]) & (t < t_ic[-1])
+    x = speed_m_s * (((t[w] - t_ic[0]) % step_s) - step_s / 2)
+    z[w] = np.sqrt(leg_m ** 2 - x ** 2)
+    acc = np.gradient(np.gradient(z, 1 / fs), 1 / fs) + np.random.default_rng(seed).normal(0, 0.02, n)
+    return acc, np.round(t_ic * fs).astype(np.int64)
+
+
+@pytest.mark.parametrize("speed, step_s", [(0.3, 1.1), (0.6, 0.75), (1.3, 0.53)], ids=["0.3_m_s", "0.6_m_s", "1.3_m_s"])
+def test_pendulum_physics_step_length_from_slow_to_fast_walking(speed, step_s):
+    # slow pathological walking (0.3 m/s, 55 steps/min: a 0.33 m step rises the trunk by only 16 mm) to fast
+    leg = 0.85
+    acc, ic = _pendulum_walk(speed, step_s, leg, 20)
+    sl = step_lengths(vertical_position(acc, FS, 0.1), ic, leg, 1.0)
+    inner = sl[2:-2]                               # away from the filter transients at the ends
+    np.testing.assert_allclose(inner, speed * step_s, rtol=0.05)
+
+
+def test_bout_spatial_averages_the_strides_as_the_references_define_them():
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    # bout 0: four strides of 1.0 s, 1.2 m and one hesitating 2.0 s stride of 0.4 m (a real, slow stride: INDIP
+    # and the foot-INS reference average every stride of the bout); bout 1: 0.8 m strides of 1.0 s
+    length = np.array([1.2, 1.2, 0.4, 1.2, 1.2, 0.8, 0.8, 0.8])
+    dur = np.array([1.0, 1.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    bout = np.array([0, 0, 0, 0, 0, 1, 1, 1])
+    cad = np.array([100.0, 120.0])
+    kw = dict(speed_method="stride")
+    sl, sp = bout_spatial(length, dur, bout, cad, average="mean", strides="regular", **kw)
+    assert sl[0] == pytest.approx(1.2) and sp[0] == pytest.approx(1.2)        # the 2 s stride (> 1.5 x 1 s) left out
+    sl, sp = bout_spatial(length, dur, bout, cad, average="mean", strides="all", **kw)
+    assert sl[0] == pytest.approx((4 * 1.2 + 0.4) / 5) and sp[0] == pytest.approx((4 * 1.2 + 0.2) / 5)
+    sl, sp = bout_spatial(length, dur, bout, cad, average="median", strides="all", **kw)
+    assert sl[0] == pytest.approx(1.2) and sp[0] == pytest.approx(1.2)
+    # time average: strides weighted by duration; speed = distance / time
+    sl, sp = bout_spatial(length, dur, bout, cad, average="time", strides="all", **kw)
+    assert sl[0] == pytest.approx((4 * 1.2 + 0.4 * 2) / 6) and sp[0] == pytest.approx(5.2 / 6)
+    # speed from cadence: bout stride length x steps/min / 120
+    sl, sp = bout_spatial(length, dur, bout, cad, average="mean", strides="all", speed_method="cadence")
+    assert sp[0] == pytest.approx(sl[0] * 100 / 120) and sp[1] == pytest.approx(0.8 * 120 / 120)
+    assert np.allclose(sl[1], 0.8)
+    for bad in (dict(average="mode"), dict(strides="some"), dict(speed_method="gps")):
+        args = dict(average="mean", strides="all", speed_method="stride") | bad
+        with pytest.raises(ValueError, match=next(iter(bad)).replace("average", "bout_average")
+                           .replace("strides", "bout_strides")):
+            bout_spatial(length, dur, bout, cad, **args)
+
+
+def test_step_tilt_and_the_lean_gate_leave_out_a_sit_to_walk_stride():
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    from stridelab.estimators.trunk_gait._spatial import step_tilt_deg
+    # gravity seen by a trunk leaning 20° forward for the first two steps (still rising from a chair), upright after
+    g = 9.80665
+    ic = np.arange(0, 700, 100)
+    lean = np.where(np.arange(700) < 200, np.deg2rad(20.0), 0.0)
+    acc = np.column_stack([g * np.sin(lean), g * np.cos(lean), np.zeros(700)])
+    acc[:, 1] += 1.5 * np.sin(2 * np.pi * np.arange(700) / 100)      # step oscillation averages out per step
+    tilt = step_tilt_deg(acc, ic)
+    np.testing.assert_allclose(tilt, [20, 20, 0, 0, 0, 0], atol=0.5)
+    # the strides that lean are left out of the bout value when the gate is on, kept when off
+    length = np.array([1.9, 1.4, 1.0, 1.0, 1.02])
+    stride_tilt = np.array([20.0, 10.0, 0.0, 0.0, 0.0])
+    dur = np.ones(5)
+    kw = dict(average="mean", strides="all", speed_method="stride", tilt_deg=stride_tilt)
+    assert bout_spatial(length, dur, np.zeros(5, int), np.array([110.0]), max_tilt_deg=0.0, **kw)[0][0] == \
+        pytest.approx(length.mean())
+    assert bout_spatial(length, dur, np.zeros(5, int), np.array([110.0]), max_tilt_deg=15.0, **kw)[0][0] == \
+        pytest.approx(length[1:].mean())
+    # a bout whose every stride leans keeps them all (no empty bout)
+    assert np.isfinite(bout_spatial(length[:1], dur[:1], np.zeros(1, int), np.array([110.0]), max_tilt_deg=15.0,
+                                    **(kw | dict(tilt_deg=stride_tilt[:1])))[0][0])
