@@ -319,6 +319,7 @@ class EskfParams:
     stance_height_var: float = 0.0
     attitude_rule: str = "midpoint"
     gyro_delay_s: float = 0.0025
+    zaru: bool = False
 
 
 def _acc_clip_noise(acc: np.ndarray) -> np.ndarray:
@@ -502,6 +503,10 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         sig_a = params.acc_noise_m_s2 + c_a * dev
     sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1) + extra_g      # (S4)
     gyr_att = _attitude_gyro(gyr, params, sampling_rate_hz)                              # (E1c)
+    if params.zaru and not params.estimate_biases:
+        raise ValueError("zaru=True needs estimate_biases=True (the zero angular-rate update observes the gyro bias)")
+    sig_zaru = np.where(zupt, params.gyr_noise_rad_s + np.linalg.norm(gyr, axis=1), 0.0) if params.zaru \
+        else np.zeros(0)                                                                 # (E5d)
     eskf_rts_kernel(gyr_att, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
-                    pos, vel, quat, bias, float(params.stance_height_var))
+                    pos, vel, quat, bias, float(params.stance_height_var), gyr, np.ascontiguousarray(sig_zaru))
     return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params, g_s, clipped)
