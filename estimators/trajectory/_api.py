@@ -10,7 +10,7 @@ from numba import njit
 from stridelab.estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
 from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
 
-__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "rest_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
 
 @dataclass(frozen=True)
@@ -277,6 +277,11 @@ class EskfParams:
         ``initial_gyro_bias`` took the mean of the first stance run (≤ 1 s), which held the foot's settling
         rotation, not the bias (up to 0.6 °/s of yaw drift on slow PyShoe trials); removed. Chosen by
         leave-one-trial-out (``PYSHOE_GRID``; validation/provenance.toml).
+        "rest" (issue 43, third round): the mean gyro over the recording's rests, every ``REST_WINDOW_S`` = 2 s
+        window in which the rate never exceeds ``REST_MAX_RAD_S`` = 0.05 rad/s (the sensor is at rest: no foot
+        settles, rolls or sways that slowly for 2 s; a still MEMS gyro's 2 s maximum is about 4 σ of its noise,
+        0.03 rad/s for PyShoe's MicroStrain); no rest, no bias — (E1d). A genuine rest reads the bias alone; a stance core does
+        not (it rolls). Both numbers a priori; chosen over "none" by leave-one-trial-out (``PYSHOE_GRID``).
     stance_height_var: σ_h² (m²) of the flat-floor stance-height update (E5c): at each stance sample the
         pseudo-measurement z = p_z,0 − p̂_z (the foot stands at the height of its first stance; Duong & Suh 2015
         "zero velocity + height updating", their B6.4 baseline, 1e-4 m²). 0 = off (default): it is only true on
@@ -365,6 +370,8 @@ class TrajectoryResult:
     gyro_clipped_axes: tuple = ()
 
 
+REST_WINDOW_S = 2.0
+REST_MAX_RAD_S = 0.05
 GYRO_BIAS_MIN_S = 2.0
 GYRO_BIAS_MIN_RUNS = 5
 
@@ -383,6 +390,28 @@ def stance_gyro_bias(gyr: np.ndarray, zupt: np.ndarray, *, sampling_rate_hz: flo
     if quiet.sum() < GYRO_BIAS_MIN_S * sampling_rate_hz or n_runs < GYRO_BIAS_MIN_RUNS:
         return np.zeros(3)
     return np.median(gyr[quiet], axis=0)
+
+
+def rest_gyro_bias(gyr: np.ndarray, *, sampling_rate_hz: float, window_s: float = REST_WINDOW_S,
+                   max_rad_s: float = REST_MAX_RAD_S) -> np.ndarray:
+    """(E1d) constant gyro bias (3,) rad/s from the recording's rests: the per-axis mean of ω over every sample
+    that lies in some window of ``window_s`` whose largest |ω| is ≤ ``max_rad_s`` (the sensor is still, so the
+    gyro reads its bias plus noise; all rests together, not one window: a 2 s window alone leaves about
+    ±1 mrad/s, i.e. ±3°/min of yaw); zeros when there is no such window (no rest, no estimate: a foot in
+    stance rolls)."""
+    gyr = np.asarray(gyr, float)
+    w = np.linalg.norm(gyr, axis=1)
+    w = np.where(np.isfinite(w), w, np.inf)
+    n_w = int(round(window_s * sampling_rate_hz))
+    if n_w < 2 or len(w) < n_w:
+        return np.zeros(3)
+    still = np.lib.stride_tricks.sliding_window_view(w, n_w).max(axis=1) <= max_rad_s   # window starting at i
+    if not still.any():
+        return np.zeros(3)
+    rest = np.zeros(len(w), bool)
+    for i in np.flatnonzero(still):
+        rest[i:i + n_w] = True
+    return gyr[rest].mean(axis=0)
 
 
 def check_foot_imu(gyr, acc, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -467,12 +496,13 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     while k1 < lim and zupt[k1]:
         k1 += 1
     f0 = acc[k0:k1].mean(axis=0)
-    if params.gyro_bias not in ("none", "stances"):
-        raise ValueError(f"gyro_bias must be 'none' or 'stances', got {params.gyro_bias!r}")
+    if params.gyro_bias not in ("none", "stances", "rest"):
+        raise ValueError(f"gyro_bias must be 'none', 'stances' or 'rest', got {params.gyro_bias!r}")
     if params.noise_model not in ("phase", "global"):
         raise ValueError(f"noise_model must be 'phase' or 'global', got {params.noise_model!r}")
     bg0 = stance_gyro_bias(gyr, zupt, sampling_rate_hz=sampling_rate_hz, quiet_rad_s=params.zupt.gyr_threshold_rad_s) \
-        if params.gyro_bias == "stances" else np.zeros(3)
+        if params.gyro_bias == "stances" else \
+        rest_gyro_bias(gyr, sampling_rate_hz=sampling_rate_hz) if params.gyro_bias == "rest" else np.zeros(3)
     q0 = _level_quat(f0)
     T = 1.0 / sampling_rate_hz
     ns = 15 if params.estimate_biases else 9

@@ -23,8 +23,8 @@ Model (error = truth − estimate, world-frame attitude error ``R_true = (I + [�
 
 State size 9 (p, v, δθ) or 15 (+ accelerometer and gyroscope bias) — ``estimate_biases``.
 The state is 0 before the first stance sample ``k0``: the filter is initialised there (attitude levelled on
-gravity, yaw 0, gyroscope bias ``bg0``: zero or the all-stance median of ``_api.stance_gyro_bias``), so a
-recording that starts mid-swing is handled.
+gravity, yaw 0, gyroscope bias ``bg0``: zero, the all-stance median of ``_api.stance_gyro_bias`` (E1b) or the
+mean over the rests of ``_api.rest_gyro_bias`` (E1d)), so a recording that starts mid-swing is handled.
 """
 from __future__ import annotations
 

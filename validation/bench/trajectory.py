@@ -35,22 +35,25 @@ FAILED_ARMSE_M = 0.5
 #:       3.75 ms (0 / ¼ / ½ / ¾ sample at PyShoe's 200 Hz; 3.75 ms added when a first run chose the 2.5 ms edge)
 #: Fixed at the values the first issue-43 grid chose in 28/28 folds: noise_model "global", cycle_window on,
 #: gyro_bias "none"; and (issue 15) the saturation rule S1-S2 (a priori), β = 3, θ_lo = 0.3, θ_hi = 3 rad/s.
-GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s")
+#: Third round (issue 43): x gyro bias "none" (first) / "rest" (E1d: the mean gyro over the recording's quietest
+#: 2 s if it is a genuine rest, max |omega| <= 0.05 rad/s; a priori numbers) -> 40 points.
+GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s", "gyro_bias")
 ATTITUDE_TIMINGS = (("euler", 0.0), ("midpoint", 0.0), ("midpoint", 0.00125), ("midpoint", 0.0025),
                     ("midpoint", 0.00375))
-PYSHOE_GRID = tuple((cg, ca, rule, d) for cg in (0.03, 0.01) for ca in (0.3, 0.15) for rule, d in ATTITUDE_TIMINGS)
+PYSHOE_GRID = tuple((cg, ca, rule, d, gb) for gb in ("none", "rest") for cg in (0.03, 0.01) for ca in (0.3, 0.15)
+                    for rule, d in ATTITUDE_TIMINGS)
 #: gaitmap RtsKalman grid, the same leave-one-trial-out: its ZUPT threshold (NormZuptDetector, deg/s, default
 #: 34) × level_walking (its flat-floor height update, default on) — its two options that matter on this data.
 GAITMAP_GRID = tuple((thr, lw) for thr in (34.0, 60.0, 100.0, 150.0, 200.0, 300.0) for lw in (True, False))
 
 
-def grid_params(cg: float, ca: float, rule: str, delay_s: float):
+def grid_params(cg: float, ca: float, rule: str, delay_s: float, gyro_bias: str = "none"):
     """EskfParams of one grid point (everything else at the shipped defaults)."""
     import dataclasses
 
     from stridelab.estimators.trajectory import EskfParams
     return dataclasses.replace(EskfParams(), gyr_noise_rel=cg, acc_noise_rel=ca, attitude_rule=rule,
-                               gyro_delay_s=delay_s)
+                               gyro_delay_s=delay_s, gyro_bias=gyro_bias)
 
 
 def motion_type(gyr, zupt, pos, fs: float) -> str:

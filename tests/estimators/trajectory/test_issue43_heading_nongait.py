@@ -94,3 +94,25 @@ def test_non_gait_lift_returns_to_its_rest_height():
         warnings.simplefilter("ignore")
         r = eskf_trajectory(gyr, acc, sampling_rate_hz=FS)
     assert abs(_final_height_error(r, ref)) < 0.1
+
+
+# ---------------------------------------------------------------- gyro bias from genuine rests (option "rest")
+
+def test_rest_gyro_bias_reads_the_bias_only_where_the_sensor_is_still():
+    """(E1d) 3 s still (bias + noise), 5 s of gait-like rotation, 3 s still: the estimate is the bias within
+    its noise (σ / √N); a slow steady roll of 0.1 rad/s (a settling foot, above the 0.05 rad/s rest bound) is not
+    taken; a recording without any 2 s rest gives no estimate (zeros), rather than one from a rolling stance."""
+    from stridelab.estimators.trajectory import rest_gyro_bias
+    rng = np.random.default_rng(1)
+    bias = np.array([0.004, -0.002, 0.003])
+    still = lambda s: bias + rng.normal(0, 0.008, (int(s * FS), 3))                     # noqa: E731
+    t = np.arange(int(5 * FS)) / FS
+    gait = np.column_stack([0.5 * np.sin(2 * np.pi * t), 6.0 * np.sin(2 * np.pi * t), 0.3 * np.cos(np.pi * t)])
+    roll = np.tile([0.1, 0.0, 0.0], (int(3 * FS), 1)) + bias
+    gyr = np.concatenate([still(3), gait, roll, still(3)])
+    est = rest_gyro_bias(gyr, sampling_rate_hz=FS)
+    assert np.all(np.abs(est - bias) < 5 * 0.008 / np.sqrt(6 * FS)), est
+    assert np.all(rest_gyro_bias(np.concatenate([gait, roll]), sampling_rate_hz=FS) == 0)
+    r = eskf_trajectory(gyr, np.tile([0.0, 0.0, 9.81], (len(gyr), 1)), sampling_rate_hz=FS,
+                        params=EskfParams(gyro_bias="rest"))
+    np.testing.assert_allclose(r.bias[r.start_idx, 3:], est)
