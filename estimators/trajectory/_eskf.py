@@ -273,7 +273,8 @@ def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag
                         ba[i] += dh[9 + i]
                         bg[i] += dh[12 + i]
             if n == 15 and sig_zaru.shape[0] > 0 and sig_zaru[k] > 0.0:
-                # ---- zero angular rate (E5d): z = ω_k − b̂_g = δb_g + n, R = σ_zaru,k² (sequential scalar updates)
+                # ---- zero angular rate (E5d): z = ω_k − b̂_g = δb_g + n, R = σ_zaru,k²
+                #      (sequential scalar updates)
                 r2z = sig_zaru[k] * sig_zaru[k]
                 for j in range(3):
                     q = _scalar_inject(P, n, 12 + j, gyr_meas[k, j] - bg[j], r2z, tmp, K, p, v, q, ba, bg, dx)
