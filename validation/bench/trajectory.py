@@ -84,7 +84,8 @@ def motion_type(gyr, zupt, pos, fs: float) -> str:
 
 
 def _gaitmap_scores(trials, grid) -> np.ndarray | None:
-    """gaitmap 2.6.0 RtsKalman ARMSE (2-D, 3-D) per trial and grid point, shape (T, C, 2); None if not installed.
+    """gaitmap 2.6.0 RtsKalman ARMSE (2-D, 3-D, PyShoe's 2-D) per trial and grid point, shape (T, C, 3); None if
+    not installed.
 
     gaitmap expects the sensor z axis along gravity at rest (its ``align_dataset_to_gravity`` step; that function
     fails on pandas 3's read-only arrays, so the same rotation is applied here with gaitmap's own
@@ -96,8 +97,8 @@ def _gaitmap_scores(trials, grid) -> np.ndarray | None:
         from gaitmap.zupt_detection import NormZuptDetector
     except ImportError:
         return None
-    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
-    out = np.full((len(trials), len(grid), 2), np.nan)
+    from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned, armse_pyshoe
+    out = np.full((len(trials), len(grid), 3), np.nan)
     for i, tr in enumerate(trials):
         n0 = max(2, int(0.5 * tr.sampling_rate_hz))
         rot = get_gravity_rotation(tr.acc[:n0].mean(axis=0))
@@ -109,7 +110,8 @@ def _gaitmap_scores(trials, grid) -> np.ndarray | None:
             try:
                 est = RtsKalman(zupt_detector=zd, level_walking=lw).estimate(df, sampling_rate_hz=tr.sampling_rate_hz)
                 pos = est.position_[["pos_x", "pos_y", "pos_z"]].to_numpy()[1:]       # row 0 = the initial state
-                out[i, c] = armse_2d_aligned(pos, tr.position)[0], armse_3d_aligned(pos, tr.position)
+                out[i, c] = (armse_2d_aligned(pos, tr.position)[0], armse_3d_aligned(pos, tr.position),
+                             armse_pyshoe(pos, tr.position))
             except Exception as e:  # noqa: BLE001 - a failing anchor run is reported, not fatal
                 err_console.print(f"gaitmap RtsKalman failed on {tr.name} (threshold {thr}, level_walking {lw}): {e}")
     return out
@@ -263,7 +265,7 @@ def pyshoe_benchmark(directory: Path, *, show_progress: bool = True, anchors: bo
         else:
             d0 = GAITMAP_GRID.index((34.0, True))
             gb = _blocks(gm[:, :, 0], gm[:, :, 1], gm[:, d0, 0], gm[:, d0, 1], types, GAITMAP_GRID,
-                         ("zupt_threshold_deg_s", "level_walking"))
+                         ("zupt_threshold_deg_s", "level_walking"), {"pyshoe": gm[:, :, 2]}, {"pyshoe": gm[:, d0, 2]})
             for i, (r, c) in enumerate(zip(rows, gb.pop("held_out_choice"))):
                 r["gaitmap_rtskalman_armse_2d_m"] = float(gm[i, c, 0])
             out["gaitmap"] = {"method": "gaitmap 2.6.0 RtsKalman; shipped_defaults = its defaults (NormZuptDetector "
