@@ -10,7 +10,7 @@ from numba import njit
 from stridelab.estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
 from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
 
-__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "rest_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
 
 @dataclass(frozen=True)
@@ -277,6 +277,13 @@ class EskfParams:
         ``initial_gyro_bias`` took the mean of the first stance run (≤ 1 s), which held the foot's settling
         rotation, not the bias (up to 0.6 °/s of yaw drift on slow PyShoe trials); removed. Chosen by
         leave-one-trial-out (``PYSHOE_GRID``; validation/provenance.toml).
+        "rest" (issue 43, third round): the mean gyro over the recording's rests, every ``REST_WINDOW_S`` = 2 s
+        window in which the rate never exceeds ``REST_MAX_RAD_S`` = 0.05 rad/s (the sensor is at rest: no foot
+        settles, rolls or sways that slowly for 2 s; a still MEMS gyro's 2 s maximum is about 4 σ of its noise,
+        0.03 rad/s for PyShoe's MicroStrain); no rest, no bias — (E1d). A genuine rest reads the bias alone; a
+        stance core does not (it rolls). Both numbers a priori. Not the default: leave-one-trial-out over
+        ``PYSHOE_GRID`` prefers it in 28/28 folds by a tie (cross-validated mean −0.2 mm, median +0.8 mm, below
+        the spread of the bias estimate itself), and ties keep "none" (validation/provenance.toml).
     stance_height_var: σ_h² (m²) of the flat-floor stance-height update (E5c): at each stance sample the
         pseudo-measurement z = p_z,0 − p̂_z (the foot stands at the height of its first stance; Duong & Suh 2015
         "zero velocity + height updating", their B6.4 baseline, 1e-4 m²). 0 = off (default): it is only true on
@@ -319,6 +326,7 @@ class EskfParams:
     stance_height_var: float = 0.0
     attitude_rule: str = "midpoint"
     gyro_delay_s: float = 0.0025
+    zaru: bool = False
 
 
 def _acc_clip_noise(acc: np.ndarray) -> np.ndarray:
@@ -364,6 +372,8 @@ class TrajectoryResult:
     gyro_clipped_axes: tuple = ()
 
 
+REST_WINDOW_S = 2.0
+REST_MAX_RAD_S = 0.05
 GYRO_BIAS_MIN_S = 2.0
 GYRO_BIAS_MIN_RUNS = 5
 
@@ -382,6 +392,28 @@ def stance_gyro_bias(gyr: np.ndarray, zupt: np.ndarray, *, sampling_rate_hz: flo
     if quiet.sum() < GYRO_BIAS_MIN_S * sampling_rate_hz or n_runs < GYRO_BIAS_MIN_RUNS:
         return np.zeros(3)
     return np.median(gyr[quiet], axis=0)
+
+
+def rest_gyro_bias(gyr: np.ndarray, *, sampling_rate_hz: float, window_s: float = REST_WINDOW_S,
+                   max_rad_s: float = REST_MAX_RAD_S) -> np.ndarray:
+    """(E1d) constant gyro bias (3,) rad/s from the recording's rests: the per-axis mean of ω over every sample
+    that lies in some window of ``window_s`` whose largest |ω| is ≤ ``max_rad_s`` (the sensor is still, so the
+    gyro reads its bias plus noise; all rests together, not one window: a 2 s window alone leaves about
+    ±1 mrad/s, i.e. ±3°/min of yaw); zeros when there is no such window (no rest, no estimate: a foot in
+    stance rolls)."""
+    gyr = np.asarray(gyr, float)
+    w = np.linalg.norm(gyr, axis=1)
+    w = np.where(np.isfinite(w), w, np.inf)
+    n_w = int(round(window_s * sampling_rate_hz))
+    if n_w < 2 or len(w) < n_w:
+        return np.zeros(3)
+    still = np.lib.stride_tricks.sliding_window_view(w, n_w).max(axis=1) <= max_rad_s   # window starting at i
+    if not still.any():
+        return np.zeros(3)
+    rest = np.zeros(len(w), bool)
+    for i in np.flatnonzero(still):
+        rest[i:i + n_w] = True
+    return gyr[rest].mean(axis=0)
 
 
 def check_foot_imu(gyr, acc, sampling_rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -466,12 +498,13 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     while k1 < lim and zupt[k1]:
         k1 += 1
     f0 = acc[k0:k1].mean(axis=0)
-    if params.gyro_bias not in ("none", "stances"):
-        raise ValueError(f"gyro_bias must be 'none' or 'stances', got {params.gyro_bias!r}")
+    if params.gyro_bias not in ("none", "stances", "rest"):
+        raise ValueError(f"gyro_bias must be 'none', 'stances' or 'rest', got {params.gyro_bias!r}")
     if params.noise_model not in ("phase", "global"):
         raise ValueError(f"noise_model must be 'phase' or 'global', got {params.noise_model!r}")
     bg0 = stance_gyro_bias(gyr, zupt, sampling_rate_hz=sampling_rate_hz, quiet_rad_s=params.zupt.gyr_threshold_rad_s) \
-        if params.gyro_bias == "stances" else np.zeros(3)
+        if params.gyro_bias == "stances" else \
+        rest_gyro_bias(gyr, sampling_rate_hz=sampling_rate_hz) if params.gyro_bias == "rest" else np.zeros(3)
     q0 = _level_quat(f0)
     T = 1.0 / sampling_rate_hz
     ns = 15 if params.estimate_biases else 9
@@ -502,6 +535,10 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
         sig_a = params.acc_noise_m_s2 + c_a * dev
     sig_g = params.gyr_noise_rad_s + params.gyr_noise_rel * np.linalg.norm(gyr, axis=1) + extra_g      # (S4)
     gyr_att = _attitude_gyro(gyr, params, sampling_rate_hz)                              # (E1c)
+    if params.zaru and not params.estimate_biases:
+        raise ValueError("zaru=True needs estimate_biases=True (the zero angular-rate update observes the gyro bias)")
+    sig_zaru = np.where(zupt, params.gyr_noise_rad_s + np.linalg.norm(gyr, axis=1), 0.0) if params.zaru \
+        else np.zeros(0)                                                                 # (E5d)
     eskf_rts_kernel(gyr_att, acc, zupt, T, k0, q0, bg0, ns, qd, sig_a, sig_g, p0, params.zupt_noise_m_s + params.zupt_lever_m * np.linalg.norm(gyr, axis=1), params.smooth,
-                    pos, vel, quat, bias, float(params.stance_height_var))
+                    pos, vel, quat, bias, float(params.stance_height_var), gyr, np.ascontiguousarray(sig_zaru))
     return TrajectoryResult(pos, vel, quat, bias, zupt, k0, "ok", params, g_s, clipped)

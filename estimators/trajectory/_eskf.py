@@ -23,8 +23,8 @@ Model (error = truth − estimate, world-frame attitude error ``R_true = (I + [�
 
 State size 9 (p, v, δθ) or 15 (+ accelerometer and gyroscope bias) — ``estimate_biases``.
 The state is 0 before the first stance sample ``k0``: the filter is initialised there (attitude levelled on
-gravity, yaw 0, gyroscope bias ``bg0``: zero or the all-stance median of ``_api.stance_gyro_bias``), so a
-recording that starts mid-swing is handled.
+gravity, yaw 0, gyroscope bias ``bg0``: zero, the all-stance median of ``_api.stance_gyro_bias`` (E1b) or the
+mean over the rests of ``_api.rest_gyro_bias`` (E1d)), so a recording that starts mid-swing is handled.
 """
 from __future__ import annotations
 
@@ -122,8 +122,38 @@ def _cholesky_solve(A, b, n, L, y):
 
 
 @njit(cache=True)
+def _scalar_inject(P, n, idx, y, r2, tmp, K, p, v, q, ba, bg, dx):
+    """(E5d) one scalar measurement y = δx[idx] + noise (variance r2): Kalman update of P (optimal-gain form,
+    symmetrised), the correction K·y injected into the nominal state (E6) and added to ``dx``; returns q."""
+    Sh = P[idx, idx] + r2
+    for i in range(n):
+        K[i, 0] = P[i, idx] / Sh
+    for i in range(n):
+        for j in range(i, n):
+            tmp[i, j] = P[i, j] - K[i, 0] * P[idx, j]
+    for i in range(n):
+        for j in range(i, n):
+            P[i, j] = tmp[i, j]
+            P[j, i] = tmp[i, j]
+    d = np.zeros(n)
+    for i in range(n):
+        d[i] = K[i, 0] * y
+        dx[i] += d[i]
+    for i in range(3):
+        p[i] += d[i]
+        v[i] += d[3 + i]
+    q = quat_mul_1(_quat_small(d[6:9]), q)
+    q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    if n == 15:
+        for i in range(3):
+            ba[i] += d[9 + i]
+            bg[i] += d[12 + i]
+    return q
+
+
+@njit(cache=True)
 def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag, sig_z, smooth,
-                    pos, vel, quat, bias, var_h=0.0):
+                    pos, vel, quat, bias, var_h, gyr_meas, sig_zaru):
     """Forward ESKF (E1–E6) from sample ``k0`` then RTS (E7) back to ``k0``; writes pos, vel, quat, bias (N, ·).
 
     Rows before ``k0`` are left untouched (the caller fills them with NaN). ``qd`` (n,) is the diagonal of Q_k,
@@ -242,6 +272,12 @@ def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag
                     for i in range(3):
                         ba[i] += dh[9 + i]
                         bg[i] += dh[12 + i]
+            if n == 15 and sig_zaru.shape[0] > 0 and sig_zaru[k] > 0.0:
+                # ---- zero angular rate (E5d): z = ω_k − b̂_g = δb_g + n, R = σ_zaru,k²
+                #      (sequential scalar updates)
+                r2z = sig_zaru[k] * sig_zaru[k]
+                for j in range(3):
+                    q = _scalar_inject(P, n, 12 + j, gyr_meas[k, j] - bg[j], r2z, tmp, K, p, v, q, ba, bg, dx)
         for i in range(n):
             dU[m, i] = dx[i]
             for j in range(n):

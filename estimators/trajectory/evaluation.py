@@ -8,6 +8,16 @@
       ARMSE = mean_k |p̂_xy(k) − p_xy(k)|   over all samples                                                (M2)
 - ``armse_3d_aligned`` (issue 43): the same alignment (M1, a rotation about z; both start at their first sample)
   with the 3-D Euclidean error mean_k |p̂(k) − p(k)| (M3): adds the height drift the 2-D figure hides.
+- ``armse_pyshoe`` (issue 43): PyShoe's published ARMSE exactly as its evaluation code computes it
+  (Wagstaff et al.; PyShoe ``ins_tools/util.py``: ``align_plots`` then ``compute_error``):
+      both minus their first sample;  d_i = |p̂_xy(i+1) − p̂_xy(0)| ;  i* = first i with d_i ≥ 0.8 m (else 300)
+      ψ = signed angle from p̂_xy(i*) to p_xy(i*) (arccos of the normalised dot product, sign of the cross
+      product);  p̂_xy ← R_z(ψ) p̂_xy  (z untouched)                                                          (M5)
+      ARMSE_D = mean_k sqrt( (1/D) Σ_{j<D} (p̂_j(k) − p_j(k))² ),  D = 2 or 3                                  (M6)
+  (M6) is the per-sample RMS over the *axes*, i.e. the Euclidean error divided by √D: PyShoe's published
+  figures (and the ``best_error`` stored in its Vicon files) are on this scale, (M2)/(M3) are √2 / √3 larger.
+  (M5) aligns on the sample *before* the one (M1) uses (PyShoe indexes the cumulative sum of the differences).
+  PyShoe rounds to 1 mm; this does not.
 - ``final_position_error``: closure error of a walk that ends where it started, |p(last) − p(first)| of the
   mid-stance positions, horizontal and 3-D (M4).
 """
@@ -15,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rms_error_per_axis", "armse_2d_aligned", "armse_3d_aligned", "final_position_error", "ALIGN_DISTANCE_M", "ALIGN_FALLBACK_SAMPLE"]
+__all__ = ["rms_error_per_axis", "armse_2d_aligned", "armse_3d_aligned", "armse_pyshoe", "final_position_error", "ALIGN_DISTANCE_M", "ALIGN_FALLBACK_SAMPLE"]
 
 ALIGN_DISTANCE_M = 0.8
 ALIGN_FALLBACK_SAMPLE = 300
@@ -84,6 +94,41 @@ def armse_3d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_dista
     rr = r3 - r3[int(np.argmax(rv))]
     e = np.sqrt(np.sum((np.column_stack([pxy, z - z[0]])[rv] - rr[rv]) ** 2, axis=1))
     return float(e.mean()) if len(e) else float("nan")
+
+
+def armse_pyshoe(estimate: np.ndarray, reference: np.ndarray, *, dims: int = 2,
+                 align_distance_m: float = ALIGN_DISTANCE_M, fallback_sample: int = ALIGN_FALLBACK_SAMPLE) -> float:
+    """(M5)–(M6): PyShoe's ARMSE (m) over ``dims`` = 2 (x, y) or 3 axes. Same input rules as
+    :func:`armse_2d_aligned` (leading non-finite estimate rows take the first finite row; reference rows that are
+    not finite are left out of the mean)."""
+    if dims not in (2, 3):
+        raise ValueError(f"dims must be 2 or 3, got {dims}")
+    p = np.asarray(estimate, float)[:, :3].copy()
+    r = np.asarray(reference, float)[:, :3]
+    if p.shape != r.shape or len(p) < 2:
+        raise ValueError(f"estimate and reference need the same (N >= 2, 3) shape; got {p.shape} and {r.shape}")
+    ok = np.all(np.isfinite(p), axis=1)
+    if not ok.any():
+        return float("nan")
+    k0 = int(np.argmax(ok))
+    p[:k0] = p[k0]
+    if not np.all(np.isfinite(p)):
+        raise ValueError("estimate has non-finite rows after its first finite one")
+    rv = np.all(np.isfinite(r), axis=1)
+    p = p - p[0]
+    rr = r - r[int(np.argmax(rv))]
+    d = np.hypot(p[1:, 0], p[1:, 1])                     # d_i = distance of sample i + 1 (M5)
+    far = np.flatnonzero(d >= align_distance_m)
+    i = int(far[0]) if len(far) else min(fallback_sample, len(p) - 1)
+    v1, v2 = p[i, :2], rr[i, :2]
+    n1, n2 = np.hypot(*v1), np.hypot(*v2) if np.all(np.isfinite(v2)) else 0.0
+    if n1 > 0 and n2 > 0:
+        cross = v1[0] * v2[1] - v1[1] * v2[0]
+        psi = np.sign(cross) * np.arccos(min(1.0, float(np.dot(v1, v2) / (n1 * n2))))
+        c, s = np.cos(psi), np.sin(psi)
+        p[:, :2] = p[:, :2] @ np.array([[c, s], [-s, c]])
+    e = p[rv, :dims] - rr[rv, :dims]
+    return float(np.mean(np.sqrt(np.mean(e ** 2, axis=1)))) if len(e) else float("nan")
 
 
 def final_position_error(pos_at_mid_stances: np.ndarray) -> tuple[float, float]:

@@ -104,3 +104,32 @@ def test_saturation_repair_rebuilds_clipped_peaks():
     rep_free = repair_gyro_saturation(free)[0]
     # smooth, well-sampled peaks may be taken for a plateau (S2 is loose); the rebuild then barely changes them
     assert np.abs(rep_free[:, 0] - free[:, 0]).max() < 0.02 * 9.6
+
+
+def test_armse_pyshoe_is_the_rms_over_axes_of_pyshoe_compute_error():
+    """Issue 43: PyShoe's published ARMSE (ins_tools/util.py compute_error) averages sqrt(mean over the D axes of
+    the squared error), i.e. the Euclidean error / sqrt(D); the bench's Euclidean figure is sqrt(2) larger."""
+    from stridelab.estimators.trajectory.evaluation import armse_pyshoe
+    ref = _path()
+    c, s = np.cos(0.7), np.sin(0.7)
+    rot = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]])
+    assert armse_pyshoe(ref @ rot + [1.0, 2.0, 0.3], ref) == pytest.approx(0.0, abs=1e-9)
+    est = ref * 1.1                                        # same direction: no rotation; error = 0.1 |p - p0|
+    d2 = np.hypot(*(ref[:, :2] - ref[0, :2]).T)
+    d3 = np.linalg.norm(ref - ref[0], axis=1)
+    assert armse_pyshoe(est, ref) == pytest.approx(0.1 * d2.mean() / np.sqrt(2), rel=1e-6)
+    assert armse_pyshoe(est, ref, dims=3) == pytest.approx(0.1 * d3.mean() / np.sqrt(3), rel=1e-6)
+    assert armse_pyshoe(est, ref) == pytest.approx(armse_2d_aligned(est, ref)[0] / np.sqrt(2), rel=1e-6)
+
+
+def test_armse_pyshoe_aligns_on_the_sample_before_the_crossing():
+    """PyShoe takes index i of cumsum(diff(x)) >= 0.8 m, which is sample i (one before the first sample at 0.8 m):
+    an estimate that turns exactly at the crossing sample is aligned on the straight part before it."""
+    from stridelab.estimators.trajectory.evaluation import armse_pyshoe
+    n = 200
+    ref = np.column_stack([np.linspace(0, 1.99, n), np.zeros(n), np.zeros(n)])      # 0.01 m per sample along x
+    k = 80                                                                          # ref[80] is the first at 0.8 m
+    est = ref.copy()
+    est[k:, 1] = 0.5                                                                # jumps sideways at k
+    # aligned on sample 79 (straight, on x): no rotation, error 0.5 / sqrt(2) on the samples from k on
+    assert armse_pyshoe(est, ref) == pytest.approx(0.5 / np.sqrt(2) * (n - k) / n, rel=1e-9)
