@@ -298,12 +298,13 @@ def drop_contactless_ics(ev: GaitEvents, acc: np.ndarray, *, gravity_m_s2: float
                                                                           own reading at rest, ``gravity_m_s2``)
         IC dropped when D(IC) < A_min (``min_impact_m_s2``)
 
-    Physics: a foot that lands is decelerated by the ground within a few tens of ms (heel-strike transient:
-    even a slow, flat landing stops ≥ 0.2 m/s in ≤ 0.05 s, ≥ 4 m/s²; walking heel strikes give 15–60 m/s² here),
-    so |f| departs from g. A pitch maximum that Algorithm 1 (or H1) takes for a heel strike while the foot rocks
-    or pivots on the spot, or turns in the air without coming down (the U-turns of Voisard et al.: lifts,
-    pivots, shuffles), has |f| within a few tenths of g: no mass was stopped, so there was no contact. A_min is
-    bounded below by the stance noise of | |f| − g_s | (≈ 0.1 m/s²) and above by the smallest real landing.
+    Physics: a foot that lands is decelerated by the ground within a few tens of ms (heel-strike transient;
+    walking heel strikes give 15–60 m/s² on Voisard et al.'s foot IMUs, and even 0.1 m/s stopped within 0.1 s
+    gives 1 m/s²), so |f| departs from g. A pitch maximum that Algorithm 1 (or H1) takes for a heel strike while
+    the foot rocks or pivots on the spot, or turns in the air without coming down (the U-turns of Voisard et al.:
+    lifts, pivots, shuffles), has |f| within a few tenths of g: no mass was stopped, so there was no contact.
+    A_min is bounded below by the stance noise of | |f| − g_s | (≈ 0.1 m/s²) and above by the softest real
+    landing (on Voisard the lowest D of a matched heel strike is 1.37 m/s², docs/gait.md "U-turns").
     Only ICs are dropped: the TC before a dropped IC stays (the foot did leave the ground; its landing was missed
     or mistimed), and so does the TC after it (on Voisard such a false IC is mostly a pitch maximum while the foot
     pivots on the ground after an unseen landing, and the next TC is its real take-off; dropping it too lost two
