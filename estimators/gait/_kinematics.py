@@ -8,7 +8,8 @@ of the zero-velocity mask (W0–W3, ``_swing``: flat lift, drop foot, flat/foref
 down where it was dropped (R6, ``drop_in_place_steps``; ``FootParams.min_step_m``) → TCs refined from the pitch
 minimum to the toe-off (T1, ``refine_toe_off``; batch only, ``FootParams.toe_off_refine``) → heel-strike ICs moved
 from the pitch maximum into the loading rotation (H1, ``refine_heel_strike``; ``FootParams.heel_strike_fraction``)
-→ strides.
+→ ICs without a ground contact in the specific force dropped (R7, ``drop_contactless_ics``;
+``FootParams.min_impact_m_s2``) → strides.
 
     K1  u_S = normalise( Σ_i R(q_{m_i})ᵀ d̂_i ),  d_i = horizontal displacement between consecutive mid-stances
         (only strides with |d_i| ≥ 0.2 m); fallback: sensor x when the walk has no such stride.
@@ -79,6 +80,11 @@ class FootParams:
         before the first step; on Voisard they moved the foot 4–13 mm, the shortest annotated step 5.5 cm).
         None = off. Chosen by leave-one-subject-out over the Voisard subjects and the gaitmap walk
         (``stridelab bench gait --voisard``; validation/provenance.toml).
+    min_impact_m_s2: (R7, issue 43) an IC at which |f| stays within ``min_impact_m_s2`` of the sensor's own g from
+        0.05 s before to 0.15 s after is no ground contact and is dropped (``drop_contactless_ics``: pivots, rocks
+        and turns on the spot in U-turns that Algorithm 1 took for heel strikes). 1.0 m/s², chosen by
+        leave-one-subject-out over the Voisard subjects and the gaitmap walk among the values that keep every
+        matched IC of the training groups (validation/provenance.toml); None = off.
     """
     trajectory: EskfParams = EskfParams()
     events: IcTcParams = IcTcParams(threshold=-0.1)
@@ -92,6 +98,7 @@ class FootParams:
     heel_strike_window_s: float = 0.15
     weak_push_off_steps: bool = True
     min_step_m: float | None = 0.02
+    min_impact_m_s2: float | None = 1.0
 
 
 @dataclass(frozen=True)
@@ -276,28 +283,81 @@ def drop_in_place_steps(ev: GaitEvents, pos: np.ndarray, stance: np.ndarray, min
                    tc_detect_idx=np.asarray(ev.tc_detect_idx)[kt])
 
 
-def _refine(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams) -> GaitEvents:
-    """The batch refinements of the events: R6 (in-place lifts dropped), T1 (toe-off) then H1 (heel strike), as
-    ``params`` asks."""
+#: (R7) the window around an IC in which a ground contact must show in the specific force: 0.05 s before (the
+#: H1-refined IC may sit a few samples after the first touch) to 0.15 s after (loading response ≈ 0–10 % of a
+#: ≥ 1.2 s stride, Perry & Burnfield), a priori
+CONTACT_WINDOW_S = (0.05, 0.15)
+
+
+def drop_contactless_ics(ev: GaitEvents, acc: np.ndarray, *, gravity_m_s2: float,
+                         sampling_rate_hz: float, min_impact_m_s2: float,
+                         window_s: tuple[float, float] = CONTACT_WINDOW_S) -> GaitEvents:
+    """(R7) ``ev`` without the ICs at which nothing touches the ground.
+
+        D(IC) = max over k in [IC − w₁, IC + w₂] of | |f_k| − g_s |        (f = specific force, g_s = the sensor's
+                                                                          own reading at rest, ``gravity_m_s2``)
+        IC dropped when D(IC) < A_min (``min_impact_m_s2``)
+
+    Physics: a foot that lands is decelerated by the ground within a few tens of ms (heel-strike transient;
+    walking heel strikes give 15–60 m/s² on Voisard et al.'s foot IMUs, and even 0.1 m/s stopped within 0.1 s
+    gives 1 m/s²), so |f| departs from g. A pitch maximum that Algorithm 1 (or H1) takes for a heel strike while
+    the foot rocks or pivots on the spot, or turns in the air without coming down (the U-turns of Voisard et al.:
+    lifts, pivots, shuffles), has |f| within a few tenths of g: no mass was stopped, so there was no contact.
+    A_min is bounded below by the stance noise of | |f| − g_s | (≈ 0.1 m/s²) and above by the softest real
+    landing (on Voisard the lowest D of a matched heel strike is 1.37 m/s², docs/gait.md "U-turns").
+    Only ICs are dropped: the TC before a dropped IC stays (the foot did leave the ground; its landing was missed
+    or mistimed), and so does the TC after it (on Voisard such a false IC is mostly a pitch maximum while the foot
+    pivots on the ground after an unseen landing, and the next TC is its real take-off; dropping it too lost two
+    real toe-offs for one false one). Non-finite windows keep the IC."""
+    ic = np.asarray(ev.ic_idx, np.int64)
+    if not len(ic):
+        return ev
+    fs = float(sampling_rate_hz)
+    dev = np.abs(np.linalg.norm(np.asarray(acc, float), axis=1) - float(gravity_m_s2))
+    n = len(dev)
+    w1, w2 = int(round(window_s[0] * fs)), int(round(window_s[1] * fs))
+    drop_ic = np.zeros(len(ic), bool)
+    for i, x in enumerate(ic):
+        seg = dev[max(int(x) - w1, 0):min(int(x) + w2 + 1, n)]
+        if len(seg) and np.all(np.isfinite(seg)) and float(seg.max()) < min_impact_m_s2:
+            drop_ic[i] = True
+    if not drop_ic.any():
+        return ev
+    ki = ~drop_ic
+    return replace(ev, ic_idx=ic[ki], ic_detect_idx=np.asarray(ev.ic_detect_idx)[ki],
+                   ic_pitch_max_idx=None if ev.ic_pitch_max_idx is None else np.asarray(ev.ic_pitch_max_idx)[ki])
+
+
+def _refine(ev: GaitEvents, gyr, traj: TrajectoryResult, mids, u, s, fs: float, params: FootParams,
+            acc=None) -> GaitEvents:
+    """The batch refinements of the events: R6 (in-place lifts dropped), T1 (toe-off), H1 (heel strike) then R7
+    (contactless ICs dropped), as ``params`` asks."""
     if params.min_step_m is not None and params.min_step_m > 0:
         ev = drop_in_place_steps(ev, traj.pos, traj.zupt, params.min_step_m)
     if params.toe_off_refine and len(ev.tc_idx):
         ev = _refine_tcs(ev, gyr, traj, mids, u, fs, params)
     if params.heel_strike_fraction is not None and len(ev.ic_idx):
         ev = _refine_ics(ev, gyr, traj, mids, u, s, fs, params)
+    if params.min_impact_m_s2 is not None and params.min_impact_m_s2 > 0 and len(ev.ic_idx):
+        if acc is None:
+            raise ValueError("FootParams.min_impact_m_s2 (R7) needs the accelerometer: pass acc=")
+        ev = drop_contactless_ics(ev, acc, gravity_m_s2=traj.sensor_gravity_m_s2, sampling_rate_hz=fs,
+                                  min_impact_m_s2=params.min_impact_m_s2)
     return ev
 
 
-def refine_events(fk: "FootKinematics", gyr: np.ndarray, params: FootParams) -> GaitEvents:
-    """The events ``foot_kinematics(gyr, …, params=params)`` returns, from a result ``fk`` computed with the same
-    parameters but the refinements off (``toe_off_refine=False, heel_strike_fraction=None, min_step_m=None``): R6,
-    T1 and H1 are the last steps and touch nothing else, so a bench can score several settings from one ESKF run."""
+def refine_events(fk: "FootKinematics", gyr: np.ndarray, params: FootParams, *,
+                  acc: np.ndarray | None = None) -> GaitEvents:
+    """The events ``foot_kinematics(gyr, acc, …, params=params)`` returns, from a result ``fk`` computed with the
+    same parameters but the refinements off (``toe_off_refine=False, heel_strike_fraction=None, min_step_m=None,
+    min_impact_m_s2=None``): R6, T1, H1 and R7 are the last steps and touch nothing else, so a bench can score
+    several settings from one ESKF run. ``acc`` is needed when ``params.min_impact_m_s2`` is set (R7)."""
     if fk.events.tc_pitch_min_idx is not None or fk.events.ic_pitch_max_idx is not None:
         raise ValueError("refine_events needs a FootKinematics computed with both refinements off")
     if fk.status == "no_stance":
         return fk.events
     return _refine(fk.events, gyr, fk.trajectory, fk.mid_stance, fk.anterior_axis, fk.pitch, fk.sampling_rate_hz,
-                   params)
+                   params, acc)
 
 
 def _anterior_axis(traj: TrajectoryResult, runs, w, fs: float, params: FootParams):
@@ -366,7 +426,7 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
                                    gyr_norm=w)
     elif params.weak_push_off_steps:
         ev = _weak_push_off_steps(ev, s, fs, params)
-    ev = _refine(ev, gyr, traj, mids, u, s, fs, params)
+    ev = _refine(ev, gyr, traj, mids, u, s, fs, params, acc)
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None

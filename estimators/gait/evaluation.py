@@ -49,11 +49,11 @@ def match_events(detected: np.ndarray, reference: np.ndarray, *, tolerance_sampl
         raise ValueError(f"tolerance_samples must be >= 0, got {tolerance_samples}")
     det = np.asarray(detected, dtype=np.int64).ravel()
     ref = np.asarray(reference, dtype=np.int64).ravel()
-    cand = [(abs(int(d) - int(r)), i, j) for i, d in enumerate(det) for j, r in enumerate(ref)
-            if abs(int(d) - int(r)) <= tolerance_samples]
-    cand.sort()
+    diff = np.abs(det[:, None] - ref[None, :])
+    ii, jj = np.nonzero(diff <= tolerance_samples)
+    order = np.lexsort((jj, ii, diff[ii, jj]))             # nearest first, ties by detection then reference
     used_d, used_r, pairs = set(), set(), []
-    for _, i, j in cand:
+    for i, j in zip(ii[order].tolist(), jj[order].tolist()):
         if i in used_d or j in used_r:
             continue
         used_d.add(i)

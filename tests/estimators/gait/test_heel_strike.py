@@ -59,9 +59,11 @@ def test_voisard_trial_ic_bias_of_the_pitch_maximum_is_removed():
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize("toe_off, heel, min_step", [(0.6, 0.4, None), (0.2, None, None), (None, 0.75, None),
-                                                     (0.7, 0.4, 0.02), (0.7, 0.4, 0.5)])
-def test_refine_events_equals_foot_kinematics(toe_off, heel, min_step):
+@pytest.mark.parametrize("toe_off, heel, min_step, min_impact", [(0.6, 0.4, None, None), (0.2, None, None, None),
+                                                                 (None, 0.75, None, None), (0.7, 0.4, 0.02, None),
+                                                                 (0.7, 0.4, 0.5, None), (0.7, 0.4, 0.02, 1.0),
+                                                                 (None, None, None, 30.0)])
+def test_refine_events_equals_foot_kinematics(toe_off, heel, min_step, min_impact):
     """The bench scores its grid with ``refine_events`` on one unrefined run: it must give exactly the events
     ``foot_kinematics`` gives with the same parameters (gaitmap walk, left foot)."""
     from stridelab.estimators.gait import refine_events
@@ -69,14 +71,18 @@ def test_refine_events_equals_foot_kinematics(toe_off, heel, min_step):
     ex = load_gaitmap_example(shared_data("gaitmap_example"))
     f, fs = ex.left, ex.sampling_rate_hz
     params = FootParams(toe_off_refine=toe_off is not None, toe_off_onset_fraction=toe_off or 0.2,
-                        heel_strike_fraction=heel, min_step_m=min_step)
+                        heel_strike_fraction=heel, min_step_m=min_step, min_impact_m_s2=min_impact)
     base = foot_kinematics(f.gyr, f.acc, sampling_rate_hz=fs,
-                           params=FootParams(toe_off_refine=False, heel_strike_fraction=None, min_step_m=None))
+                           params=FootParams(toe_off_refine=False, heel_strike_fraction=None, min_step_m=None,
+                                             min_impact_m_s2=None))
     direct = foot_kinematics(f.gyr, f.acc, sampling_rate_hz=fs, params=params).events
-    ev = refine_events(base, f.gyr, params)
+    ev = refine_events(base, f.gyr, params, acc=f.acc)
     np.testing.assert_array_equal(ev.ic_idx, direct.ic_idx)
     np.testing.assert_array_equal(ev.tc_idx, direct.tc_idx)
-    assert len(ev.ic_idx) > 25             # (min_step 0.5 m makes R6 fire here: one short turning step of 33 goes)
+    assert len(ev.ic_idx) > 20             # (min_step 0.5 m makes R6 fire here: one short turning step of 33 goes;
+    #                                        min_impact 30 m/s² makes R7 drop the softer landings)
+    if min_impact is not None and min_impact > 10:
+        assert len(ev.ic_idx) < len(base.events.ic_idx)
     if heel is not None:                      # H1 moved ICs later, never earlier
         assert np.all(ev.ic_idx >= ev.ic_pitch_max_idx) and np.any(ev.ic_idx > ev.ic_pitch_max_idx)
 
