@@ -175,5 +175,5 @@ def finish(ctx: StageContext, p: GaitParams) -> None:
     ctx.set_note(f"gait {status}" + (f": {note}" if note and status != "ok" else ""))
 
 
-STAGE = shaped_stage("gait", "5", GaitParams, compute, score=score, finish=finish, tables=TABLES,
+STAGE = shaped_stage("gait", "6", GaitParams, compute, score=score, finish=finish, tables=TABLES,
                      session_kinds=("lab",))
