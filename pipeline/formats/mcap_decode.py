@@ -1,13 +1,13 @@
-"""The MCAP reader's one decode path: the decompressed chunks of a group walked record by record by one numba
-kernel, every message decoded straight into one set of arrays per channel.
+"""The MCAP reader's one decode path for chunks: the decompressed chunks of a group walked record by record by one
+numba kernel, every message decoded straight into one set of arrays per channel.
 
 :class:`GroupDecoder` takes every chunk of every file (any writer, definitions inside chunks or not, any mix of
 channels). Per chunk, right after its decompression (still in the core's cache), :func:`_walk` checks each record
 as the recording format requires and, by the channel's *slot*:
 
-- an all-double type (``sensor_msgs/msg/Imu``, ``MagneticField``, ``geometry_msgs/msg/PoseStamped``): the message
-  is decoded by :func:`stridelab.pipeline.formats.ros2_cdr.decode_doubles_at` (``header.stamp``, ``log_time`` and
-  the selected doubles, bit for bit) at the channel's next row;
+- an all-double type (``sensor_msgs/msg/Imu``, ``MagneticField``, ``geometry_msgs/msg/PoseStamped``): the message's
+  ``header.stamp``, ``log_time`` and selected doubles are decoded, bit for bit, at the channel's next row (the CDR
+  layout and checks of :func:`stridelab.pipeline.formats.ros2_cdr.decode_doubles`);
 - a channel StrideLab does not decode: the message is counted;
 - :data:`LOCATE`: the message's position is kept and decoded once the group is walked, by the decoder of its layout
   (``sensor_msgs/msg/Range``: a vectorised kernel over the located messages; annotations, which hold strings and
@@ -17,15 +17,18 @@ as the recording format requires and, by the channel's *slot*:
 The walk stops, at a record boundary and without side effects, for what only Python can do: a Schema or Channel
 record (the reader registers it and gives the new channel a slot), a message on a channel without a slot (given a
 :data:`LOCATE` slot), a channel out of room (its rows are moved to larger arrays), and anything wrong (the reader
-raises the one-line error); then it resumes where it stopped. There is no other path: a group is never decoded
-twice, and what is an error is decided here, in file order.
+raises the one-line error); then it resumes where it stopped. A group is never decoded twice, and what is an error
+is decided here, in file order. Messages outside chunks (unchunked files, rosbag2 SQLite bags, messages
+compressed one by one) come as lists of positions and are decoded by the vectorised kernels of
+:mod:`~stridelab.pipeline.formats.ros2_cdr`; the all-double layout is written out in both (a numba function
+shared by both, even inlined, made the walk 40-60 % slower), and the tests check them against each other and
+against mcap_ros2's decoder.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from stridelab.pipeline.formats.ros2_cdr import decode_doubles_at, u64
 
 #: ``slot_of`` value of a channel without a slot (not defined yet)
 NO_SLOT = -1
@@ -37,6 +40,24 @@ DONE, DEFINE, UNKNOWN_CHANNEL, ROOM, SHORT_MESSAGE, NOT_FILLED, IMPOSSIBLE_LENGT
 BAD_MESSAGE = 16
 
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE = 0x03, 0x04, 0x05
+
+
+# Little-endian reads at any byte offset. The index is unsigned: numba then emits no negative-index
+# wraparound per byte, and LLVM merges the eight byte loads into one (5x faster decoding than signed indices).
+@njit(cache=True, nogil=True, inline="always")
+def _u64(buf, p):
+    q = np.uint64(p)
+    v = np.uint64(0)
+    for b in range(8):
+        v |= np.uint64(buf[q + np.uint64(b)]) << np.uint64(8 * b)
+    return v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _u32(buf, p):
+    q = np.uint64(p)
+    return (np.uint32(buf[q]) | (np.uint32(buf[q + np.uint64(1)]) << 8) | (np.uint32(buf[q + np.uint64(2)]) << 16)
+            | (np.uint32(buf[q + np.uint64(3)]) << 24))
 
 
 @njit(cache=True, nogil=True)
@@ -58,7 +79,7 @@ def _walk(buf, p, slot_of, n_doubles, fields, n_fields, row0, cap, fill, counts,
     end = buf.shape[0]
     width = fields.shape[1]
     while p + 9 <= end:
-        ulen = u64(buf, p + 1)
+        ulen = _u64(buf, p + 1)
         if ulen > np.uint64(1) << np.uint64(62):
             at[0] = p
             return IMPOSSIBLE_LENGTH
@@ -90,7 +111,7 @@ def _walk(buf, p, slot_of, n_doubles, fields, n_fields, row0, cap, fill, counts,
             loc_slot[j] = s
             loc_start[j] = q + 22
             loc_len[j] = length - 22
-            loc_log[j] = np.int64(u64(buf, q + 6))
+            loc_log[j] = np.int64(_u64(buf, q + 6))
             n_loc[0] = j + 1
         elif nd > 0:
             i = fill[s]
@@ -99,12 +120,36 @@ def _walk(buf, p, slot_of, n_doubles, fields, n_fields, row0, cap, fill, counts,
                 at[0] = p
                 return ROOM
             r = row0[s] + i
-            st = decode_doubles_at(buf, q + 22, length - 22, nd, fields[s], n_fields[s], out_t, r, out_vals,
-                                   row0[s] * width + i, c)
+            # the message's CDR (the layout and checks of ros2_cdr.decode_doubles_kernel, written out here: a
+            # function shared by both, even inlined, made this walk 40-60 % slower)
+            m = q + 22
+            L = length - 22
+            st = 0
+            if L < 16:
+                st = 2
+            elif buf[m] != 0 or buf[m + 1] != 1:
+                st = 1
+            else:
+                sec = np.int64(np.int32(_u32(buf, m + 4)))
+                nsec = np.int64(_u32(buf, m + 8))
+                slen = np.int64(_u32(buf, m + 12))
+                body = m + 4 + (16 + slen - 4 + 7) // 8 * 8
+                need = body - m + 8 * nd
+                if need > L:
+                    st = 2
+                elif L - need > 3:
+                    st = 3
+                elif nsec >= 1_000_000_000:
+                    st = 4
+                else:
+                    out_t[r] = sec * 1_000_000_000 + nsec
+                    base = row0[s] * width + i
+                    for k in range(n_fields[s]):
+                        out_vals[base + k * c] = _u64(buf, body + 8 * fields[s, k])
             if st:
                 at[0] = p
                 return BAD_MESSAGE + st
-            out_log[r] = np.int64(u64(buf, q + 6))
+            out_log[r] = np.int64(_u64(buf, q + 6))
             fill[s] = i + 1
         counts[s] += 1
         p = q + length
@@ -119,7 +164,7 @@ def _count(buf, slot_of, counts):
     end = buf.shape[0]
     p = 0
     while p + 9 <= end:
-        ulen = u64(buf, p + 1)
+        ulen = _u64(buf, p + 1)
         if ulen > np.uint64(end):
             return
         q = p + 9
@@ -139,40 +184,26 @@ LOCATE_ROOM = 4096
 NEW_SLOT_ROWS = 256
 
 
-class GroupDecoder:
-    """Decodes the chunks of one group, each right after its decompression, into arrays sized for the group from
-    the first chunk's message density (2 % and 64 rows of slack per slot) and grown when a channel outgrows them.
+class Slots:
+    """The slot tables of a set of channels: ``specs`` channel id -> ``(doubles after the header, field indices)``
+    for a decoded type, None for a channel whose messages are only counted, :data:`LOCATE` for one decoded after
+    the walk. Made once per registry snapshot and shared read-only by its groups (a group that adds a slot copies)."""
 
-    ``slots``: channel id -> ``(doubles after the header, field indices)`` for a decoded type, None for a channel
-    whose messages are only counted, :data:`LOCATE` for one decoded after the walk. :meth:`walk` returns None when
-    a chunk is done, else ``(status, position)`` for the caller (definitions, unknown channels, errors), which then
-    calls :meth:`add_slot` or raises, and walks again from where it says."""
-
-    def __init__(self, slots: dict[int, tuple[int, np.ndarray] | None | int], group_bytes: int):
-        self.group_bytes = group_bytes
+    def __init__(self, specs: dict[int, tuple[int, np.ndarray] | None | int]):
         self.channel_ids: list[int] = []
         self.slot_of = np.full(1 << 16, NO_SLOT, dtype=np.int64)
-        self._specs: list = []
-        for cid in sorted(slots):
-            self._append(cid, slots[cid])
-        self._pack()
-        self.fill = np.zeros(len(self.channel_ids), dtype=np.int64)
-        self.counts = np.zeros(len(self.channel_ids), dtype=np.int64)
-        self.cap = None
-        self.at = np.zeros(1, dtype=np.int64)
-        self.n_loc = np.zeros(1, dtype=np.int64)
-        self.loc = [np.empty(LOCATE_ROOM, dtype=np.int64) for _ in range(4)]
-        self.loc_chunk: list[int] = []
-        self.bufs: list[np.ndarray] = []
+        self.specs: list = []
+        for cid in sorted(specs):
+            self.append(cid, specs[cid])
+        self.pack()
 
-    # -- slots ----------------------------------------------------------------------------------------------
-    def _append(self, cid: int, spec) -> None:
+    def append(self, cid: int, spec) -> None:
         self.slot_of[cid] = len(self.channel_ids)
         self.channel_ids.append(cid)
-        self._specs.append(spec)
+        self.specs.append(spec)
 
-    def _pack(self) -> None:
-        specs = self._specs
+    def pack(self) -> None:
+        specs = self.specs
         width = max([len(v[1]) for v in specs if isinstance(v, tuple)] + [1])
         self.fields = np.zeros((len(specs), width), dtype=np.int64)
         self.n_doubles = np.zeros(len(specs), dtype=np.int64)
@@ -184,12 +215,49 @@ class GroupDecoder:
             elif v is not None:
                 self.n_doubles[s] = LOCATE
 
+    def copy(self) -> "Slots":
+        out = Slots.__new__(Slots)
+        out.channel_ids, out.slot_of, out.specs = list(self.channel_ids), self.slot_of.copy(), list(self.specs)
+        out.pack()
+        return out
+
+
+class GroupDecoder:
+    """Decodes the chunks of one group, each right after its decompression, into arrays sized for the group from
+    the first chunk's message density (2 % and 64 rows of slack per slot) and grown when a channel outgrows them.
+
+    ``slots``: the :class:`Slots` of the channels known when the group starts (or their specs as a dict).
+    :meth:`walk` returns None when a chunk is done, else ``(status, position)`` for the caller (definitions, unknown
+    channels, errors), which then calls :meth:`add_slot` or raises, and walks again from where it says."""
+
+    def __init__(self, slots: "Slots | dict", group_bytes: int):
+        self.group_bytes = group_bytes
+        self._use(slots if isinstance(slots, Slots) else Slots(slots))
+        self._own = False
+        self.fill = np.zeros(len(self.channel_ids), dtype=np.int64)
+        self.counts = np.zeros(len(self.channel_ids), dtype=np.int64)
+        self.cap = None
+        self.at = np.zeros(1, dtype=np.int64)
+        self.n_loc = np.zeros(1, dtype=np.int64)
+        self.loc = [np.empty(LOCATE_ROOM, dtype=np.int64) for _ in range(4)]
+        self.loc_chunk: list[int] = []
+        self.bufs: list[np.ndarray] = []
+
+    # -- slots ----------------------------------------------------------------------------------------------
+    def _use(self, slots: Slots) -> None:
+        self.slots = slots
+        self.channel_ids, self.slot_of = slots.channel_ids, slots.slot_of
+        self.fields, self.n_doubles, self.n_fields = slots.fields, slots.n_doubles, slots.n_fields
+
     def add_slot(self, cid: int, spec) -> None:
         """Give channel ``cid`` (without a slot so far) a slot: its messages from the current record on are decoded
         (or counted, or located) by ``spec``."""
         old_width = self.fields.shape[1]
-        self._append(cid, spec)
-        self._pack()
+        slots = self.slots if self._own else self.slots.copy()
+        self._own = True
+        slots.append(cid, spec)
+        slots.pack()
+        self._use(slots)
         self.fill = np.append(self.fill, 0)
         self.counts = np.append(self.counts, 0)
         if self.cap is not None:

@@ -155,7 +155,7 @@ class ReadResult:
 
 @njit(cache=True, nogil=True)
 def _u64(buf, p):
-    q = np.uint64(p)                     # unsigned: no wraparound per byte, one 8-byte load (ros2_cdr.u64)
+    q = np.uint64(p)                     # unsigned: no wraparound per byte, one 8-byte load (mcap_decode._u64)
     v = np.uint64(0)
     for b in range(8):
         v |= np.uint64(buf[q + np.uint64(b)]) << np.uint64(8 * b)
@@ -499,12 +499,12 @@ def _spec(ti: TopicInfo):
     return mcap_decode.LOCATE
 
 
-def _slots(snap: "_Snapshot") -> dict:
+def _slots(snap: "_Snapshot") -> mcap_decode.Slots:
     """The decoder's slots of a registry snapshot, made once per snapshot and kept with it (a file has one or a few
     snapshots; no cache outlives the file's read)."""
     slots = getattr(snap, "slots", None)
-    if slots is None:
-        slots = snap.slots = {cid: _spec(ti) for cid, ti in snap[1].items()}    # two threads: the same slots
+    if slots is None:               # two threads may both make it: the same tables
+        slots = snap.slots = mcap_decode.Slots({cid: _spec(ti) for cid, ti in snap[1].items()})
     return slots
 
 
@@ -541,7 +541,7 @@ def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:
         while (stop := dec.walk(buf, p)) is not None:
             status, p = stop
             if status == mcap_decode.DEFINE:
-                op, n = int(buf[p]), int(ros2_cdr.u64(buf, p + 1))
+                op, n = int(buf[p]), int.from_bytes(buf[p + 1:p + 9].tobytes(), "little")
                 if local is None:
                     local = _Registry(schemas)
                 if op == OP_SCHEMA:

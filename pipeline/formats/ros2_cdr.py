@@ -188,65 +188,51 @@ def decode_annotation(raw: bytes) -> dict:
 
 
 # ---- decoding kernels --------------------------------------------------------------------
-# Little-endian reads at any byte offset. The index is unsigned: numba then emits no negative-index
-# wraparound per byte, and LLVM merges the byte loads into one (5x faster decoding than signed indices).
 
-@njit(cache=True, nogil=True, inline="always")
-def u64(buf, p):
-    q = np.uint64(p)
-    v = np.uint64(0)
-    for b in range(8):
-        v |= np.uint64(buf[q + np.uint64(b)]) << np.uint64(8 * b)
-    return v
-
-
-@njit(cache=True, nogil=True, inline="always")
-def u32(buf, p):
-    q = np.uint64(p)
-    return (np.uint32(buf[q]) | (np.uint32(buf[q + np.uint64(1)]) << 8) | (np.uint32(buf[q + np.uint64(2)]) << 16)
-            | (np.uint32(buf[q + np.uint64(3)]) << 24))
-
-
-
-@njit(cache=True, nogil=True, inline="always")
-def decode_doubles_at(buf, m, L, n_doubles, fields, n_fields, out_t, t_at, out_vals, v_at, stride):
-    """Decode ONE message of an all-double type (``header`` then ``n_doubles`` float64): the payload at ``buf[m:m +
-    L]``. Writes ``header.stamp`` (ns) to ``out_t[t_at]`` and the doubles ``fields[:n_fields]`` (indices after the
-    header), bit for bit as uint64 words, to ``out_vals[v_at + k * stride]`` for field ``k``. The one CDR decoder of
-    these layouts: the chunk walker (:mod:`stridelab.pipeline.formats.mcap_decode`) and :func:`decode_doubles` call it.
-
-    Returns 0, or (nothing written) 1 big-endian or unknown encapsulation, 2 message too short, 3 payload size not
-    the schema's (up to 3 bytes of end padding allowed), 4 nanoseconds >= 1e9."""
-    if L < 16:
-        return 2
-    if buf[m] != 0 or buf[m + 1] != 1:
-        return 1
-    sec = np.int64(np.int32(u32(buf, m + 4)))
-    nsec = np.int64(u32(buf, m + 8))
-    slen = np.int64(u32(buf, m + 12))
-    body = m + 4 + (16 + slen - 4 + 7) // 8 * 8
-    need = body - m + 8 * n_doubles
-    if need > L:
-        return 2
-    if L - need > 3:
-        return 3
-    if nsec >= 1_000_000_000:
-        return 4
-    out_t[t_at] = sec * 1_000_000_000 + nsec
-    for k in range(n_fields):
-        out_vals[v_at + k * stride] = u64(buf, body + 8 * fields[k])
-    return 0
+@njit(cache=True, nogil=True)
+def _u32(buf, p):
+    return np.uint32(buf[p]) | (np.uint32(buf[p + 1]) << 8) | (np.uint32(buf[p + 2]) << 16) | (np.uint32(buf[p + 3]) << 24)
 
 
 @njit(cache=True, nogil=True)
-def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_vals, status):
-    """:func:`decode_doubles_at` over N located messages (``starts``/``lengths`` payload positions in ``buf``);
-    ``out_vals`` is the uint64 view of a float64 (len(fields), N) array (each field's values contiguous);
-    ``status[i]`` that function's return value."""
-    n = starts.shape[0]
+def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_vals_u8, status):
+    """Decode header stamp and selected float64 fields of N messages.
+
+    ``buf`` uint8 chunk bytes; ``starts``/``lengths`` payload positions; ``fields`` indices of the
+    doubles to extract; ``n_doubles`` float64 after the header in the schema; ``out_vals_u8`` is the
+    uint8 view of a float64 (len(fields), N) array (column-major). ``status[i]``: 0 ok, 1 big-endian or unknown
+    encapsulation, 2 message too short, 3 payload size not the schema's (up to 3 bytes of end padding
+    allowed), 4 nanoseconds >= 1e9.
+    """
     nf = fields.shape[0]
-    for i in range(n):
-        status[i] = decode_doubles_at(buf, starts[i], lengths[i], n_doubles, fields, nf, out_t, i, out_vals, i, n)
+    for i in range(starts.shape[0]):
+        p = starts[i]
+        L = lengths[i]
+        if L < 16 or buf[p] != 0 or buf[p + 1] != 1:
+            status[i] = 1 if L >= 16 else 2
+            continue
+        sec = np.int64(np.int32(_u32(buf, p + 4)))
+        nsec = np.int64(_u32(buf, p + 8))
+        out_t[i] = sec * 1_000_000_000 + nsec
+        slen = np.int64(_u32(buf, p + 12))
+        rel = 16 + slen - 4
+        body = 4 + (rel + 7) // 8 * 8
+        need = body + 8 * n_doubles
+        if need > L:
+            status[i] = 2
+            continue
+        if L - need > 3:
+            status[i] = 3
+            continue
+        if nsec >= 1_000_000_000:
+            status[i] = 4
+            continue
+        n = starts.shape[0]
+        for k in range(nf):
+            src = p + body + 8 * fields[k]
+            dst = (k * n + i) * 8                  # column-major: each field's values contiguous
+            for b in range(8):
+                out_vals_u8[dst + b] = buf[src + b]
 
 
 @njit(cache=True, nogil=True)
@@ -259,10 +245,10 @@ def decode_range_kernel(buf, starts, lengths, n_floats, out_t, out_vals_u8, stat
         if L < 16 or buf[p] != 0 or buf[p + 1] != 1:
             status[i] = 1 if L >= 16 else 2
             continue
-        sec = np.int64(np.int32(u32(buf, p + 4)))
-        nsec = np.int64(u32(buf, p + 8))
+        sec = np.int64(np.int32(_u32(buf, p + 4)))
+        nsec = np.int64(_u32(buf, p + 8))
         out_t[i] = sec * 1_000_000_000 + nsec
-        slen = np.int64(u32(buf, p + 12))
+        slen = np.int64(_u32(buf, p + 12))
         pos = 16 + slen + 1
         rel = pos - 4
         start = 4 + (rel + 3) // 4 * 4
@@ -288,7 +274,7 @@ def decode_doubles(buf: np.ndarray, starts, lengths, fields: np.ndarray, n_doubl
     cols = np.zeros((len(fields), n), dtype=np.float64)
     status = np.zeros(n, dtype=np.uint8)
     decode_doubles_kernel(buf, starts, lengths, fields.astype(np.int64), n_doubles, t,
-                          cols.reshape(-1).view(np.uint64), status)
+                          cols.reshape(-1).view(np.uint8), status)
     return t, cols.T, status
 
 

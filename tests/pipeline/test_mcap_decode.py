@@ -192,3 +192,15 @@ def test_a_channel_that_outgrows_its_rows_and_a_channel_added_mid_chunk_keep_eve
     assert out[1][2][:, 0].tolist() == [-1.0] + [float(i) for i in range(1, 3001, 2)]
     assert out[2][2].tolist() == [[float(i)] * 3 for i in range(2, 3001, 2)]
     assert dec.counts.tolist() == [1501, 1500]
+
+
+def test_messages_outside_chunks_decode_as_the_same_messages_inside_chunks(tmp_path):
+    """An unchunked copy (messages outside chunks: the list decoder of ros2_cdr) and the chunked original (the
+    walk) give the same samples bit for bit, and both the reference's."""
+    from tests.pipeline._interop import rewrite_with_mcap
+    src = write_mcap_ros2(tmp_path / "ros2.mcap", small_recording(seconds=10.0), chunk_size=16 * 1024)
+    flat = rewrite_with_mcap(src, tmp_path / "flat.mcap", chunked=False)
+    (chunked, _), (unchunked, res) = _read(src), _read(flat)
+    assert res.unchunked_messages and not res.chunks
+    _assert_same(unchunked, chunked)
+    _assert_same(unchunked, _reference(flat))
