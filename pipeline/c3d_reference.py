@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from stridelab.pipeline.formats import ros2_cdr
+from stridelab.pipeline.temp_names import temporary_name
 
 POSE_SCHEMA = "geometry_msgs/msg/PoseStamped"
 FRAME_ID = "c3d_lab"
@@ -160,7 +161,7 @@ def import_c3d_reference(c3d: Path, recording: Path, inbox: Path, segments: list
                                 f"not overlap the recording's {(t1 - t0) / 1e9:.1f} s; check --offset-s")
     inbox.mkdir(parents=True, exist_ok=True)
     out = inbox / _output_name(recording, c3d)
-    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    tmp = temporary_name(out)
     try:
         with open(recording, "rb") as src, open(tmp, "wb") as dst:
             reader = make_reader(src)

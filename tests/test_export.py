@@ -122,3 +122,21 @@ def test_the_official_bids_validator_finds_no_error(bids, tmp_path):
     del d["SamplingFrequency"]
     side.write_text(json.dumps(d))
     assert validate(broken)["issues"]["errors"]
+
+
+def test_exports_take_output_names_up_to_255_bytes(small_home, tmp_path):
+    """Both exports write beside the output under a temporary name first: it must not pass 255 bytes when the
+    output's does not (names above ~240 bytes failed with 'File name too long', as the MCAP writer's did)."""
+    from stridelab.pipeline.export.bids import export_bids
+    from stridelab.pipeline.export.tables import export_table
+    wh = small_home / "warehouse"
+    for name in ("Ł" * 125 + ".csv", "L" * 243 + ".parquet"):                     # 254 and 251 bytes
+        out = tmp_path / "t" / name
+        assert len(os.fsencode(name)) <= 255 < len(os.fsencode(f".{name}.tmp-{os.getpid()}"))
+        assert export_table(wh, "strides", out)["rows"] > 0
+        assert [p.name for p in out.parent.iterdir()] == [name]                   # no temporary left
+        out.unlink()
+    out = tmp_path / "b" / ("B" * 250)
+    out.parent.mkdir()
+    export_bids(wh, out)
+    assert (out / "dataset_description.json").is_file() and [p.name for p in out.parent.iterdir()] == [out.name]

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from stridelab.pipeline.temp_names import temporary_name
+
 BIDS_VERSION = "1.9.0"
 #: the recording's session metadata fields exported to participants.tsv (an allow-list)
 PARTICIPANT_FIELDS = ("condition", "paretic_side")
@@ -106,7 +108,7 @@ def _export(con, root, out, study, participants, kinds, keep_ids, subject_map, o
     if not recs:
         raise ValueError("nothing to export: no ingested recording matches (check --study, --participant, --kind)")
     summary = ExportSummary(out=str(out))
-    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    tmp = temporary_name(out)
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
 

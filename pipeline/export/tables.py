@@ -5,6 +5,8 @@ import os
 import re
 from pathlib import Path
 
+from stridelab.pipeline.temp_names import temporary_name
+
 FORMATS = (".csv", ".parquet")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 #: columns that could carry what a shared file should not: where a participant's file came from on disk
@@ -42,7 +44,7 @@ def export_table(warehouse: str | Path, name: str, out: str | Path) -> dict:
     finally:
         con.close()
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    tmp = temporary_name(out)
     try:
         if out.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq

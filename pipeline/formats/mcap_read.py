@@ -12,12 +12,12 @@ How it is fast: the file is read in large blocks; a numba kernel splits a block 
 chunk) into records, so Python runs once per chunk, never once per message; chunks are decompressed,
 checked and decoded by a small thread pool (zstandard, lz4, the CRC and the numba kernels release the
 GIL). Consecutive chunks (up to :data:`GROUP_BYTES`) form one task, so the consumer runs once per ~8 MiB
-whatever chunk size the writer chose. A group whose chunks hold only Message records of fixed-layout types
-(Imu, MagneticField, PoseStamped; annotations and ranges located for their own decoders) is decoded by
-:mod:`stridelab.pipeline.formats.mcap_fast`, one kernel pass per chunk right after its decompression, straight into the
-group's arrays; any other group (definitions inside a chunk, a message that does not fit its schema) takes
-the general path: record tables, the CDR decoders of :mod:`stridelab.pipeline.formats.ros2_cdr` per channel and chunk,
-and a join of each channel's blocks, whose errors say what is wrong. Blocks are yielded
+whatever chunk size the writer chose. Every chunk of every file takes the one decode path,
+:mod:`stridelab.pipeline.formats.mcap_decode`: one kernel pass per chunk right after its decompression, each message
+decoded straight into the group's arrays (definitions inside chunks, messages on channels defined later,
+annotations and ranges handled inside that walk), and its errors say what is wrong. Messages outside chunks
+(unchunked files) and those whose channel is defined in a later group are decoded per channel by the same CDR
+decoders of :mod:`stridelab.pipeline.formats.ros2_cdr` (:func:`_decode_records`). Blocks are yielded
 in file order while at most a bounded number of chunks is in flight, so memory does not grow with the
 length of the recording. The file's SHA-256 and the data-section CRC
 are computed on the same pass, on a separate thread.
@@ -44,7 +44,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Metadata, Schema, Statistics
 from numba import njit
 
-from stridelab.pipeline.formats import mcap_fast, ros2_cdr
+from stridelab.pipeline.formats import mcap_decode, ros2_cdr
 from stridelab.pipeline.formats.direct_read import SequentialReader
 
 try:                                   # ISA-L's CRC32 is ~4x faster than zlib's; same polynomial
@@ -65,9 +65,6 @@ MAX_IN_FLIGHT_BYTES = 96 << 20
 #: group leave as one block, so everything downstream runs in Python once per ~8 MiB instead of once per
 #: 1 MiB chunk (the default of the ROS 2 writers)
 GROUP_BYTES = 8 << 20
-#: decode groups of fixed-layout messages by :mod:`stridelab.pipeline.formats.mcap_fast` (False: always the general path;
-#: the tests compare the two)
-FAST_PATH = True
 
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 OP_METADATA, OP_DATA_END, OP_STATISTICS = 0x0C, 0x0F, 0x0B
@@ -158,7 +155,7 @@ class ReadResult:
 
 @njit(cache=True, nogil=True)
 def _u64(buf, p):
-    q = np.uint64(p)                     # unsigned: no wraparound per byte, one 8-byte load (mcap_fast._u64)
+    q = np.uint64(p)                     # unsigned: no wraparound per byte, one 8-byte load (mcap_decode._u64)
     v = np.uint64(0)
     for b in range(8):
         v |= np.uint64(buf[q + np.uint64(b)]) << np.uint64(8 * b)
@@ -340,8 +337,8 @@ class _Registry:
 
 
 class _Snapshot(tuple):
-    """(schemas, topics) of a registry at one moment; carries the fast path's plan for them once made
-    (:func:`_fast_plan`)."""
+    """(schemas, topics) of a registry at one moment; carries the decoder's slots for them once made
+    (:func:`_slots`)."""
 
 
 # ---- decoding --------------------------------------------------------------------------------
@@ -385,25 +382,13 @@ class _Piece:
     blocks: list[Block]
     defs: list[tuple[int, object]]
     counts: dict[int, int]
-    pending: tuple | None = None          # (buf, ch, log, start, len) of unresolved messages
+    pending: list = field(default_factory=list)   # [(buf, ch, log, start, len)] of unresolved messages
 
 
-def _decode_records(recs: _Records, snap, with_defs: bool, on_block=None) -> _Piece:
-    schemas, known = snap
-    defs = []
-    if with_defs:
-        local = _Registry(schemas)
-        for op, s, n in zip(recs.ops.tolist(), recs.starts.tolist(), recs.lengths.tolist()):
-            if op == OP_SCHEMA:
-                sch = _parse(Schema, recs.buf[s:s + n], "Schema")
-                local.add_schema(sch)
-                defs.append((op, sch))
-            elif op == OP_CHANNEL:
-                ch = _parse(Channel, recs.buf[s:s + n], "Channel")
-                local.add_channel(ch)
-                defs.append((op, ch))
-        known = {**known, **local.topics}
-    blocks, counts, pend = [], {}, None
+def _decode_records(recs: _Records, snap, on_block=None) -> _Piece:
+    """Decode message records found outside chunks (or left unresolved by a group), per channel."""
+    _, known = snap
+    blocks, counts, pend = [], {}, []
     if len(recs.m_ch):
         if recs.m_ch[0] == recs.m_ch.min() == recs.m_ch.max():      # one channel: no grouping needed
             ids, bounds, order = [int(recs.m_ch[0])], [0, len(recs.m_ch)], None
@@ -425,8 +410,8 @@ def _decode_records(recs: _Records, snap, with_defs: bool, on_block=None) -> _Pi
             blocks.append(on_block(blk) if on_block is not None else blk)
         if missing:
             sel = np.sort(np.concatenate([np.arange(len(recs.m_ch))[m] for m in missing]))
-            pend = (recs.buf, recs.m_ch[sel], recs.m_log[sel], recs.m_start[sel], recs.m_len[sel])
-    return _Piece(blocks, defs, counts, pend)
+            pend = [(recs.buf, recs.m_ch[sel], recs.m_log[sel], recs.m_start[sel], recs.m_len[sel])]
+    return _Piece(blocks, [], counts, pend)
 
 
 _LOCAL = threading.local()
@@ -490,15 +475,6 @@ def _chunk_size(body: memoryview) -> int:
     return struct.unpack_from("<Q", body, 16)[0] if len(body) >= 24 else 0
 
 
-def _chunk_task(body: memoryview, snap, on_block=None, raw: bytes | None = None) -> _Piece:
-    """Decompress, verify and decode one chunk record (runs on a pool thread); ``raw``: already decompressed."""
-    buf = np.frombuffer(_chunk_raw(body) if raw is None else raw, dtype=np.uint8)
-    recs = _scan(buf, 0, len(buf), False)
-    if recs.end != len(buf):
-        raise McapFormatError(f"the records inside a chunk do not fill it exactly; {_FIX}")
-    return _decode_records(recs, snap, bool(((recs.ops == OP_SCHEMA) | (recs.ops == OP_CHANNEL)).any()), on_block)
-
-
 def _merge_blocks(blocks: list[Block]) -> Block:
     """One topic's consecutive blocks as one (values stay column-contiguous, as the decoders give them)."""
     if len(blocks) == 1:
@@ -514,88 +490,98 @@ def _merge_blocks(blocks: list[Block]) -> Block:
     return Block(b0.topic, b0.kind, t, log, vals)
 
 
-def _fast_plan(snap: "_Snapshot") -> tuple[dict, mcap_fast.Plan | None]:
-    """(topics, the fast path's plan) of a registry snapshot; the plan is None when no channel suits it. Made
-    once per snapshot and kept with it (a file has one or a few snapshots; no cache outlives the file's read)."""
-    plan = getattr(snap, "plan", False)
-    if plan is False:
-        _, topics = snap
-        channels = {}
-        for cid, ti in topics.items():
-            if ti.kind is None:
-                channels[cid] = None
-            elif ti.kind in _FIELDS:
-                channels[cid] = (_N_DOUBLES[ti.kind], _FIELDS[ti.kind])
-            else:
-                channels[cid] = "locate"
-        plan = snap.plan = mcap_fast.make_plan(channels) if channels else None   # two threads: the same plan
-    return snap[1], plan
+def _spec(ti: TopicInfo):
+    """How the decoder takes a channel's messages (:class:`~stridelab.pipeline.formats.mcap_decode.GroupDecoder`)."""
+    if ti.kind is None:
+        return None
+    if ti.kind in _FIELDS:
+        return _N_DOUBLES[ti.kind], _FIELDS[ti.kind]
+    return mcap_decode.LOCATE
+
+
+def _slots(snap: "_Snapshot") -> mcap_decode.Slots:
+    """The decoder's slots of a registry snapshot, made once per snapshot and kept with it (a file has one or a few
+    snapshots; no cache outlives the file's read)."""
+    slots = getattr(snap, "slots", None)
+    if slots is None:               # two threads may both make it: the same tables
+        slots = snap.slots = mcap_decode.Slots({cid: _spec(ti) for cid, ti in snap[1].items()})
+    return slots
+
+
+def _walk_error(status: int, pos: int, dec: mcap_decode.GroupDecoder, buf: np.ndarray, known: dict) -> str:
+    if status == mcap_decode.SHORT_MESSAGE:
+        return f"a Message record is shorter than its fixed fields; {_FIX}"
+    if status == mcap_decode.IMPOSSIBLE_LENGTH:
+        return f"a record declares an impossible length; {_FIX}"
+    if status == mcap_decode.NOT_FILLED:
+        return f"the records inside a chunk do not fill it exactly; {_FIX}"
+    ti = known[dec.slot_channel(int(dec.slot_of[int(buf[pos + 9]) | (int(buf[pos + 10]) << 8)]))]
+    return (f"{ti.topic} ({ti.schema_name}): {_STATUS[status - mcap_decode.BAD_MESSAGE]} (the message at byte {pos} "
+            f"of a chunk); {_FIX}")
 
 
 def _group_task(bodies: list[memoryview], snap, on_block=None) -> list[_Piece]:
-    """Decode consecutive chunks and join each channel's blocks across them.
+    """Decompress, verify and decode consecutive chunks (on a pool thread), each channel's messages of the group
+    leaving as one block.
 
-    The common case (every record of every chunk a Message on a known channel of a fixed-layout type) takes
-    :mod:`stridelab.pipeline.formats.mcap_fast`: two kernel passes per chunk straight into the group's arrays. Anything
-    else (definitions or other records inside a chunk, annotations, ranges, a message that does not fit its
-    schema) decodes each chunk as :func:`_chunk_task` does, whose errors name what is wrong; pieces that define
-    schemas/channels or hold messages of a channel not known yet are then kept apart (and in order), so that
-    definitions are registered exactly as without grouping."""
-    topics, plan = _fast_plan(snap) if FAST_PATH else ({}, None)
-    dec = None
-    if plan is not None:
-        dec = mcap_fast.GroupDecoder(plan, sum(_chunk_size(b) for b in bodies))
-    raws = []
-    for b in bodies:                     # each chunk decoded right after its decompression, still in the cache
-        raws.append(_chunk_raw(b))
-        if dec is not None:
-            dec.add(raws[-1])
-    fast = dec.result() if dec is not None else None
-    if fast is not None:
-        decoded, located = fast
-        by_topic: dict[str, list[Block]] = {}
-        for slot, (t, log, vals) in decoded.items():
-            ti = topics[int(plan.channel_ids[slot])]
-            by_topic[ti.topic] = [Block(ti.topic, ti.kind, t, log, vals)]
-        for buf, slots, starts, lengths, logs in located:       # annotations, ranges: the general decoders
-            for slot in np.unique(slots).tolist():
-                sel = slots == slot
-                ti = topics[int(plan.channel_ids[slot])]
-                by_topic.setdefault(ti.topic, []).append(_decode(ti, buf, starts[sel], lengths[sel], logs[sel]))
-        blocks = [_merge_blocks(v) for v in by_topic.values()]
-        counts = {c: n for c, n in zip(plan.channel_ids.tolist(), dec.counts.tolist()) if n}
-        return [_Piece([on_block(b) if on_block is not None else b for b in blocks], [], counts)]
-    pieces = [_chunk_task(b, snap, None, raw) for b, raw in zip(bodies, raws)]
-    del raws
-    out: list[_Piece] = []
-    run: list[_Piece] = []
-
-    def flush() -> None:
-        if not run:
-            return
-        by_topic: dict[str, list[Block]] = {}
-        counts: dict[int, int] = {}
-        for pc in run:
-            for blk in pc.blocks:
-                by_topic.setdefault(blk.topic, []).append(blk)
-            for cid, n in pc.counts.items():
-                counts[cid] = counts.get(cid, 0) + n
-        merged = [_merge_blocks(v) for v in by_topic.values()]
-        out.append(_Piece([on_block(m) if on_block is not None else m for m in merged], [], counts))
-        run.clear()
-
-    for pc in pieces:
-        if pc.pending is not None:
-            flush()
-            pc.blocks = [on_block(b) if on_block is not None else b for b in pc.blocks]
-            out.append(pc)
-        else:
-            if pc.defs:
-                flush()
-                out.append(_Piece([], pc.defs, {}))     # definitions first, then its messages with the run
-            run.append(pc)
-    flush()
-    return out
+    Each chunk is walked by :class:`~stridelab.pipeline.formats.mcap_decode.GroupDecoder` right after its
+    decompression. Schema and Channel records inside the chunks are checked here and returned with the piece, to be
+    registered in file order before its blocks (a channel they define is decoded from its definition on); messages
+    on a channel that neither the snapshot nor the group defines are located and returned as ``pending``, decoded
+    once the definitions before them are registered (:func:`_iter_blocks`)."""
+    schemas, topics = snap
+    dec = mcap_decode.GroupDecoder(_slots(snap), sum(_chunk_size(b) for b in bodies))
+    local: _Registry | None = None           # definitions met inside this group's chunks
+    defs: list = []
+    pending_slots: set[int] = set()
+    known = topics
+    for body in bodies:                      # each chunk decoded right after its decompression, still in the cache
+        buf = dec.begin(_chunk_raw(body))
+        p = 0
+        while (stop := dec.walk(buf, p)) is not None:
+            status, p = stop
+            if status == mcap_decode.DEFINE:
+                op, n = int(buf[p]), int.from_bytes(buf[p + 1:p + 9].tobytes(), "little")
+                if local is None:
+                    local = _Registry(schemas)
+                if op == OP_SCHEMA:
+                    rec = _parse(Schema, buf[p + 9:p + 9 + n], "Schema")
+                    local.add_schema(rec)
+                else:
+                    rec = _parse(Channel, buf[p + 9:p + 9 + n], "Channel")
+                    local.add_channel(rec)
+                    known = {**topics, **local.topics}
+                    if dec.slot_of[rec.id] == mcap_decode.NO_SLOT:
+                        dec.add_slot(rec.id, _spec(local.topics[rec.id]))
+                defs.append((op, rec))
+                p += 9 + n
+            elif status == mcap_decode.UNKNOWN_CHANNEL:
+                cid = int(buf[p + 9]) | (int(buf[p + 10]) << 8)
+                pending_slots.add(len(dec.channel_ids))
+                dec.add_slot(cid, mcap_decode.LOCATE)
+            else:
+                raise McapFormatError(_walk_error(status, p, dec, buf, known))
+    decoded, located = dec.result()
+    by_topic: dict[str, list[Block]] = {}
+    for slot, (t, log, vals) in decoded.items():
+        ti = known[dec.slot_channel(slot)]
+        by_topic[ti.topic] = [Block(ti.topic, ti.kind, t, log, vals)]
+    pending = []
+    for buf, slots, starts, lengths, logs in located:       # annotations, ranges: decoded per layout
+        held = np.zeros(len(slots), dtype=bool)
+        for slot in np.unique(slots).tolist():
+            sel = slots == slot
+            if slot in pending_slots:
+                held |= sel
+                continue
+            ti = known[dec.slot_channel(slot)]
+            by_topic.setdefault(ti.topic, []).append(_decode(ti, buf, starts[sel], lengths[sel], logs[sel]))
+        if held.any():
+            ch = np.asarray(dec.channel_ids, dtype=np.int64)[slots[held]]
+            pending.append((buf, ch, logs[held], starts[held], lengths[held]))
+    blocks = [_merge_blocks(v) for v in by_topic.values()]
+    counts = {c: n for c, n in zip(dec.channel_ids, dec.counts.tolist()) if n}
+    return [_Piece([on_block(b) if on_block is not None else b for b in blocks], defs, counts, pending)]
 
 
 # ---- hashing thread --------------------------------------------------------------------------
@@ -732,15 +718,14 @@ def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend
             for cid, n in piece.counts.items():
                 result.message_counts[cid] = result.message_counts.get(cid, 0) + n
             yield from piece.blocks
-            if piece.pending is not None:
-                buf, ch, log, st, ln = piece.pending
+            for buf, ch, log, st, ln in piece.pending:
                 unknown = sorted(set(ch.tolist()) - set(reg.topics))
                 if unknown:
                     raise McapFormatError(f"messages on channel id {unknown[0]}, which no Channel record "
                                           f"defines; {_FIX}")
                 recs = _Records(buf, np.empty(0, np.uint8), np.empty(0, np.int64), np.empty(0, np.int64),
                                 ch, log, st, ln, 0, False)
-                p = _decode_records(recs, reg.snapshot(), False, on_block)
+                p = _decode_records(recs, reg.snapshot(), on_block)
                 yield from p.blocks
 
         def drain(limit_bytes: int) -> Iterator[Block]:
@@ -770,7 +755,7 @@ def _iter_blocks(path, size, threads, reg, hasher, pool, inflight, held, dataend
                 submit_group()
             else:
                 submit_group()
-                inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), False, on_block), nbytes))
+                inflight.append((pool.submit(_decode_records, payload, reg.snapshot(), on_block), nbytes))
                 held[0] += nbytes
             yield from drain(MAX_IN_FLIGHT_BYTES)
         submit_group()

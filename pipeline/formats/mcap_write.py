@@ -27,6 +27,7 @@ from numba import njit
 from stridelab.estimators.recording import Recording
 from stridelab.pipeline.formats import ros2_cdr
 from stridelab.pipeline.formats.mcap_read import crc32
+from stridelab.pipeline.temp_names import temporary_name
 
 MAGIC = b"\x89MCAP0\r\n"
 _MSG_HEAD = 1 + 8 + 2 + 4 + 8 + 8   # opcode, length, channel_id, sequence, log_time, publish_time
@@ -235,21 +236,6 @@ def write_mcap(path: str | os.PathLike, channels: list[ChannelData], metadata: d
         tmp.unlink(missing_ok=True)          # no partial file left beside the output
         raise
     return path
-
-
-#: longest file name most file systems take (ext4, xfs, btrfs: 255 bytes)
-NAME_MAX = 255
-
-
-def temporary_name(path: Path) -> Path:
-    """The temporary file :func:`write_mcap` writes before renaming it to ``path``: ``.NAME.tmp-PID`` beside it, or,
-    when that would pass :data:`NAME_MAX` bytes (an output name of more than ~240 bytes), ``.HASH.tmp-PID`` with a
-    hash of the name."""
-    name = f".{path.name}.tmp-{os.getpid()}"
-    if len(os.fsencode(name)) > NAME_MAX:
-        import hashlib
-        name = f".{hashlib.sha256(os.fsencode(path.name)).hexdigest()[:32]}.tmp-{os.getpid()}"
-    return path.with_name(name)
 
 
 def _write_file(tmp, channels, metadata, comp, schema_recs, channel_recs, edges, n_windows, t_min, t_max,

@@ -17,7 +17,7 @@ def calibration_from_trial(path: str | Path, topic_map: dict[str, str] | None = 
     from stridelab.estimators.calibration import CalibrationParams, calibrate_session
     from stridelab.estimators.calibration._session import DEFAULT_PLACEMENTS
     from stridelab.estimators.orientation import DEFAULT_OFFLINE, ESTIMATORS
-    from stridelab.pipeline.stages.calibration import common_grid
+    from stridelab.estimators.sync import common_grid
     st = read_streams(path, topic_map)
     sensors = {p: s for p, s in st.sensors.items() if p in DEFAULT_PLACEMENTS}
     if not sensors:
@@ -40,7 +40,7 @@ def calibration_from_trial(path: str | Path, topic_map: dict[str, str] | None = 
 def calibration_from_warehouse(root: str | Path, participant: str):
     """The newest stored calibration of ``participant`` that is not ``fail`` (a previous visit's), from the
     warehouse's published snapshot; ``ValueError`` saying what to do when there is none."""
-    from stridelab.pipeline.stages.joint_angles import session_calibration
+    from stridelab.pipeline.stages._lab_read import session_calibration
     from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(root)
     if con is None:

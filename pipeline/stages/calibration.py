@@ -27,9 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stridelab.estimators.calibration import CalibrationParams
-from stridelab.estimators.sync import common_grid  # noqa: F401  (stridelab.pipeline.live.calibration reads it from here)
 from stridelab.pipeline.stages import canonical_json
-from stridelab.pipeline.stages._lab_read import CALIBRATION_TRIAL, find_calibration_recording, read_recording  # noqa: F401
+from stridelab.pipeline.stages._lab_read import find_calibration_recording, read_recording
 from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("calibration", "accuracy_metrics")

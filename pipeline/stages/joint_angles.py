@@ -26,8 +26,8 @@ import numpy as np
 import pyarrow as pa
 
 from stridelab.pipeline.stages import canonical_json
-from stridelab.pipeline.stages._lab_read import (find_calibration_recording, ic_times_by_side, read_recording,  # noqa: F401
-                                       session_calibration)
+from stridelab.pipeline.stages._lab_read import (find_calibration_recording, ic_times_by_side, read_recording,
+                                                 session_calibration)
 from stridelab.pipeline.stages._shape import StageContext, shaped_stage
 
 TABLES = ("joint_angles", "joint_angle_curves", "joint_rom", "accuracy_metrics", "accuracy_pairs")

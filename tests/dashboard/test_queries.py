@@ -105,3 +105,20 @@ def test_activity_days_are_local_days(con):
     assert (per_day <= 24.0 + 1e-6).all()                 # bouts crossing midnight are split there
     np.testing.assert_allclose(per_day.iloc[1:-1], 24.0, atol=1e-6)     # full days in the session's time zone
     assert per_day.sum() == pytest.approx(9 * 24.0)      # nothing lost: the session lasts 9 days
+
+
+def test_the_package_re_exports_every_public_name_of_its_subject_modules_and_no_module_shadows_one():
+    """warehouse/queries/ is one module per subject; callers use ``Q.name``. A subject module named like a query
+    (``sessions``) would shadow it for documentation tools: no package attribute that a module defines is a module."""
+    import importlib
+    import pkgutil
+    import types
+    for info in pkgutil.iter_modules(Q.__path__):
+        mod = importlib.import_module(f"{Q.__name__}.{info.name}")
+        for name, obj in vars(mod).items():
+            if not name.startswith("_") and getattr(obj, "__module__", None) == mod.__name__:
+                assert getattr(Q, name) is obj, f"{info.name}.{name} is not re-exported"
+                assert name != info.name
+        assert not hasattr(Q, info.name) or isinstance(getattr(Q, info.name), types.ModuleType)
+    assert all(getattr(Q, n) is f and f.__name__ == n for n, f in Q.QUERIES.items())
+    assert {"sessions", "trunk_gait_participants", "with_provenance", "available"} <= set(Q.QUERIES)
