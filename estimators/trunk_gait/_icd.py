@@ -33,7 +33,7 @@ from stridelab.estimators.trunk_gait._filters import butter_sos
 
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,
                             prominence: float, local_window_s: float = 0.0, fill_prominence: float = 0.0,
-                            fill_edge_steps: int = 0, fill_end_steps: int = 0,
+                            fill_edge_steps: int = 0, fill_end_steps: int = 0, fill_start_prominence: float = 0.0,
                             max_step_s: float = 1.5, turning: np.ndarray | None = None,
                             turn_prominence: float = 1.0, return_closing: bool = False):
     """Sample indices of initial-contact peaks of the upward acceleration ``v_up`` (N,) m/s² (gravity removed).
@@ -71,14 +71,15 @@ def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, 
         weak = props["prominences"] >= fill_prominence * sd
         out = fill_missed_steps(peaks[strong], peaks[weak & ~strong], props["prominences"][weak & ~strong],
                                 max_step=max(1, int(round(max_step_s * fs_hz))), edge_steps=fill_edge_steps,
-                                end_steps=fill_end_steps)
+                                end_steps=fill_end_steps,
+                                start_prominence=fill_start_prominence * sd if fill_start_prominence > 0 else None)
     if not return_closing:
         return out
     return out, (out > peaks[strong].max()) if strong.any() else np.zeros(len(out), bool)
 
 
 def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray, *, max_step: int,
-                      edge_steps: int = 0, end_steps: int = 0) -> np.ndarray:
+                      edge_steps: int = 0, end_steps: int = 0, start_prominence: float | None = None) -> np.ndarray:
     """Add weaker peaks where the step rhythm expects a contact the prominence threshold missed.
 
     The closing step of a walk, the first step and the steps of a turn give smaller vertical accelerations than
@@ -104,6 +105,16 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
         m = (cand > lo) & (cand < hi)
         return int(cand[m][np.argmax(cand_prom[m])]) if m.any() else None
     out = list(kept)
+    if start_prominence is not None:
+        # the first step of every walk (the first kept contact and the first after a pause > 2.5 T): gait
+        # initiation lifts the trunk less than steady steps (the first step of a short slow walk of the Mobilise-D
+        # course, HA-001 Test11, reaches 0.6-0.75 SD against the 0.7 SD threshold), so a candidate 0.5 T-1.5 T
+        # before it with at least ``start_prominence`` (absolute, same unit as ``cand_prom``) is added
+        starts = [kept[0]] + [b for a, b in zip(kept[:-1], kept[1:]) if b - a > 2.5 * T]
+        for k in starts:
+            m = (cand > k - 1.5 * T) & (cand < k - 0.5 * T) & (cand_prom >= start_prominence)
+            if m.any():
+                out.append(int(cand[m][np.argmax(cand_prom[m])]))
     for a, b in zip(kept[:-1], kept[1:]):
         if 1.5 * T <= b - a <= 2.5 * T:
             c = best(a + 0.5 * T, b - 0.5 * T)

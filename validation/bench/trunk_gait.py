@@ -83,17 +83,31 @@ GRID_FILL = ((0.0, 0, 0), (0.1, 0, 0), (0.1, 1, 0), (0.02, 0, 1), (0.05, 0, 1), 
 GRID_TURN_PROMINENCE = (1.0, 0.5)     # ic_turn_prominence (1 = off)
 GRID_ZC_SIGMA_S = (0.12, 0.159, 0.2)
 GRID_ZC_DEPTH = (0.0, 0.2, 0.4)
+# the Mobilise-D cadence detectors of _icd_cwt (Shin-improved, HKLee-improved) on the acceleration norm (the
+# source's input) or the upward acceleration, each as the source (refine 0) and with its contacts timed by the
+# upward-acceleration peak within ± ic_refine_s (ic_smooth_s 0.11 s)
+# (ic_method, ic_cwt_signal, ic_refine_s, ic_zc_min_depth = their amplitude gate)
+GRID_CWT = (("shin", "norm", 0.0, 0.0), ("shin", "norm", 0.15, 0.0), ("hklee", "norm", 0.0, 0.0),
+            ("hklee", "norm", 0.1, 0.0), ("hklee", "vertical", 0.1, 0.0), ("hklee", "norm", 0.1, 0.3))
+# ic_fill_start_prominence (the first step of every walk, with the fill on): 0 = off, 0.4 SD
+GRID_FILL_START = (0.0, 0.4)
 IC_CANDIDATES = tuple(
     [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
-      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_turn_prominence": t}
-     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for t in GRID_TURN_PROMINENCE]
-    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d} for g in GRID_ZC_SIGMA_S
-       for d in GRID_ZC_DEPTH])
+      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
+      "ic_turn_prominence": t}
+     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
+     for t in GRID_TURN_PROMINENCE if f[0] > 0 or fs == 0.0]
+    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
+       for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
+    + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
+       for m, x, r, d in GRID_CWT])
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
+             "ic_fill_start_prominence", "ic_cwt_signal", "ic_refine_s",
              "ic_offset_s", "cadence_method")
-CADENCE_METHODS = ("median", "count")   # TrunkGaitParams.cadence_method, chosen after the IC constants
-GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.061, 0.01), 3))   # the jerk minimum lags the heel strike more
+from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
+# the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s)
+GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.151, 0.01), 3))
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
 GRID_MOBGAP_SL = tuple(np.round(np.arange(0.80, 1.401, 0.01), 3))   # x mobgap's shipped factor 4.587/4
 # (sl_hampel_half_width, bout_average, sl_turn_per_rad)
@@ -364,6 +378,12 @@ def ic_loss(s: dict) -> float:
 
 def _detector_name(p) -> str:
     cad = f"; cadence_method {p.cadence_method}"
+    if p.ic_method in ("shin", "hklee"):
+        src = ("Shin & Park 2011 improved: rising zero crossings" if p.ic_method == "shin" else
+               "Lee et al. 2010 improved: closing-minus-opening maxima")
+        ref = f", timed by the upward-acceleration peak within {p.ic_refine_s} s" if p.ic_refine_s > 0 else ""
+        return (f"{p.ic_method} ({src} of the doubly wavelet-filtered acceleration {p.ic_cwt_signal}{ref}), "
+                f"offset {p.ic_offset_s} s" + cad)
     if p.ic_method == "ionescu":
         return (f"ionescu (Paraschiv-Ionescu et al. 2020: jerk-lobe minima, sigma {p.ic_zc_sigma_s} s, "
                 f"min depth {p.ic_zc_min_depth} SD), offset {p.ic_offset_s} s" + cad)
