@@ -78,6 +78,23 @@ def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, 
     return out, (out > peaks[strong].max()) if strong.any() else np.zeros(len(out), bool)
 
 
+def parabolic_peaks(vs: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Sub-sample positions of the maxima of ``vs`` at integer indices ``idx``: the vertex of the parabola through
+    the three samples around each, i + (y[i-1] - y[i+1]) / (2 (y[i-1] - 2 y[i] + y[i+1])), clipped to ± 0.5 sample;
+    edge samples stay. Without it every contact time is a multiple of the sample period, as the references' are,
+    so the timing errors and the loss of the offset choice move in steps of one sample (10 ms at 100 Hz)."""
+    idx = np.asarray(idx, np.int64)
+    out = idx.astype(float)
+    ok = (idx > 0) & (idx < len(vs) - 1)
+    i = idx[ok]
+    y0, y1, y2 = vs[i - 1], vs[i], vs[i + 1]
+    den = y0 - 2.0 * y1 + y2
+    safe = np.where(den < 0, den, -1.0)
+    d = np.where(den < 0, 0.5 * (y0 - y2) / safe, 0.0)
+    out[ok] = i + np.clip(d, -0.5, 0.5)
+    return out
+
+
 def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray, *, max_step: int,
                       edge_steps: int = 0, end_steps: int = 0, start_prominence: float | None = None) -> np.ndarray:
     """Add weaker peaks where the step rhythm expects a contact the prominence threshold missed.

@@ -12,7 +12,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
-from stridelab.estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
+from stridelab.estimators.trunk_gait._icd import (assign_sides, detect_initial_contacts, parabolic_peaks,
+                                                  regular_runs)
 from stridelab.estimators.trunk_gait._icd_cwt import (detect_initial_contacts_hklee, detect_initial_contacts_shin,
                                                      refine_to_peaks)
 from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
@@ -150,6 +151,8 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarr
                                            fill_start_prominence=p.ic_fill_start_prominence,
                                            max_step_s=p.stride_max_s / 2.0, turning=turning,
                                            turn_prominence=p.ic_turn_prominence, return_closing=True)
+    if p.ic_subsample and len(idx):
+        idx = parabolic_peaks(gaussian_filter1d(v, p.ic_smooth_s * fs_hz, mode="nearest"), idx)
     return idx, closing
 
 

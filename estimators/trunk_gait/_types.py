@@ -59,6 +59,8 @@ class TrunkGaitParams:
         the first after a pause) the most prominent peak 0.5-1.5 steps earlier is added when its prominence reaches
         this many SDs (0 = off; the first step out of standing lifts the trunk less).
       ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
+      ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
+        instead of at the peak sample.
       ic_offset_s: added to every detected contact time (trunk event vs heel strike; both methods), s.
       ic_refine_s: for "ionescu" / "shin" / "hklee": each contact is moved to the highest sample of the upward
         acceleration smoothed with σ ``ic_smooth_s`` within ± this (the amplitude-free detector counts the steps,
@@ -101,6 +103,7 @@ class TrunkGaitParams:
     ic_zc_min_depth: float = 0.0
     ic_cwt_signal: str = "norm"
     ic_refine_s: float = 0.0
+    ic_subsample: bool = False
     ic_smooth_s: float = 0.11
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
