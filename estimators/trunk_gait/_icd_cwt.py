@@ -30,12 +30,14 @@ The chain is linear and time-invariant, so y ∝ d⁴/dt⁴ of the band-passed, 
 the step frequency whose sign and scale (the pywt wavelet's −√s normalisation, twice) do not move a zero crossing or
 the place where closing exceeds opening.
 
-Shin-improved: initial contacts = the negative→positive zero crossings of y, placed by linear interpolation between
-the two samples (Shin & Park 2011; sub-sample position as mobgap).
+Shin-improved: (S) initial contacts = the negative→positive zero crossings of y, placed by linear interpolation
+between the two samples (Shin & Park 2011; sub-sample position as mobgap).
 
-HKLee-improved (Lee et al. 2010, Eqs. (1)-(3)): C = closing of y with a flat structuring element of 0.267 s (32 samples
-at 120 Hz, the source's upsampled rate), O = opening of C with one of 0.15 s (18 samples at 120 Hz), R = C - O;
-one initial contact per run of R > 0 at least two samples long, at the maximum of R in the run.
+HKLee-improved (Lee et al. 2010's morphological step detection): (H1) C = closing of y with a flat structuring
+element of 0.267 s (32 samples at 120 Hz, the source's upsampled rate), (H2) O = opening of C with one of 0.15 s
+(18 samples at 120 Hz), (H3) R = C - O; one initial contact per run of R > 0 at least two samples long, at the
+maximum of R in the run. (Step numbers (1)-(6), (S), (H1)-(H3) are ours, in the order of the consortium's
+implementation as described by Micó-Amigo et al. 2023, Additional file 1.)
 
 Deviations: (a) our own rate, time constants in seconds (no 40 Hz resampling, no 120 Hz upsampling for HKLee);
 (b) a 2nd-order zero-phase Butterworth band-pass instead of the EPFL FIR + IIR dedrift (as ``_icd_ionescu``);
@@ -138,9 +140,9 @@ def _min_length_ok(a: np.ndarray, fs_hz: float) -> bool:
 
 def detect_initial_contacts_shin(a: np.ndarray, fs_hz: float, *, min_step_s: float = 0.0,
                                  min_height: float = 0.0) -> np.ndarray:
-    """Float sample positions of initial contacts (Shin-improved) in one gait sequence from ``a`` (N,) m/s²
-    (acceleration norm or vertical acceleration). ``min_step_s`` > 0: of two crossings closer than that, the first
-    stays (0 = every crossing, as the source). ``min_height`` > 0 (deviation): a crossing counts only when the
+    """Float sample positions of initial contacts (Shin-improved, steps (1)-(6), (S)) in one gait sequence from
+    ``a`` (N,) m/s² (acceleration norm or vertical acceleration). ``min_step_s`` > 0: of two crossings closer
+    than that, the first stays (0 = every crossing, as the source). ``min_height`` > 0 (deviation): a crossing counts only when the
     positive lobe it opens reaches that many standard deviations of y over the sequence (standing still before
     and after a walk inside a gait sequence gives small crossings of sensor noise and filter ringing)."""
     if not _min_length_ok(a, fs_hz):
@@ -154,7 +156,7 @@ def detect_initial_contacts_shin(a: np.ndarray, fs_hz: float, *, min_step_s: flo
 
 def detect_initial_contacts_hklee(a: np.ndarray, fs_hz: float, *, min_step_s: float = 0.0,
                                   min_height: float = 0.0) -> np.ndarray:
-    """Sample indices of initial contacts (HKLee-improved, Lee et al. 2010 Eqs. (1)-(3)) in one gait sequence from
+    """Sample indices of initial contacts (HKLee-improved, steps (1)-(6), (H1)-(H3)) in one gait sequence from
     ``a`` (N,) m/s² (acceleration norm or vertical acceleration); ``min_step_s`` as ``detect_initial_contacts_shin``;
     ``min_height`` > 0 (deviation): a run counts only when its maximum of R reaches that many standard deviations
     of y over the sequence."""

@@ -487,7 +487,8 @@ def ic_context(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
             b = r.ref_bouts
             for k, (st, en) in enumerate(zip(b["start_s"], b["end_s"])):
                 inb = (r.ref_ic_s >= st - 1e-6) & (r.ref_ic_s <= en + 1e-6)
-                bouts.append({"recording": r.name, "start_s": round(float(st), 2), "duration_s": round(float(en - st), 2),
+                bouts.append({"recording": r.name, "start_s": round(float(st), 2),
+                              "duration_s": round(float(en - st), 2),
                               "walking_speed_m_s": round(float(b["walking_speed_m_s"][k]), 3),
                               "cadence_spm": round(float(b["cadence_spm"][k]), 1), "reference": int(inb.sum()),
                               "missed": int((inb & missed).sum()),
