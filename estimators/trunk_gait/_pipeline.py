@@ -149,6 +149,7 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarr
                                            fill_prominence=p.ic_fill_prominence,
                                            fill_edge_steps=p.ic_fill_edge_steps, fill_end_steps=p.ic_fill_end_steps,
                                            fill_start_prominence=p.ic_fill_start_prominence,
+                                           fill_end_rhythm=p.ic_fill_end_rhythm,
                                            max_step_s=p.stride_max_s / 2.0, turning=turning,
                                            turn_prominence=p.ic_turn_prominence, return_closing=True)
     if p.ic_subsample and len(idx):

@@ -58,6 +58,9 @@ class TrunkGaitParams:
       ic_fill_start_prominence: with the fill on, before the first contact of every walk (the first kept one and
         the first after a pause) the most prominent peak 0.5-1.5 steps earlier is added when its prominence reaches
         this many SDs (0 = off; the first step out of standing lifts the trunk less).
+      ic_fill_end_rhythm: with the closing-step fill on (``ic_fill_end_steps`` > 0), the first closing step is
+        placed one median step after the last contact instead of at a weak peak (the closing heel strike gives the
+        trunk no rebound; ``_icd.fill_missed_steps``).
       ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
       ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
         instead of at the peak sample.
@@ -112,6 +115,7 @@ class TrunkGaitParams:
     ic_fill_edge_steps: int = 0
     ic_fill_end_steps: int = 2
     ic_fill_start_prominence: float = 0.0
+    ic_fill_end_rhythm: bool = True
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
     cadence_method: str = "count"

@@ -81,7 +81,8 @@ GRID_SMOOTH_S = (0.11, 0.14)          # 0.08 never chosen (2026-12-07 runs)
 GRID_PROMINENCE = (0.7,)               # 0.3 and 0.5 never chosen (2026-12-07 runs)
 GRID_FILL = ((0.0, 0, 0), (0.1, 0, 0), (0.1, 1, 0), (0.02, 0, 1), (0.05, 0, 1), (0.1, 0, 1), (0.05, 0, 2))
 GRID_TURN_PROMINENCE = (1.0,)         # ic_turn_prominence (1 = off); 0.5 never chosen (2026-12-07 runs, 0/10 folds)
-GRID_SUBSAMPLE = (False, True)         # ic_subsample: peak sample / parabola vertex
+GRID_SUBSAMPLE = (False,)             # ic_subsample: true (parabola vertex) never chosen (0/10 folds, 2026-12-07)
+GRID_END_RHYTHM = (False, True)        # ic_fill_end_rhythm (with ic_fill_end_steps > 0)
 GRID_ZC_SIGMA_S = (0.12, 0.159, 0.2)
 GRID_ZC_DEPTH = (0.0, 0.2, 0.4)
 # the Mobilise-D cadence detectors of _icd_cwt (Shin-improved, HKLee-improved) on the acceleration norm (the
@@ -95,16 +96,17 @@ GRID_FILL_START = (0.0, 0.4)
 IC_CANDIDATES = tuple(
     [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
       "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
-      "ic_turn_prominence": t, "ic_subsample": sub}
+      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er}
      for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
-     for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE if f[0] > 0 or fs == 0.0]
+     for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
+     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er)]
     + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
        for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
     + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
        for m, x, r, d in GRID_CWT])
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
-             "ic_fill_start_prominence", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
+             "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
              "ic_offset_s", "cadence_method")
 from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
 # the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s); 5 ms
@@ -397,6 +399,8 @@ def _detector_name(p) -> str:
         fill += f", first step of a walk filled at {p.ic_fill_start_prominence} SD"
     if p.ic_subsample:
         fill += ", sub-sample peak (parabola vertex)"
+    if p.ic_fill_end_rhythm and p.ic_fill_prominence > 0 and p.ic_fill_end_steps > 0:
+        fill += ", first closing step one median step after the last contact"
     return (f"peak (McCamley et al. 2012 / Zijlstra & Hof 2003: smoothed upward-acceleration peak, sigma "
             f"{p.ic_smooth_s} s, prominence {p.ic_prominence} SD{fill}), offset {p.ic_offset_s} s" + cad)
 

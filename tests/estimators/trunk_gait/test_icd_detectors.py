@@ -222,3 +222,36 @@ def test_subsample_contacts_time_an_off_grid_step_rhythm_better():
     e_int = np.abs(idx / FS - ic)
     e_sub = np.abs(sub - ic)
     assert e_int.max() > 0.003 and e_sub.max() < 0.0015
+
+
+def test_end_rhythm_places_the_first_closing_step_one_median_step_after_the_last_contact():
+    kept = np.array([100, 150, 200, 250, 300])               # T = 50
+    cand = np.array([330, 390])                              # noise peaks after the walk (the closing step has none)
+    prom = np.array([0.3, 0.2])
+    # the peak fill takes the most prominent candidate 0.5-1.5 T after the last contact: 330, 20 samples off
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1).tolist() == [100, 150, 200, 250, 300, 330]
+    # by the rhythm: last + T, when the signal is that long
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1,
+                             end_rhythm_before=1000).tolist() == [100, 150, 200, 250, 300, 350]
+    # the signal ends before last + T: the peak fill as without the rhythm
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1,
+                             end_rhythm_before=340).tolist() == [100, 150, 200, 250, 300, 330]
+    # a second closing step is still looked for among the peaks, 0.5-1.5 T after the first
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=2,
+                             end_rhythm_before=1000).tolist() == [100, 150, 200, 250, 300, 350, 390]
+
+
+def test_a_closing_step_without_a_trunk_rebound_is_found_by_the_rhythm():
+    # a walk whose last heel strike gives no upward-acceleration peak at all (the trailing foot joins the other
+    # while the trunk decelerates; Voisard: prominence 0-0.04 SD), then standing with a little sway
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 14, 1 / FS)
+    ic = 2.0 + 0.55 * np.arange(16)                          # the last one, at 10.25 s, is the closing step
+    v = sum(np.exp(-0.5 * ((t - c) / 0.07) ** 2) for c in ic[:-1]) + rng.normal(0, 0.01, len(t))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.11, min_step_s=0.25, prominence=0.7, fill_prominence=0.05, fill_end_steps=2)
+    peak_fill = detect_initial_contacts(v, FS, **kw) / FS
+    rhythm = detect_initial_contacts(v, FS, **kw, fill_end_rhythm=True) / FS
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
+    assert not near(peak_fill, ic[-1])
+    assert near(rhythm, ic[-1])
