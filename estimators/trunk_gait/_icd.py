@@ -33,7 +33,8 @@ from stridelab.estimators.trunk_gait._filters import butter_sos
 
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,
                             prominence: float, local_window_s: float = 0.0, fill_prominence: float = 0.0,
-                            fill_edge_steps: int = 0, fill_end_steps: int = 0,
+                            fill_edge_steps: int = 0, fill_end_steps: int = 0, fill_start_prominence: float = 0.0,
+                            fill_end_rhythm: bool = False,
                             max_step_s: float = 1.5, turning: np.ndarray | None = None,
                             turn_prominence: float = 1.0, return_closing: bool = False):
     """Sample indices of initial-contact peaks of the upward acceleration ``v_up`` (N,) m/s² (gravity removed).
@@ -71,14 +72,34 @@ def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, 
         weak = props["prominences"] >= fill_prominence * sd
         out = fill_missed_steps(peaks[strong], peaks[weak & ~strong], props["prominences"][weak & ~strong],
                                 max_step=max(1, int(round(max_step_s * fs_hz))), edge_steps=fill_edge_steps,
-                                end_steps=fill_end_steps)
+                                end_steps=fill_end_steps,
+                                start_prominence=fill_start_prominence * sd if fill_start_prominence > 0 else None,
+                                end_rhythm_before=len(v_up) if fill_end_rhythm and fill_end_steps > 0 else 0)
     if not return_closing:
         return out
     return out, (out > peaks[strong].max()) if strong.any() else np.zeros(len(out), bool)
 
 
+def parabolic_peaks(vs: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Sub-sample positions of the maxima of ``vs`` at integer indices ``idx``: the vertex of the parabola through
+    the three samples around each, i + (y[i-1] - y[i+1]) / (2 (y[i-1] - 2 y[i] + y[i+1])), clipped to ± 0.5 sample;
+    edge samples stay. Without it every contact time is a multiple of the sample period, as the references' are,
+    so the timing errors and the loss of the offset choice move in steps of one sample (10 ms at 100 Hz)."""
+    idx = np.asarray(idx, np.int64)
+    out = idx.astype(float)
+    ok = (idx > 0) & (idx < len(vs) - 1)
+    i = idx[ok]
+    y0, y1, y2 = vs[i - 1], vs[i], vs[i + 1]
+    den = y0 - 2.0 * y1 + y2
+    safe = np.where(den < 0, den, -1.0)
+    d = np.where(den < 0, 0.5 * (y0 - y2) / safe, 0.0)
+    out[ok] = i + np.clip(d, -0.5, 0.5)
+    return out
+
+
 def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray, *, max_step: int,
-                      edge_steps: int = 0, end_steps: int = 0) -> np.ndarray:
+                      edge_steps: int = 0, end_steps: int = 0, start_prominence: float | None = None,
+                      end_rhythm_before: int = 0) -> np.ndarray:
     """Add weaker peaks where the step rhythm expects a contact the prominence threshold missed.
 
     The closing step of a walk, the first step and the steps of a turn give smaller vertical accelerations than
@@ -96,7 +117,7 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
     kept = np.sort(kept)
     d = np.diff(kept)
     d = d[d <= max_step]
-    if len(d) < 2 or len(cand) == 0:
+    if len(d) < 2 or (len(cand) == 0 and not end_rhythm_before):
         return kept
     T = float(np.median(d))
 
@@ -104,6 +125,16 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
         m = (cand > lo) & (cand < hi)
         return int(cand[m][np.argmax(cand_prom[m])]) if m.any() else None
     out = list(kept)
+    if start_prominence is not None:
+        # the first step of every walk (the first kept contact and the first after a pause > 2.5 T): gait
+        # initiation lifts the trunk less than steady steps (the first step of a short slow walk of the Mobilise-D
+        # course, HA-001 Test11, reaches 0.6-0.75 SD against the 0.7 SD threshold), so a candidate 0.5 T-1.5 T
+        # before it with at least ``start_prominence`` (absolute, same unit as ``cand_prom``) is added
+        starts = [kept[0]] + [b for a, b in zip(kept[:-1], kept[1:]) if b - a > 2.5 * T]
+        for k in starts:
+            m = (cand > k - 1.5 * T) & (cand < k - 0.5 * T) & (cand_prom >= start_prominence)
+            if m.any():
+                out.append(int(cand[m][np.argmax(cand_prom[m])]))
     for a, b in zip(kept[:-1], kept[1:]):
         if 1.5 * T <= b - a <= 2.5 * T:
             c = best(a + 0.5 * T, b - 0.5 * T)
@@ -115,8 +146,15 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
             break
         out.append(c)
         first = c
-    for _ in range(edge_steps + end_steps):
-        if (c := best(last + 0.5 * T, last + 1.5 * T)) is None:
+    for k in range(edge_steps + end_steps):
+        if k == edge_steps and end_rhythm_before and last + T < end_rhythm_before:
+            # the first closing step by the rhythm alone: its heel strike gives the trunk no rebound (prominence
+            # 0-0.04 SD on the Voisard trials, where the last heel strike was the most missed contact, 23 of 52
+            # with the peak fill: the most prominent peak there is noise), so it is placed one median step after
+            # the last contact when the signal goes on that long (``end_rhythm_before`` = its length in samples;
+            # 0 = off)
+            c = int(round(last + T))
+        elif (c := best(last + 0.5 * T, last + 1.5 * T)) is None:
             break
         out.append(c)
         last = c

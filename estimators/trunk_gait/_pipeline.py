@@ -8,10 +8,14 @@ bouts (Kluge et al. 2021) -> per-bout cadence, stride length, walking speed.
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
-from stridelab.estimators.trunk_gait._icd import assign_sides, detect_initial_contacts, regular_runs
+from stridelab.estimators.trunk_gait._icd import (assign_sides, detect_initial_contacts, parabolic_peaks,
+                                                  regular_runs)
+from stridelab.estimators.trunk_gait._icd_cwt import (detect_initial_contacts_hklee, detect_initial_contacts_shin,
+                                                     refine_to_peaks)
 from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
 from stridelab.estimators.trunk_gait._spatial import (hampel, step_heading_change, step_lengths, step_tilt_deg,
                                                       turn_shortened, vertical_position)
@@ -38,7 +42,13 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
     counts as the two steps it spans: the bout's step count over its walking time, the definition of the
     reference cadence of Mobilise-D (steps per minute of the walking bout, Micó-Amigo et al. 2023) and of the
     Voisard reference (60 (n - 1) / span), which differs from the median where step times vary (turns, the
-    slower first and last steps)."""
+    slower first and last steps). "step_mean": the mean over the steps of the instantaneous cadence 60 / d_i
+    (d_i ≤ ``max_step_s``), the per-step average that the Mobilise-D INDIP reference cadence of a walking bout
+    follows (its per-bout values equal the mean of 60 / step time of its own contacts within 1-2 steps/min on
+    HA-001, gaps included). "per_second": ``per_second_cadence``, mobgap's robust per-second cadence averaged over
+    the bout."""
+    if method == "per_second":
+        return per_second_cadence(ic_s, max_step_s=max_step_s)
     d = np.diff(ic_s)
     d = d[d <= max_step_s]
     if len(d) == 0:
@@ -46,8 +56,10 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
     T = float(np.median(d))
     if method == "median":
         return 60.0 / T
+    if method == "step_mean":
+        return float(np.mean(60.0 / d[d > 0]))
     if method != "count":
-        raise ValueError(f"cadence_method must be 'median' or 'count', got {method!r}")
+        raise ValueError(f"cadence_method must be one of {CADENCE_METHODS}, got {method!r}")
     n = np.maximum(1.0, np.rint(d / T))
     return 60.0 * float(n.sum()) / float(d.sum())
 
@@ -101,21 +113,97 @@ def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray,
     return sl, sp
 
 
-def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams,
-              turning: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(sample indices, closing (K,) bool: closing steps added by the fill, see ``_icd.detect_initial_contacts``)."""
+IC_METHODS = ("peak", "ionescu", "shin", "hklee")
+
+
+def _refine(pos: np.ndarray, v: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
+    """``pos`` (float or int sample positions) moved to the highest sample of the smoothed upward acceleration
+    within ± ``p.ic_refine_s`` (``refine_to_peaks``); unchanged when that is 0."""
+    if p.ic_refine_s <= 0 or len(pos) == 0:
+        return pos
+    vs = gaussian_filter1d(v, p.ic_smooth_s * fs_hz, mode="nearest")
+    return refine_to_peaks(np.rint(pos).astype(np.int64), vs, max(1, int(round(p.ic_refine_s * fs_hz))),
+                           max(1, int(round(p.ic_min_step_s * fs_hz))))
+
+
+def per_second_cadence(ic_s: np.ndarray, *, max_step_s: float, half_width: int = 2, n_sigma: float = 3.0,
+                       max_gap_s: int = 3) -> float:
+    """Mean over the bout's seconds of 60 / (robust step time of that second), steps/min (NaN with fewer than
+    ``2 half_width + 2`` contacts).
+
+    After the Mobilise-D cadence (Micó-Amigo et al. 2023, Additional file 1, CADB/CADC; mobgap 1.2.0
+    ``CadFromIc``, our re-implementation): step times d_i = t_{i+1} - t_i (the last repeated for the last contact)
+    are cleaned by a Hampel filter (``half_width`` steps, ``n_sigma`` MADs: a missed or an extra contact gives one
+    step time twice or half the others), averaged per one-second bin of the bout (the bin of the contact that
+    starts the step), cleaned again by the same Hampel filter over the seconds, bins without a contact are
+    interpolated linearly when the gap is at most ``max_gap_s`` s; the bout's cadence is the mean of 60 / step
+    time over its seconds (time-weighted, as the per-second values are mapped to the bout in mobgap). Deviation:
+    step times above ``max_step_s`` (pauses) are left out before the filter."""
+    from stridelab.estimators.trunk_gait._spatial import hampel
+    ic = np.sort(np.asarray(ic_s, float))
+    if len(ic) < 2 * half_width + 2:
+        return float("nan")
+    d = np.diff(ic)
+    d = np.r_[d, d[-1]]
+    ok = d <= max_step_s
+    if ok.sum() < 2 * half_width + 1:
+        return float("nan")
+    t, d = ic[ok], hampel(d[ok], half_width, n_sigma)
+    sec = np.floor(t - ic[0]).astype(np.int64)
+    n_sec = int(np.floor(ic[-1] - ic[0])) + 1
+    cnt = np.bincount(sec, minlength=n_sec)
+    per = np.full(n_sec, np.nan)
+    has = cnt > 0
+    per[has] = np.bincount(sec, weights=d, minlength=n_sec)[has] / cnt[has]
+    per = hampel(per, half_width, n_sigma)
+    fin = np.isfinite(per)
+    if not fin.any():
+        return float("nan")
+    idx = np.arange(n_sec)
+    fill = np.interp(idx, idx[fin], per[fin])
+    # a gap longer than max_gap_s stays empty (mobgap: not interpolated)
+    gap_id = np.cumsum(fin)
+    gap_len = np.bincount(gap_id[~fin], minlength=int(gap_id.max()) + 1)
+    use = fin | ((~fin) & (gap_len[gap_id] <= max_gap_s))
+    return float(np.mean(60.0 / fill[use]))
+
+
+CADENCE_METHODS = ("median", "count", "step_mean", "per_second")
+
+
+def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarray | None = None,
+              acc_seq: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(sample positions, closing (K,) bool: closing steps added by the fill, see ``_icd.detect_initial_contacts``).
+    Positions are float for "shin" (sub-sample zero crossings), else integer sample indices. ``acc_seq`` (N, 3):
+    the sequence's acceleration, for the norm input of "shin" / "hklee"."""
     if p.ic_method == "ionescu":
         idx = detect_initial_contacts_ionescu(v, fs_hz, sigma_s=p.ic_zc_sigma_s, min_depth=p.ic_zc_min_depth,
                                               min_step_s=p.ic_min_step_s)
+        idx = _refine(idx, v, fs_hz, p)
+        return idx, np.zeros(len(idx), bool)
+    if p.ic_method in ("shin", "hklee"):
+        if p.ic_cwt_signal == "norm" and acc_seq is not None:
+            x = np.sqrt(np.einsum("ij,ij->i", acc_seq, acc_seq))
+        elif p.ic_cwt_signal in ("norm", "vertical"):
+            x = v
+        else:
+            raise ValueError(f"ic_cwt_signal must be 'norm' or 'vertical', got {p.ic_cwt_signal!r}")
+        det = detect_initial_contacts_shin if p.ic_method == "shin" else detect_initial_contacts_hklee
+        idx = _refine(det(x, fs_hz, min_step_s=p.ic_min_step_s, min_height=p.ic_zc_min_depth), v, fs_hz, p)
         return idx, np.zeros(len(idx), bool)
     if p.ic_method != "peak":
-        raise ValueError(f"ic_method must be 'peak' or 'ionescu', got {p.ic_method!r}")
-    return detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
-                                   prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
-                                   fill_prominence=p.ic_fill_prominence, fill_edge_steps=p.ic_fill_edge_steps,
-                                   fill_end_steps=p.ic_fill_end_steps,
-                                   max_step_s=p.stride_max_s / 2.0, turning=turning,
-                                   turn_prominence=p.ic_turn_prominence, return_closing=True)
+        raise ValueError(f"ic_method must be one of {IC_METHODS}, got {p.ic_method!r}")
+    idx, closing = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
+                                           prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
+                                           fill_prominence=p.ic_fill_prominence,
+                                           fill_edge_steps=p.ic_fill_edge_steps, fill_end_steps=p.ic_fill_end_steps,
+                                           fill_start_prominence=p.ic_fill_start_prominence,
+                                           fill_end_rhythm=p.ic_fill_end_rhythm,
+                                           max_step_s=p.stride_max_s / 2.0, turning=turning,
+                                           turn_prominence=p.ic_turn_prominence, return_closing=True)
+    if p.ic_subsample and len(idx):
+        idx = parabolic_peaks(gaussian_filter1d(v, p.ic_smooth_s * fs_hz, mode="nearest"), idx)
+    return idx, closing
 
 
 def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
@@ -186,8 +274,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
             turning = np.zeros(e - s, bool)
             for a0, a1 in zip(tt.start_s, tt.end_s):
                 turning[max(0, int(round(a0 * fs_hz)) - s):max(0, int(round(a1 * fs_hz)) - s)] = True
-        peaks, closing = _contacts(v, fs_hz, p, turning)
-        t = (s + peaks) / fs_hz + offset_n
+        ic_pos, closing = _contacts(v, fs_hz, p, turning, a)
+        t = (s + ic_pos) / fs_hz + offset_n
+        peaks = np.clip(np.rint(ic_pos).astype(np.int64), 0, max(e - s - 1, 0))
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         # a closing step gets a run of its own: no stride starts or ends there (the reference walking bouts of
         # Mobilise-D end with the last complete stride), it still is a contact of the bout it closes

@@ -35,9 +35,16 @@ class TrunkGaitParams:
     Initial contacts (``ic_method``: "peak" = peak of the smoothed upward acceleration, McCamley et al. 2012 /
     Zijlstra & Hof 2003, ``_icd``; "ionescu" = minima of the wavelet-smoothed vertical jerk between its zero
     crossings, Paraschiv-Ionescu et al. 2020, ``_icd_ionescu``):
-      ic_method: "peak" | "ionescu".
+      ic_method: "peak" | "ionescu" | "shin" | "hklee".
       ic_zc_sigma_s: Gaussian σ of the jerk ("ionescu"; 0.159 s = the source's gaus2 scale 9 at 40 Hz), s.
       ic_zc_min_depth: minimum lobe depth in SDs of the smoothed jerk over the sequence ("ionescu"; 0 = source).
+    "shin" = negative-to-positive zero crossings and "hklee" = closing-minus-opening maxima of the doubly
+    wavelet-filtered acceleration (Shin & Park 2011 / Lee et al. 2010 as improved by Paraschiv-Ionescu et al. 2020,
+    the Mobilise-D cadence detectors; ``_icd_cwt``):
+      ic_cwt_signal: their input, "norm" (acceleration norm, as the source) or "vertical" (upward acceleration).
+      (``ic_zc_min_depth`` is their amplitude gate: minimum lobe / closing-minus-opening height in SDs of the
+      filtered signal over the sequence; 0 = the source.)
+      (``ic_min_step_s`` also thins their contacts: of two closer than that the first stays.)
     For "peak":
       ic_smooth_s: standard deviation of the Gaussian smoothing of the vertical acceleration, s.
       ic_min_step_s: minimum time between two initial contacts, s.
@@ -48,10 +55,22 @@ class TrunkGaitParams:
         rhythm of the kept contacts expects a missed one (0 = off; ``_icd.fill_missed_steps``).
       ic_fill_edge_steps: how many such steps may be added before the first and after the last kept contact.
       ic_fill_end_steps: how many more may be added after the last kept contact only (the closing step).
+      ic_fill_start_prominence: with the fill on, before the first contact of every walk (the first kept one and
+        the first after a pause) the most prominent peak 0.5-1.5 steps earlier is added when its prominence reaches
+        this many SDs (0 = off; the first step out of standing lifts the trunk less).
+      ic_fill_end_rhythm: with the closing-step fill on (``ic_fill_end_steps`` > 0), the first closing step is
+        placed one median step after the last contact instead of at a weak peak (the closing heel strike gives the
+        trunk no rebound; ``_icd.fill_missed_steps``).
       ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
+      ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
+        instead of at the peak sample.
       ic_offset_s: added to every detected contact time (trunk event vs heel strike; both methods), s.
-      cadence_method: per-bout cadence, "median" (60 / median step time) or "count" (steps over walking time,
-        a missed contact counted by the rhythm; ``_pipeline.bout_cadence``).
+      ic_refine_s: for "ionescu" / "shin" / "hklee": each contact is moved to the highest sample of the upward
+        acceleration smoothed with σ ``ic_smooth_s`` within ± this (the amplitude-free detector counts the steps,
+        the acceleration peak of "peak" times them; 0 = off), s.
+      cadence_method: per-bout cadence, "median" (60 / median step time), "count" (steps over walking time,
+        a missed contact counted by the rhythm), "step_mean" (mean of 60 / step time) or "per_second"
+        (mobgap's robust per-second cadence, Hampel-cleaned step times); ``_pipeline.bout_cadence``.
     Side (McCamley et al. 2012: sign of the yaw rate):
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
       side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
@@ -93,6 +112,9 @@ class TrunkGaitParams:
     ic_method: str = "peak"
     ic_zc_sigma_s: float = 0.159
     ic_zc_min_depth: float = 0.0
+    ic_cwt_signal: str = "norm"
+    ic_refine_s: float = 0.0
+    ic_subsample: bool = False
     ic_smooth_s: float = 0.11
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
@@ -100,6 +122,8 @@ class TrunkGaitParams:
     ic_fill_prominence: float = 0.05
     ic_fill_edge_steps: int = 0
     ic_fill_end_steps: int = 2
+    ic_fill_start_prominence: float = 0.0
+    ic_fill_end_rhythm: bool = True
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
     cadence_method: str = "count"

@@ -81,20 +81,38 @@ KEYS = ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms", "cadence_mape_pct"
 GRID_SMOOTH_S = (0.11, 0.14)          # 0.08 never chosen (2026-12-07 runs)
 GRID_PROMINENCE = (0.7,)               # 0.3 and 0.5 never chosen (2026-12-07 runs)
 GRID_FILL = ((0.0, 0, 0), (0.1, 0, 0), (0.1, 1, 0), (0.02, 0, 1), (0.05, 0, 1), (0.1, 0, 1), (0.05, 0, 2))
-GRID_TURN_PROMINENCE = (1.0, 0.5)     # ic_turn_prominence (1 = off)
+GRID_TURN_PROMINENCE = (1.0,)         # ic_turn_prominence (1 = off); 0.5 never chosen (2026-12-07 runs, 0/10 folds)
+GRID_SUBSAMPLE = (False,)             # ic_subsample: true (parabola vertex) never chosen (0/10 folds, 2026-12-07)
+GRID_END_RHYTHM = (False, True)        # ic_fill_end_rhythm (with ic_fill_end_steps > 0)
 GRID_ZC_SIGMA_S = (0.12, 0.159, 0.2)
 GRID_ZC_DEPTH = (0.0, 0.2, 0.4)
+# the Mobilise-D cadence detectors of _icd_cwt (Shin-improved, HKLee-improved) on the acceleration norm (the
+# source's input) or the upward acceleration, each as the source (refine 0) and with its contacts timed by the
+# upward-acceleration peak within ± ic_refine_s (ic_smooth_s 0.11 s)
+# (ic_method, ic_cwt_signal, ic_refine_s, ic_zc_min_depth = their amplitude gate)
+GRID_CWT = (("shin", "norm", 0.0, 0.0), ("shin", "norm", 0.15, 0.0), ("hklee", "norm", 0.0, 0.0),
+            ("hklee", "norm", 0.1, 0.0), ("hklee", "vertical", 0.1, 0.0), ("hklee", "norm", 0.1, 0.3))
+# ic_fill_start_prominence (the first step of every walk, with the fill on): 0 = off, 0.4 SD
+GRID_FILL_START = (0.0, 0.4)
 IC_CANDIDATES = tuple(
     [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
-      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_turn_prominence": t}
-     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for t in GRID_TURN_PROMINENCE]
-    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d} for g in GRID_ZC_SIGMA_S
-       for d in GRID_ZC_DEPTH])
+      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
+      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er}
+     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
+     for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
+     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er)]
+    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
+       for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
+    + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
+       for m, x, r, d in GRID_CWT])
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
+             "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
              "ic_offset_s", "cadence_method")
-CADENCE_METHODS = ("median", "count")   # TrunkGaitParams.cadence_method, chosen after the IC constants
-GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.061, 0.01), 3))   # the jerk minimum lags the heel strike more
+from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
+# the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s); 5 ms
+# steps: with sub-sample contact times the loss is no longer flat between whole samples
+GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.1501, 0.005), 4))
 GRID_SL = tuple(np.round(np.arange(0.80, 1.801, 0.01), 3))
 GRID_MOBGAP_SL = tuple(np.round(np.arange(0.80, 1.401, 0.01), 3))   # x mobgap's shipped factor 4.587/4
 # sl_turn_per_rad, chosen first at the stride level (choose_turn); 0.3, 0.5 and 0.6 added on 2026-12-07 (U-turn
@@ -370,6 +388,12 @@ def ic_loss(s: dict) -> float:
 
 def _detector_name(p) -> str:
     cad = f"; cadence_method {p.cadence_method}"
+    if p.ic_method in ("shin", "hklee"):
+        src = ("Shin & Park 2011 improved: rising zero crossings" if p.ic_method == "shin" else
+               "Lee et al. 2010 improved: closing-minus-opening maxima")
+        ref = f", timed by the upward-acceleration peak within {p.ic_refine_s} s" if p.ic_refine_s > 0 else ""
+        return (f"{p.ic_method} ({src} of the doubly wavelet-filtered acceleration {p.ic_cwt_signal}{ref}), "
+                f"offset {p.ic_offset_s} s" + cad)
     if p.ic_method == "ionescu":
         return (f"ionescu (Paraschiv-Ionescu et al. 2020: jerk-lobe minima, sigma {p.ic_zc_sigma_s} s, "
                 f"min depth {p.ic_zc_min_depth} SD), offset {p.ic_offset_s} s" + cad)
@@ -377,6 +401,12 @@ def _detector_name(p) -> str:
             f"{p.ic_fill_end_steps})" if p.ic_fill_prominence > 0 else "")
     if p.ic_turn_prominence != 1.0:
         fill += f", threshold x {p.ic_turn_prominence} in turns"
+    if p.ic_fill_start_prominence > 0:
+        fill += f", first step of a walk filled at {p.ic_fill_start_prominence} SD"
+    if p.ic_subsample:
+        fill += ", sub-sample peak (parabola vertex)"
+    if p.ic_fill_end_rhythm and p.ic_fill_prominence > 0 and p.ic_fill_end_steps > 0:
+        fill += ", first closing step one median step after the last contact"
     return (f"peak (McCamley et al. 2012 / Zijlstra & Hof 2003: smoothed upward-acceleration peak, sigma "
             f"{p.ic_smooth_s} s, prominence {p.ic_prominence} SD{fill}), offset {p.ic_offset_s} s" + cad)
 
@@ -449,6 +479,54 @@ def stride_pairs(rec: Rec, det: Det, tol_s: float = 0.3, with_mid: bool = False)
     ok = (np.abs(mid - fmid[j]) <= tol_s) & np.isfinite(det.strides["length_m"])
     res = (np.asarray(det.strides["length_m"], float)[ok], fr[j[ok], 2])
     return (*res, mid[ok]) if with_mid else res
+
+
+def ic_context(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
+    """Where the contacts are missed and found extra: Voisard by the part of the trial (the first and the last
+    heel strike, inside the annotated U-turn, the straight walk); Mobilise-D per INDIP reference walking bout
+    (its duration, speed, cadence, contacts found / missed / extra). ``offsets``: per-recording held-out offsets."""
+    from stridelab.estimators.trunk_gait.evaluation import match_initial_contacts
+    offsets = offsets if offsets is not None else [0.0] * len(recs)
+    vo = {k: {"reference": 0, "missed": 0} for k in ("first", "last", "u_turn", "straight")}
+    vo_fp = {"u_turn": 0, "straight": 0}
+    bouts = []
+    for r, d, o in zip(recs, dets, offsets):
+        win = r.ic_windows_s if r.ic_windows_s is not None and len(r.ic_windows_s) else np.array([r.window_s])
+        m = match_initial_contacts(d.ic_s + o, r.ref_ic_s, windows_s=win)
+        missed = np.zeros(len(r.ref_ic_s), bool)
+        missed[m.fn_idx] = True
+        if r.dataset == "voisard":
+            part = np.full(len(r.ref_ic_s), "straight", dtype=object)
+            if r.turn_s is not None:
+                part[(r.ref_ic_s >= r.turn_s[0]) & (r.ref_ic_s <= r.turn_s[1])] = "u_turn"
+            part[0], part[-1] = "first", "last"
+            for k in vo:
+                vo[k]["reference"] += int(np.sum(part == k))
+                vo[k]["missed"] += int(np.sum(missed & (part == k)))
+            fp_t = (d.ic_s + o)[m.fp_idx]
+            in_turn = ((fp_t >= r.turn_s[0]) & (fp_t <= r.turn_s[1])) if r.turn_s is not None else np.zeros(0, bool)
+            vo_fp["u_turn"] += int(in_turn.sum())
+            vo_fp["straight"] += int(len(fp_t) - in_turn.sum())
+        else:
+            fp_t = (d.ic_s + o)[m.fp_idx]
+            b = r.ref_bouts
+            for k, (st, en) in enumerate(zip(b["start_s"], b["end_s"])):
+                inb = (r.ref_ic_s >= st - 1e-6) & (r.ref_ic_s <= en + 1e-6)
+                bouts.append({"recording": r.name, "start_s": round(float(st), 2),
+                              "duration_s": round(float(en - st), 2),
+                              "walking_speed_m_s": round(float(b["walking_speed_m_s"][k]), 3),
+                              "cadence_spm": round(float(b["cadence_spm"][k]), 1), "reference": int(inb.sum()),
+                              "missed": int((inb & missed).sum()),
+                              "missed_at_s": [round(float(x), 2) for x in r.ref_ic_s[inb & missed]],
+                              "extra": int(np.sum((fp_t >= st - 0.25) & (fp_t <= en + 0.25)))})
+    out = {}
+    if any(v["reference"] for v in vo.values()):
+        out["voisard"] = {k: {**v, "sensitivity": round(1 - v["missed"] / v["reference"], 4) if v["reference"]
+                              else None} for k, v in vo.items()}
+        out["voisard_extra"] = vo_fp
+    if bouts:
+        out["mobilised_reference_bouts"] = bouts
+    return out
 
 
 def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
@@ -745,6 +823,8 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         "sensor_height_check": sensor_height_check(recs, shipped),
         "turn_check": turn_check(recs, shipped),
         "tilt_gate_check": tilt_gate_check(recs, shipped),
+        "ic_misses_by_context": {"shipped_defaults": ic_context(recs, ship_dets),
+                                 "cross_validated": ic_context(recs, cv_dets, cv_off)},
     }
 
 

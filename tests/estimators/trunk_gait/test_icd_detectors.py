@@ -109,7 +109,7 @@ def test_pipeline_with_the_ionescu_detector_finds_every_simulated_step(step_s):
 def test_unknown_ic_method_is_an_error():
     acc, gyr = walking_body(20.0)[:2]
     with pytest.raises(ValueError, match="ic_method"):
-        analyse_trunk_gait(acc, gyr, FS, params=dataclasses.replace(TrunkGaitParams(), ic_method="shin"))
+        analyse_trunk_gait(acc, gyr, FS, params=dataclasses.replace(TrunkGaitParams(), ic_method="zijlstra"))
 
 
 def test_turn_prominence_lowers_the_threshold_inside_turns_only():
@@ -121,7 +121,7 @@ def test_turn_prominence_lowers_the_threshold_inside_turns_only():
     v = v - v.mean()
     turning = (t > ic[11] - 0.2) & (t < ic[13] + 0.2)
     kw = dict(smooth_s=0.05, min_step_s=0.25, prominence=0.7)
-    plain = detect_initial_contacts(v, FS, **kw) / FS
+    plain = detect_initial_contacts(v, FS, **kw) / FS + t[0]
     turned = detect_initial_contacts(v, FS, **kw, turning=turning, turn_prominence=0.3) / FS
     near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
     assert not near(plain, ic[4]) and not near(plain, ic[12])
@@ -166,3 +166,92 @@ def test_bout_cadence_count_is_steps_over_walking_time_and_counts_a_missed_conta
     assert np.isnan(bout_cadence(np.array([1.0]), max_step_s=1.5, method="count"))
     with pytest.raises(ValueError, match="cadence_method"):
         bout_cadence(ic, max_step_s=1.5, method="mean")
+
+
+def test_fill_start_prominence_adds_the_first_step_of_every_walk_when_it_is_prominent_enough():
+    # two walks inside one sequence (T = 50 samples) separated by a pause of 4 T; the first step of each is weak
+    kept = np.array([100, 150, 200, 250, 500, 550, 600, 650])
+    cand = np.array([52, 455, 380])                          # before walk 1, before walk 2, standing sway in the pause
+    prom = np.array([0.5, 0.45, 0.2])
+    assert fill_missed_steps(kept, cand, prom, max_step=150).tolist() == kept.tolist()       # off: unchanged
+    got = fill_missed_steps(kept, cand, prom, max_step=150, start_prominence=0.4).tolist()
+    assert got == [52, 100, 150, 200, 250, 455, 500, 550, 600, 650]                          # 380 is 2.4 T early
+    assert fill_missed_steps(kept, cand, prom, max_step=150, start_prominence=0.48).tolist() == [52] + kept.tolist()
+
+
+def test_the_start_fill_finds_a_weak_first_step_the_threshold_misses():
+    # a walk whose first step lifts the trunk to a quarter of the others (gait initiation): below the 0.7 SD
+    # threshold, above the 0.4 SD of the start fill. (In a short walk of 5 contacts, 4 strides, the miss leaves 3
+    # strides and the 4-stride bout rule then drops all its contacts: HA-001 Test11 at 28.6 s and 119.9 s.)
+    t = np.arange(3.5, 10.0, 1 / FS)
+    ic = 4.0 + 0.6 * np.arange(10)
+    amp = np.ones(len(ic))
+    amp[0] = 0.25                                           # about 0.55 SD of prominence: between 0.4 and 0.7
+    v = sum(a * np.exp(-0.5 * ((t - c) / 0.07) ** 2) for a, c in zip(amp, ic))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.11, min_step_s=0.25, prominence=0.7, fill_prominence=0.05, fill_end_steps=2)
+    plain = detect_initial_contacts(v, FS, **kw) / FS + t[0]
+    start = detect_initial_contacts(v, FS, **kw, fill_start_prominence=0.4) / FS + t[0]
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
+    assert not near(plain, ic[0]) and near(start, ic[0])
+    assert len(start) == len(plain) + 1
+
+
+def test_parabolic_peaks_find_the_vertex_between_samples():
+    from stridelab.estimators.trunk_gait._icd import parabolic_peaks
+    x = np.arange(20.0)
+    y = -(x - 7.3) ** 2 + 4.0 - 0.1 * (x - 15.0) ** 2 * (x > 11)      # a parabola with its vertex at 7.3
+    np.testing.assert_allclose(parabolic_peaks(y, np.array([7])), [7.3])
+    # a sampled Gaussian pulse centred 0.4 sample after a sample: within 0.05 sample (a parabola fits its top)
+    g = np.exp(-0.5 * ((x - 10.4) / 2.0) ** 2)
+    assert abs(parabolic_peaks(g, np.array([10]))[0] - 10.4) < 0.05
+    assert parabolic_peaks(g, np.array([0, 19])).tolist() == [0.0, 19.0]     # edge samples stay
+
+
+def test_subsample_contacts_time_an_off_grid_step_rhythm_better():
+    # contacts every 0.553 s (off the 10 ms sample grid): the peak sample errs by up to 5 ms, the vertex by far less
+    t = np.arange(0, 12, 1 / FS)
+    ic = 1.0 + 0.553 * np.arange(19) + 0.0037
+    v = sum(np.exp(-0.5 * ((t - c) / 0.08) ** 2) for c in ic)
+    v = v - v.mean()
+    from scipy.ndimage import gaussian_filter1d
+    from stridelab.estimators.trunk_gait._icd import parabolic_peaks
+    idx = detect_initial_contacts(v, FS, smooth_s=0.05, min_step_s=0.25, prominence=0.7)
+    sub = parabolic_peaks(gaussian_filter1d(v, 5.0, mode="nearest"), idx) / FS
+    assert len(idx) == len(ic)
+    e_int = np.abs(idx / FS - ic)
+    e_sub = np.abs(sub - ic)
+    assert e_int.max() > 0.003 and e_sub.max() < 0.0015
+
+
+def test_end_rhythm_places_the_first_closing_step_one_median_step_after_the_last_contact():
+    kept = np.array([100, 150, 200, 250, 300])               # T = 50
+    cand = np.array([330, 390])                              # noise peaks after the walk (the closing step has none)
+    prom = np.array([0.3, 0.2])
+    # the peak fill takes the most prominent candidate 0.5-1.5 T after the last contact: 330, 20 samples off
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1).tolist() == [100, 150, 200, 250, 300, 330]
+    # by the rhythm: last + T, when the signal is that long
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1,
+                             end_rhythm_before=1000).tolist() == [100, 150, 200, 250, 300, 350]
+    # the signal ends before last + T: the peak fill as without the rhythm
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=1,
+                             end_rhythm_before=340).tolist() == [100, 150, 200, 250, 300, 330]
+    # a second closing step is still looked for among the peaks, 0.5-1.5 T after the first
+    assert fill_missed_steps(kept, cand, prom, max_step=150, end_steps=2,
+                             end_rhythm_before=1000).tolist() == [100, 150, 200, 250, 300, 350, 390]
+
+
+def test_a_closing_step_without_a_trunk_rebound_is_found_by_the_rhythm():
+    # a walk whose last heel strike gives no upward-acceleration peak at all (the trailing foot joins the other
+    # while the trunk decelerates; Voisard: prominence 0-0.04 SD), then standing with a little sway
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 14, 1 / FS)
+    ic = 2.0 + 0.55 * np.arange(16)                          # the last one, at 10.25 s, is the closing step
+    v = sum(np.exp(-0.5 * ((t - c) / 0.07) ** 2) for c in ic[:-1]) + rng.normal(0, 0.01, len(t))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.11, min_step_s=0.25, prominence=0.7, fill_prominence=0.05, fill_end_steps=2)
+    peak_fill = detect_initial_contacts(v, FS, **kw) / FS
+    rhythm = detect_initial_contacts(v, FS, **kw, fill_end_rhythm=True) / FS
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
+    assert not near(peak_fill, ic[-1])
+    assert near(rhythm, ic[-1])
