@@ -219,5 +219,5 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                                 for r in pairs])
 
 
-STAGE = shaped_stage("trunk_gait", "4", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+STAGE = shaped_stage("trunk_gait", "5", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))
