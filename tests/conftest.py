@@ -32,7 +32,12 @@ sys.meta_path.insert(0, _NoBareLayerImports())
 
 
 def shared_data(name: str) -> Path:
-    """Folder of a public data set in ../shared/data, or skip the test with the reason."""
+    """Folder of a public data set in ../shared/data, or skip the test with the reason. A test (or its fixture)
+    that reads it must be marked ``realdata`` (``make test-fast`` leaves those out): it fails here otherwise."""
+    item = _RUNNING[-1] if _RUNNING else None
+    if item is not None and item.get_closest_marker("realdata") is None:
+        pytest.fail(f"{item.nodeid} reads ../shared/data/{name} but is not marked realdata: add "
+                    f"@pytest.mark.realdata (tests/conftest.py)", pytrace=False)
     p = SHARED_DATA / name
     if not p.is_dir():
         pytest.skip(f"public data '{name}' not found at {p}; see DESIGN.md 'Real data' (needs ../shared/data)")
@@ -124,10 +129,17 @@ def _cpu_s() -> float:
     return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
+_RUNNING: list = []        # the test whose setup, call or teardown runs now in this process (for shared_data)
+
+
 def _timed_phase(item):
     t0 = _cpu_s()
-    yield
-    item._stridelab_cpu_s = _cpu_s() - t0
+    _RUNNING.append(item)
+    try:
+        yield
+    finally:
+        _RUNNING.pop()
+        item._stridelab_cpu_s = _cpu_s() - t0
 
 
 pytest_runtest_setup = pytest.hookimpl(wrapper=True)(lambda item: (yield from _timed_phase(item)))
