@@ -19,7 +19,13 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-backg
 
 
 def require_chromium() -> None:
-    """Skip the test (with what to install) where Chromium or Playwright is missing."""
+    """Skip the test (with what to install) where Chromium or Playwright is missing; fail a test that drives the
+    browser without the ``browser`` marker (``make test-fast`` leaves those out)."""
+    from tests.conftest import _RUNNING
+    item = _RUNNING[-1] if _RUNNING else None
+    if item is not None and item.get_closest_marker("browser") is None:
+        pytest.fail(f"{item.nodeid} drives Chromium but is not marked browser: add @pytest.mark.browser",
+                    pytrace=False)
     if not Path(CHROMIUM).exists():
         pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
     pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")

@@ -155,16 +155,22 @@ def pytest_runtest_makereport(item, call):
     if cpu is not None:
         rep.user_properties.append(("cpu_s", round(cpu, 3)))
         item._stridelab_cpu_s = None
+    if call.when == "call" and not any(item.get_closest_marker(m) for m in ("slow", "realdata", "browser")):
+        rep.user_properties.append(("fast_set", 1))
     return rep
 
 
 _CPU_BY_TEST: dict[str, float] = {}
+_UNMARKED: set[str] = set()        # tests without the slow, realdata and browser markers (those make test-fast runs)
+SLOW_CPU_S = 1.0                   # the ``slow`` marker's threshold (pyproject.toml)
 
 
 def pytest_runtest_logreport(report):
     for k, v in report.user_properties:
         if k == "cpu_s":
             _CPU_BY_TEST[report.nodeid] = _CPU_BY_TEST.get(report.nodeid, 0.0) + v
+        elif k == "fast_set":
+            _UNMARKED.add(report.nodeid)
 
 
 def pytest_terminal_summary(terminalreporter, config):
@@ -172,6 +178,8 @@ def pytest_terminal_summary(terminalreporter, config):
     if n is None or hasattr(config, "workerinput") or not _CPU_BY_TEST:
         return
     rows = sorted(_CPU_BY_TEST.items(), key=lambda kv: -kv[1])
-    terminalreporter.write_sep("=", f"CPU time per test (setup + call + teardown), total {sum(_CPU_BY_TEST.values()):.0f} s")
+    total = sum(_CPU_BY_TEST.values())
+    terminalreporter.write_sep("=", f"CPU time per test (setup + call + teardown), total {total:.0f} s")
     for nodeid, s in rows[:n or None]:
-        terminalreporter.write_line(f"{s:8.2f}s  {nodeid}")
+        note = "   (in make test-fast: over the slow marker's 1 s)" if nodeid in _UNMARKED and s > SLOW_CPU_S else ""
+        terminalreporter.write_line(f"{s:8.2f}s  {nodeid}{note}")
