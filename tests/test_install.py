@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -142,8 +143,10 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
     with socket.socket() as s:
         s.bind(("localhost", 0))
         port = s.getsockname()[1]
+    # its own process group: `stridelab dashboard` runs Streamlit as a child, which the teardown stops with it
     proc = subprocess.Popen([str(cli), "dashboard", "--warehouse", str(work / "wh"), "--port", str(port)], cwd=work,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
     try:
         for _ in range(240):
             if proc.poll() is not None:
@@ -157,5 +160,9 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
         else:
             pytest.fail("stridelab dashboard did not answer within 2 minutes")
     finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+        os.killpg(proc.pid, signal.SIGTERM)      # the command and its Streamlit child (a Ctrl+C does the same)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
