@@ -9,7 +9,7 @@
 #   make docs   build the documentation site into site/ (mkdocs build --strict)
 #   make test-fast  the same without the slow, real-data and browser tests (the edit loop)
 # Variables: PY=python3.11 (interpreter), ARGS="--no-serve" (demo options), PYTEST_ARGS="-m 'not slow'",
-#   INSTALLER=pip (skip uv).
+#   XDIST= (the tests in one process instead of two pytest-xdist workers), INSTALLER=pip (skip uv).
 # Packages are installed by uv (UV_VERSION, from the package index through pip): 6 s instead of pip's 90 s for
 # requirements.lock on 2 cores (download 18 s, unpack 26 s, bytecode 45 s); without bytecode compilation,
 # which Python then does for the modules a process imports. If uv cannot be installed or fails, pip does it.
@@ -27,6 +27,9 @@ INSTALLER ?= uv
 EDITABLE := editable_mode=lenient
 ARGS ?=
 PYTEST_ARGS ?=
+# the tests on two worker processes (pytest-xdist; tests/conftest.py keeps each module, and the modules sharing an
+# expensive session fixture, on one worker); XDIST= runs them in one process
+XDIST ?= -n 2 --dist loadgroup
 
 .PHONY: demo test test-fast install browser clean docs docs-tools bids-validator anchors-mobgap
 
@@ -72,11 +75,11 @@ demo: $(DEPS)
 	$(VENV)/bin/stridelab demo $(ARGS)
 
 test: $(STAMP) $(BYTECODE) browser docs-tools bids-validator
-	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest $(XDIST) $(PYTEST_ARGS)
 
 # The edit loop: everything that needs neither the public data, a browser nor more than a few seconds.
 test-fast: $(STAMP) $(BYTECODE)
-	$(VENV)/bin/python -m pytest -q -m "not slow and not realdata and not browser" $(PYTEST_ARGS)
+	$(VENV)/bin/python -m pytest $(XDIST) -q -m "not slow and not realdata and not browser" $(PYTEST_ARGS)
 
 # The documentation tools (MkDocs, Material, mkdocstrings, mkdocs-click), pinned in requirements-docs.lock; the
 # docs test (tests/test_docs.py) builds the site with --strict.

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -56,6 +57,15 @@ def installed(tmp_path_factory):
     return py, work, env
 
 
+@pytest.fixture(scope="module")
+def warmed(installed) -> dict:
+    """``stridelab warm-kernels --json`` of the clean installation (what ``make install`` runs after installing):
+    its numba cache is the new venv's own, empty before (no NUMBA_CACHE_DIR in the environment)."""
+    py, work, env = installed
+    r = _run([py.parent / "stridelab", "warm-kernels", "--json"], work, env, timeout=1800)
+    return json.loads(r.stdout)
+
+
 def test_only_stridelab_at_the_top_of_site_packages(installed):
     py, work, env = installed
     code = ("import importlib.metadata as m, json; "
@@ -84,7 +94,33 @@ def test_layers_import_only_under_the_namespace(installed):
     assert r.stdout.split() == ["001_initial.sql", "True", "True", "True"], r.stdout
 
 
-def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(installed):
+def test_after_warm_kernels_every_stage_runs_without_compiling(installed, warmed):
+    """The install step compiles each kernel once into the installation's cache (a small study through ingest and
+    every stage); another participant's sessions through every stage in a fresh process then compile nothing.
+    Here rather than in tests/pipeline/test_kernel_cache.py: the clean installation's cache starts empty, so the
+    kernels are compiled once for this and the installed command line's run below, not once for each."""
+    from stridelab.pipeline.stages import registry
+    py, work, env = installed
+    venv = py.parent.parent
+    assert warmed["cache_dir"] == str(venv / "var" / "cache" / "stridelab-numba" / "stridelab.estimators"), warmed
+    assert warmed["signatures_compiled"] >= 15 and warmed["signatures_from_cache"] == 0, warmed
+    # every stage ran ('ok') on the small study, except those about a kind of recording it has none of (a live
+    # session's: Stage.applies)
+    stages = {s.name for s in registry() if s.applies is None}
+    assert {k.split(":")[0] for k, n in warmed["stage_status"].items() if k.endswith(":ok")} == stages, warmed
+    assert warmed["stage_runs"] == sum(warmed["stage_status"].values())
+    r = _run([py, "-c", "from stridelab.warm import is_warm; print(is_warm())"], work, env)
+    assert r.stdout.strip() == "True"
+    code = ("import json, sys; from pathlib import Path; from stridelab.warm import run_small_study; "
+            "print(json.dumps(run_small_study(Path(sys.argv[1]), index=1, hours=1.0, start_local='12:00')))")
+    r = _run([py, "-c", code, work / "second"], work, env, timeout=1800)
+    second = json.loads(r.stdout.strip().splitlines()[-1])
+    assert second["stage_status"] == warmed["stage_status"] and second["stage_runs"] == warmed["stage_runs"]
+    assert second["signatures_compiled"] == 0, second["compiled"]
+    assert second["signatures_from_cache"] >= 15
+
+
+def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(installed, warmed):
     py, work, env = installed
     cli = py.parent / "stridelab"
     assert "Examples" in _run([cli, "--help"], work, env).stdout
@@ -107,8 +143,10 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
     with socket.socket() as s:
         s.bind(("localhost", 0))
         port = s.getsockname()[1]
+    # its own process group: `stridelab dashboard` runs Streamlit as a child, which the teardown stops with it
     proc = subprocess.Popen([str(cli), "dashboard", "--warehouse", str(work / "wh"), "--port", str(port)], cwd=work,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
     try:
         for _ in range(240):
             if proc.poll() is not None:
@@ -122,5 +160,9 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
         else:
             pytest.fail("stridelab dashboard did not answer within 2 minutes")
     finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+        os.killpg(proc.pid, signal.SIGTERM)      # the command and its Streamlit child (a Ctrl+C does the same)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)

@@ -15,11 +15,8 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
-import urllib.request
 from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
@@ -27,31 +24,20 @@ from pathlib import Path
 import pytest
 
 from stridelab.pipeline.formats.mcap_write import write_recording
+from tests.browser import free_port, require_chromium, stop, wait_until_serving
 from tests.corpus import T0_NS, small_recording
 from stridelab.warehouse.catalog import Warehouse
 
 APP = Path(__file__).resolve().parents[2] / "dashboard" / "app.py"
 PAGES = ("overview", "accuracy", "participant", "programme", "activity", "runs")
-# the real browser of the browser tests (Debian's Chromium driven by Playwright)
-CHROMIUM = os.environ.get("STRIDELAB_CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @contextmanager
 def serve_dashboard(wh: Path):
     """The app served by Streamlit on a free localhost port for ``wh`` (yields its URL); skips without Chromium
-    or Playwright. The browser tests use it (test_browser.py, test_walking_home_browser.py)."""
-    if not Path(CHROMIUM).exists():
-        pytest.skip(f"Chromium not found at {CHROMIUM}: apt-get install chromium (or set STRIDELAB_CHROMIUM)")
-    pytest.importorskip("playwright", reason="pip install playwright (its browser download is not needed)")
-    port = _free_port()
+    or Playwright. The browser tests use it (test_browser.py, test_walking_home_browser.py, test_public_study.py)."""
+    require_chromium()
+    port = free_port()
     env = {**os.environ, "STRIDELAB_WAREHOUSE": str(wh)}
     proc = subprocess.Popen([sys.executable, "-m", "streamlit", "run", str(APP), "--server.port", str(port),
                              "--server.address", "localhost", "--server.headless", "true",
@@ -60,23 +46,10 @@ def serve_dashboard(wh: Path):
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     url = f"http://localhost:{port}"
     try:
-        for _ in range(120):
-            if proc.poll() is not None:
-                pytest.fail(f"streamlit exited: {proc.stdout.read()[-2000:]}")
-            try:
-                if urllib.request.urlopen(f"{url}/_stcore/health", timeout=1).status == 200:
-                    break
-            except OSError:
-                time.sleep(0.25)
-        else:
-            pytest.fail("streamlit did not become healthy within 30 s")
+        wait_until_serving(proc, f"{url}/_stcore/health", "streamlit")
         yield url
     finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop(proc, 10)
 
 
 def _ingest(root: Path, inbox: Path) -> None:
@@ -144,6 +117,13 @@ def demo_wh(tmp_path_factory) -> Path:
     summary = runner.run(base / "warehouse", base / "inbox", jobs=2, command="run")
     assert not summary.failed and not summary.quarantined, summary.as_dict()
     return base / "warehouse"
+
+
+@pytest.fixture(scope="session")
+def demo_server(demo_wh):
+    """One Streamlit app serving ``demo_wh`` for every browser test that looks at it (each opens its own pages)."""
+    with serve_dashboard(demo_wh) as url:
+        yield url
 
 
 @pytest.fixture()

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from stridelab.pipeline.privacy import stored_name
-from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
+from tests.browser import chromium
+from tests.dashboard.conftest import serve_dashboard
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -59,75 +60,61 @@ def _open_every_page(browser, server: str, expect: dict, shots: Path, errors: li
         assert (shots / f"{name}.png").stat().st_size > 10_000
 
 
-def test_every_page_of_the_demo_pipeline_warehouse_in_chromium(demo_wh, tmp_path_factory):
-    from playwright.sync_api import sync_playwright
+def test_every_page_of_the_demo_pipeline_warehouse_in_chromium(demo_server, tmp_path_factory):
     shots = tmp_path_factory.mktemp("screenshots_demo")
     errors: list[str] = []
-    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        try:
-            _open_every_page(browser, url, EXPECT_DEMO, shots, errors)
-        finally:
-            browser.close()
+    with chromium() as browser:
+        _open_every_page(browser, demo_server, EXPECT_DEMO, shots, errors)
     assert not errors, errors
     print(f"screenshots in {shots}")
 
 
 def test_every_page_in_chromium(server, tmp_path_factory):
-    from playwright.sync_api import sync_playwright
     shots = tmp_path_factory.mktemp("screenshots")
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        try:
-            errors: list[str] = []
-            # the quarantined file is listed under its stored name (a keyed hash), never under the name it had
-            expect = dict(EXPECT, **{"": EXPECT[""] + [stored_name("broken.mcap")]})
-            _open_every_page(browser, server, expect, shots, errors)
-            # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(server, wait_until="domcontentloaded")
-            page.get_by_text("Quality flags").first.wait_for(state="attached", timeout=30_000)
-            page.get_by_text(stored_name("broken.mcap")).first.wait_for(state="attached", timeout=30_000)
-            assert page.get_by_text("broken", exact=False).count() == 0
-            link = page.locator('[data-testid="stSidebarNavLink"]', has_text="Runs").first
-            link.wait_for(state="visible", timeout=30_000)
-            link.click()
-            page.get_by_role("heading", name="Pipeline runs").wait_for(timeout=30_000)
-            page.wait_for_url("**/runs", timeout=30_000)
-            assert not errors, errors
-        finally:
-            browser.close()
+    with chromium() as browser:
+        errors: list[str] = []
+        # the quarantined file is listed under its stored name (a keyed hash), never under the name it had
+        expect = dict(EXPECT, **{"": EXPECT[""] + [stored_name("broken.mcap")]})
+        _open_every_page(browser, server, expect, shots, errors)
+        # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
+        page = browser.new_page(viewport={"width": 1400, "height": 1000})
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(server, wait_until="domcontentloaded")
+        page.get_by_text("Quality flags").first.wait_for(state="attached", timeout=30_000)
+        page.get_by_text(stored_name("broken.mcap")).first.wait_for(state="attached", timeout=30_000)
+        assert page.get_by_text("broken", exact=False).count() == 0
+        link = page.locator('[data-testid="stSidebarNavLink"]', has_text="Runs").first
+        link.wait_for(state="visible", timeout=30_000)
+        link.click()
+        page.get_by_role("heading", name="Pipeline runs").wait_for(timeout=30_000)
+        page.wait_for_url("**/runs", timeout=30_000)
+        assert not errors, errors
     print(f"screenshots in {shots}")
 
 
-def test_cohort_change_page_in_chromium(demo_wh, tmp_path_factory):
+def test_cohort_change_page_in_chromium(demo_server, tmp_path_factory):
     """The Programme page on the demo pipeline's two-visit warehouse: the cohort-change figure (one marker per
     participant with its MDC95 bar) and the participant trends are drawn; screenshot kept (path printed, or in
     $STRIDELAB_SCREENSHOTS)."""
-    from playwright.sync_api import sync_playwright
     shots = Path(os.environ.get("STRIDELAB_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots_programme"))
     shots.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
-    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        try:
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(f"{url}/programme", wait_until="domcontentloaded")
-            page.get_by_role("heading", name="Programme: change between visits").wait_for(timeout=60_000)
-            page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                                   timeout=60_000)
-            page.get_by_text("Cohort: first", exact=False).first.wait_for(state="attached", timeout=30_000)
-            plots = page.locator(".js-plotly-plot")
-            plots.first.wait_for(timeout=30_000)
-            assert plots.count() >= 5                     # the cohort change + four participant trends
-            # the cohort figure has one marker per participant of the demo warehouse (P001, P002)
-            assert page.locator(".js-plotly-plot").first.locator("g.points path.point").count() == 2
-            assert page.locator('[data-testid="stException"]').count() == 0
-            page.screenshot(path=str(shots / "programme.png"), full_page=True)
-        finally:
-            browser.close()
+    url = demo_server
+    with chromium() as browser:
+        page = browser.new_page(viewport={"width": 1400, "height": 1000})
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(f"{url}/programme", wait_until="domcontentloaded")
+        page.get_by_role("heading", name="Programme: change between visits").wait_for(timeout=60_000)
+        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                               timeout=60_000)
+        page.get_by_text("Cohort: first", exact=False).first.wait_for(state="attached", timeout=30_000)
+        plots = page.locator(".js-plotly-plot")
+        plots.first.wait_for(timeout=30_000)
+        assert plots.count() >= 5                     # the cohort change + four participant trends
+        # the cohort figure has one marker per participant of the demo warehouse (P001, P002)
+        assert page.locator(".js-plotly-plot").first.locator("g.points path.point").count() == 2
+        assert page.locator('[data-testid="stException"]').count() == 0
+        page.screenshot(path=str(shots / "programme.png"), full_page=True)
     assert not errors, errors
     assert (shots / "programme.png").stat().st_size > 20_000
     print(f"screenshot: {shots / 'programme.png'}")

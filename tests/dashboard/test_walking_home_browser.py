@@ -8,13 +8,12 @@ from pathlib import Path
 
 import pytest
 
-from tests.dashboard.conftest import CHROMIUM, CHROMIUM_ARGS as ARGS, serve_dashboard
+from tests.browser import chromium
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 
-def test_walking_at_home_page_in_chromium(demo_wh, tmp_path_factory):
-    from playwright.sync_api import sync_playwright
+def test_walking_at_home_page_in_chromium(demo_wh, demo_server, tmp_path_factory):
     from stridelab.warehouse.read import connect_snapshot
     con = connect_snapshot(demo_wh)
     try:
@@ -27,25 +26,21 @@ def test_walking_at_home_page_in_chromium(demo_wh, tmp_path_factory):
     shots = Path(os.environ.get("STRIDELAB_SCREENSHOTS") or tmp_path_factory.mktemp("screenshots_home"))
     shots.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
-    with serve_dashboard(demo_wh) as url, sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        try:
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(f"{url}/walking-home?participant=P001", wait_until="domcontentloaded")
-            page.get_by_role("heading", name="Walking at home").wait_for(timeout=60_000)
-            page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                                   timeout=60_000)
-            for text in ("Lab capacity beside home performance", "Per day", "Walking bouts", "Home days"):
-                page.get_by_text(text, exact=False).first.wait_for(state="attached", timeout=30_000)
-            plots = page.locator(".js-plotly-plot")
-            plots.first.wait_for(timeout=30_000)
-            assert plots.count() == 3          # capacity beside performance, speed per day, bouts per class
-            # one capacity bar group per lab visit of P001 (two visits in the demo programme)
-            assert page.get_by_text("visit 2", exact=False).count() >= 1
-            assert page.locator('[data-testid="stException"]').count() == 0
-            page.screenshot(path=str(shots / "walking_home.png"), full_page=True)
-        finally:
-            browser.close()
+    with chromium() as browser:
+        page = browser.new_page(viewport={"width": 1400, "height": 1000})
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(f"{demo_server}/walking-home?participant=P001", wait_until="domcontentloaded")
+        page.get_by_role("heading", name="Walking at home").wait_for(timeout=60_000)
+        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                               timeout=60_000)
+        for text in ("Lab capacity beside home performance", "Per day", "Walking bouts", "Home days"):
+            page.get_by_text(text, exact=False).first.wait_for(state="attached", timeout=30_000)
+        plots = page.locator(".js-plotly-plot")
+        plots.first.wait_for(timeout=30_000)
+        assert plots.count() == 3          # capacity beside performance, speed per day, bouts per class
+        # one capacity bar group per lab visit of P001 (two visits in the demo programme)
+        assert page.get_by_text("visit 2", exact=False).count() >= 1
+        assert page.locator('[data-testid="stException"]').count() == 0
+        page.screenshot(path=str(shots / "walking_home.png"), full_page=True)
     assert not errors, errors
     print(f"screenshot: {shots / 'walking_home.png'}")

@@ -36,6 +36,7 @@ def _cat(outs, what, key):
     return np.concatenate([getattr(o, what)[key] for o in outs])
 
 
+@pytest.mark.slow
 def test_live_equals_the_online_estimators_run_over_the_whole_recording(lab_streams, lab_calibration):
     from stridelab.estimators.gait import detect_ic_tc, pitch_signal
     from stridelab.estimators.joints import joint_angles_deg, segment_orientations
@@ -65,6 +66,7 @@ def test_live_equals_the_online_estimators_run_over_the_whole_recording(lab_stre
         assert len(ev.ic_idx) >= 8                      # a 30-s walk: the test has events to compare
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cut", [700, 1501])
 def test_truncated_input_leaves_every_earlier_output_unchanged(lab_streams, lab_calibration, cut):
     _, _, full = _run(lab_streams, lab_calibration)

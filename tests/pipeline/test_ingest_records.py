@@ -218,6 +218,7 @@ def _with_string_topic(path, rec, topics):
     return path
 
 
+@pytest.mark.slow
 def test_every_topic_of_every_file_is_in_the_ingest_ledger_with_its_outcome(tmp_path):
     """Issue #47 point 3: each topic ingested or listed as skipped with the reason in the report (the command's
     summary), the ledger (``ingest_topics`` of the run) and the runs page; a refused file's topics too."""

@@ -77,6 +77,7 @@ def _protocol(seed):
     return np.round(2048 + 400 * g + rng.normal(0, 2, g.shape)), np.concatenate([p[1] for p in parts])
 
 
+@pytest.mark.slow
 def test_bench_activity_runs_on_any_participant_files(tmp_path):
     import json
 

@@ -40,6 +40,7 @@ def test_run_length_mask_ops_equal_scipy_morphology():
         assert np.array_equal(dilate(x, m), binary_dilation(x, structure=np.ones(2 * m + 1, bool)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", [dcf_offline, dcf])
 def test_blockwise_matches_whole_recording(estimator):
     fs = 100.0
