@@ -344,7 +344,8 @@ def _logo_choose_r7_neutral(loss: np.ndarray, ic_tp: np.ndarray) -> dict:
         tp = ic_tp[rows].sum(axis=0)
         score = np.where(tp >= tp[base], L[rows].mean(axis=0), np.inf)
         return int(np.argmin(score))
-    choice = np.array([pick(np.delete(np.arange(G), g)) for g in range(G)], np.int64)
+    # one group: no training groups, the fold scores on its own group (as _cv.logo_choose does; degenerate case)
+    choice = np.array([pick(np.delete(np.arange(G), g) if G > 1 else np.arange(G)) for g in range(G)], np.int64)
     return {"held_out_choice": choice, "held_out_loss": loss[np.arange(G), choice],
             "in_sample_choice": pick(np.arange(G))}
 
