@@ -73,3 +73,22 @@ def chromium(*extra_args: str):
             yield browser
         finally:
             browser.close()
+
+
+def new_page(browser, errors: list):
+    """A 1400 x 1000 page whose uncaught JavaScript errors are appended to ``errors``."""
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    return page
+
+
+def open_streamlit_page(page, url: str, *, heading: str | None = None, timeout_ms: int = 30_000) -> None:
+    """Go to ``url`` and wait until the page's heading (``heading``'s role heading, else any ``h1``) is there and
+    Streamlit's script run has finished (it renders in steps: no 'running' status widget left)."""
+    page.goto(url, wait_until="domcontentloaded")
+    if heading:
+        page.get_by_role("heading", name=heading).wait_for(timeout=timeout_ms)
+    else:
+        page.wait_for_selector("h1", timeout=timeout_ms)
+    page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
+                           timeout=timeout_ms)

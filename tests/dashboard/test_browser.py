@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from stridelab.pipeline.privacy import stored_name
-from tests.browser import chromium
+from tests.browser import chromium, new_page, open_streamlit_page
 from tests.dashboard.conftest import serve_dashboard
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -41,15 +41,10 @@ def server(full_wh):
 
 
 def _open_every_page(browser, server: str, expect: dict, shots: Path, errors: list) -> None:
-    page = browser.new_page(viewport={"width": 1400, "height": 1000})
-    page.on("pageerror", lambda e: errors.append(str(e)))
+    page = new_page(browser, errors)
     for path, texts in expect.items():
         name = path or "overview"
-        page.goto(f"{server}/{path}", wait_until="domcontentloaded")
-        page.wait_for_selector("h1", timeout=30_000)
-        # Streamlit renders in steps: wait until the script run finished (no 'running' status widget)
-        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                               timeout=30_000)
+        open_streamlit_page(page, f"{server}/{path}")
         for t in texts:      # table cells live in a canvas grid: present in the DOM, not "visible"
             page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=30_000)
         assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {name}"
@@ -77,8 +72,7 @@ def test_every_page_in_chromium(server, tmp_path_factory):
         expect = dict(EXPECT, **{"": EXPECT[""] + [stored_name("broken.mcap")]})
         _open_every_page(browser, server, expect, shots, errors)
         # navigation through the sidebar works too (a fresh tab: full-page screenshots resize the viewport)
-        page = browser.new_page(viewport={"width": 1400, "height": 1000})
-        page.on("pageerror", lambda e: errors.append(str(e)))
+        page = new_page(browser, errors)
         page.goto(server, wait_until="domcontentloaded")
         page.get_by_text("Quality flags").first.wait_for(state="attached", timeout=30_000)
         page.get_by_text(stored_name("broken.mcap")).first.wait_for(state="attached", timeout=30_000)
@@ -101,12 +95,8 @@ def test_cohort_change_page_in_chromium(demo_server, tmp_path_factory):
     errors: list[str] = []
     url = demo_server
     with chromium() as browser:
-        page = browser.new_page(viewport={"width": 1400, "height": 1000})
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(f"{url}/programme", wait_until="domcontentloaded")
-        page.get_by_role("heading", name="Programme: change between visits").wait_for(timeout=60_000)
-        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                               timeout=60_000)
+        page = new_page(browser, errors)
+        open_streamlit_page(page, f"{url}/programme", heading="Programme: change between visits", timeout_ms=60_000)
         page.get_by_text("Cohort: first", exact=False).first.wait_for(state="attached", timeout=30_000)
         plots = page.locator(".js-plotly-plot")
         plots.first.wait_for(timeout=30_000)

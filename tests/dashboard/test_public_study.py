@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.browser import chromium
+from tests.browser import chromium, new_page, open_streamlit_page
 from tests.dashboard.conftest import serve_dashboard
 from tests.dashboard.test_pages import open_page
 
@@ -60,15 +60,11 @@ def test_every_page_on_the_public_study_in_chromium(public_wh, tmp_path_factory)
     shots = Path(tmp_path_factory.mktemp("screenshots_public"))
     errors: list[str] = []
     with serve_dashboard(public_wh) as url, chromium() as browser:
-        page = browser.new_page(viewport={"width": 1400, "height": 1000})
-        page.on("pageerror", lambda e: errors.append(str(e)))
+        page = new_page(browser, errors)
         for path, texts in EXPECT_PUBLIC.items():
             name = (path.split("?")[0] or "overview") + ("_" + path.split("=")[-1] if "participant=" in path
                                                            else "_public" if "study=" in path else "_all")
-            page.goto(f"{url}/{path}", wait_until="domcontentloaded")
-            page.wait_for_selector("h1", timeout=60_000)
-            page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                                   timeout=60_000)
+            open_streamlit_page(page, f"{url}/{path}", timeout_ms=60_000)
             for t in texts:
                 page.get_by_text(t, exact=False).first.wait_for(state="attached", timeout=60_000)
             assert page.locator('[data-testid="stException"]').count() == 0, f"exception shown on {path}"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.browser import chromium
+from tests.browser import chromium, new_page, open_streamlit_page
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -27,12 +27,9 @@ def test_walking_at_home_page_in_chromium(demo_wh, demo_server, tmp_path_factory
     shots.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
     with chromium() as browser:
-        page = browser.new_page(viewport={"width": 1400, "height": 1000})
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(f"{demo_server}/walking-home?participant=P001", wait_until="domcontentloaded")
-        page.get_by_role("heading", name="Walking at home").wait_for(timeout=60_000)
-        page.wait_for_function("() => !document.querySelector('[data-testid=\"stStatusWidget\"]')",
-                               timeout=60_000)
+        page = new_page(browser, errors)
+        open_streamlit_page(page, f"{demo_server}/walking-home?participant=P001", heading="Walking at home",
+                            timeout_ms=60_000)
         for text in ("Lab capacity beside home performance", "Per day", "Walking bouts", "Home days"):
             page.get_by_text(text, exact=False).first.wait_for(state="attached", timeout=30_000)
         plots = page.locator(".js-plotly-plot")
