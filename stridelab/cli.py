@@ -641,7 +641,7 @@ def _finish_warm_kernels(proc) -> None:
 
 
 def _serve(wh: Path, port: int, address: str = "localhost") -> None:
-    import subprocess
+    import os
     import sys
     from stridelab.pipeline.console import err_console
     from importlib.util import find_spec
@@ -651,7 +651,11 @@ def _serve(wh: Path, port: int, address: str = "localhost") -> None:
            "--server.address", address, "--server.headless", "true", "--browser.gatherUsageStats", "false",
            "--client.toolbarMode", "minimal",
            "--", "--warehouse", str(wh)]
-    raise SystemExit(subprocess.call(cmd))
+    # Streamlit replaces this process (no child left behind when a service manager or a test sends SIGTERM to
+    # the `stridelab dashboard` process: with a child process it stopped the parent and orphaned the server)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execv(sys.executable, cmd)
 
 
 @main.command()

@@ -143,7 +143,7 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
     with socket.socket() as s:
         s.bind(("localhost", 0))
         port = s.getsockname()[1]
-    # its own process group: `stridelab dashboard` runs Streamlit as a child, which the teardown stops with it
+    # its own process group, so that the teardown's fallback can stop everything it might have started
     proc = subprocess.Popen([str(cli), "dashboard", "--warehouse", str(work / "wh"), "--port", str(port)], cwd=work,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
@@ -159,10 +159,14 @@ def test_the_installed_command_runs_a_small_study_and_serves_the_dashboard(insta
                 time.sleep(0.5)
         else:
             pytest.fail("stridelab dashboard did not answer within 2 minutes")
+        # SIGTERM to the command's own process (as a service manager sends it) stops the server: no orphan
+        proc.terminate()
+        proc.wait(timeout=30)
+        with pytest.raises(OSError):
+            urllib.request.urlopen(f"http://localhost:{port}/_stcore/health", timeout=2)
     finally:
-        os.killpg(proc.pid, signal.SIGTERM)      # the command and its Streamlit child (a Ctrl+C does the same)
         try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=10)
