@@ -9,7 +9,8 @@ instead of compiling it on the user's clock. Kernels only benches call (PSO tuni
 stay lazily compiled; the command lists how many.
 
 A finished warm-up leaves ``warm-kernels.json`` in the cache directory with a fingerprint of the sources
-(path, size, mtime of every module of the packages that define kernels) and numba's version:
+(path, size, mtime of every module of the folders that define kernels) and numba's version, and removes the
+cache directories of other sources:
 :func:`is_warm` tells ``stridelab demo`` whether it has to run the warm-up itself (``make demo`` installs
 the packages, then the demo compiles the kernels in a second process while it simulates the study, before
 the pipeline runs; see ``stridelab/cli.py``).
@@ -25,7 +26,6 @@ from dataclasses import replace
 from pathlib import Path
 
 MARKER = "warm-kernels.json"
-KERNEL_PACKAGES = ("estimators", "pipeline", "warehouse")   # the layers (folders) that define the numba kernels
 
 
 def kernel_stats() -> dict:
@@ -96,20 +96,33 @@ def run_small_study(workdir: Path, *, index: int = 0, hours: float = 1.0, start_
 
 
 def fingerprint(root: Path | None = None) -> str:
-    """What numba's cache validity depends on here: each kernel module's path, size and mtime (numba's own
-    index check), numba's and Python's versions. ``root`` holds the layers' folders: the repository in a checkout,
-    ``site-packages/stridelab`` once installed (where ``stridelab.estimators`` is found)."""
+    """What numba's cache validity depends on here: the kernel modules' paths, sizes and mtimes
+    (:func:`stridelab.estimators._numba_cache.sources_key`, which also names the cache directory), numba's and
+    Python's versions. ``root`` holds the layers' folders: the repository in a checkout, ``site-packages/stridelab``
+    once installed (where ``stridelab.estimators`` is found)."""
     import numba
-    from importlib.util import find_spec
-    if root is None:
-        root = Path(find_spec("stridelab.estimators").submodule_search_locations[0]).resolve().parent
-    root = Path(root)
-    h = hashlib.sha256(f"{numba.__version__} {sys.version}".encode())
-    for pkg in KERNEL_PACKAGES:
-        for f in sorted((root / pkg).rglob("*.py")):
-            st = f.stat()
-            h.update(f"{f.relative_to(root)} {st.st_size} {st.st_mtime_ns}\n".encode())
-    return h.hexdigest()
+    from stridelab.estimators._numba_cache import sources_key
+    return hashlib.sha256(f"{numba.__version__} {sys.version} {sources_key(root)}".encode()).hexdigest()
+
+
+def prune_other_sources() -> list[str]:
+    """Remove the cache directories of other kernel sources (older checkouts, earlier versions) beside this one."""
+    import shutil
+    from stridelab.estimators._numba_cache import CACHE_DIR
+    from stridelab.estimators._numba_cache import venv_cache_dir
+    here = venv_cache_dir()
+    if here is None or CACHE_DIR != str(here):
+        return []
+    removed = []
+    for d in here.parent.iterdir():          # directories of other sources; files of the unkeyed layout before
+        if d == here:
+            continue
+        if d.is_dir():
+            shutil.rmtree(d, ignore_errors=True)
+        else:
+            d.unlink(missing_ok=True)
+        removed.append(d.name)
+    return removed
 
 
 def _marker() -> Path | None:
@@ -144,4 +157,5 @@ def warm(**kw) -> dict:
     with tempfile.TemporaryDirectory(prefix="stridelab-warm-") as tmp:
         out = run_small_study(Path(tmp), **kw)
     write_marker(out["signatures_compiled"] + out["signatures_from_cache"])
+    prune_other_sources()
     return {"cache_dir": CACHE_DIR or "numba default (__pycache__ beside each source file)", **out}

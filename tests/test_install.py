@@ -102,7 +102,7 @@ def test_after_warm_kernels_every_stage_runs_without_compiling(installed, warmed
     from stridelab.pipeline.stages import registry
     py, work, env = installed
     venv = py.parent.parent
-    assert warmed["cache_dir"] == str(venv / "var" / "cache" / "stridelab-numba" / "stridelab.estimators"), warmed
+    assert Path(warmed["cache_dir"]).parent == venv / "var" / "cache" / "stridelab-numba" / "stridelab.estimators", warmed
     assert warmed["signatures_compiled"] >= 15 and warmed["signatures_from_cache"] == 0, warmed
     # every stage ran ('ok') on the small study, except those about a kind of recording it has none of (a live
     # session's: Stage.applies)

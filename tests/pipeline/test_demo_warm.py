@@ -30,18 +30,35 @@ def test_the_marker_says_warm_only_after_a_warm_up(tmp_path):
 
 
 def test_the_fingerprint_follows_the_kernel_sources(tmp_path):
-    from stridelab.warm import KERNEL_PACKAGES, fingerprint
-    for pkg in KERNEL_PACKAGES:
-        (tmp_path / pkg).mkdir()
-        (tmp_path / pkg / "k.py").write_text("x = 1\n")
-    a = fingerprint(tmp_path)
-    assert fingerprint(tmp_path) == a
-    f = tmp_path / KERNEL_PACKAGES[0] / "k.py"
+    from stridelab.estimators._numba_cache import KERNEL_DIRS, sources_key
+    from stridelab.warm import fingerprint
+    for sub in KERNEL_DIRS:
+        (tmp_path / sub).mkdir(parents=True)
+        (tmp_path / sub / "k.py").write_text("x = 1\n")
+    a, key = fingerprint(tmp_path), sources_key(tmp_path)
+    assert fingerprint(tmp_path) == a and sources_key(tmp_path) == key
+    f = tmp_path / KERNEL_DIRS[0] / "k.py"
     st = f.stat()
     os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))       # edited: numba recompiles, so must the demo
+    assert fingerprint(tmp_path) != a and sources_key(tmp_path) != key
+    (tmp_path / KERNEL_DIRS[1] / "new.py").write_text("")
     assert fingerprint(tmp_path) != a
-    (tmp_path / KERNEL_PACKAGES[1] / "new.py").write_text("")
-    assert fingerprint(tmp_path) != a
+    b = sources_key(tmp_path)
+    (tmp_path / "pipeline" / "stage.py").write_text("")              # a module with no kernel: the cache stays
+    assert sources_key(tmp_path) == b
+
+
+def test_every_numba_kernel_is_defined_under_the_folders_that_key_the_cache():
+    """A kernel defined elsewhere would not change the cache directory when edited: a kernel of another module
+    calling it would keep its old machine code (numba issue #6845)."""
+    import re
+    from stridelab.estimators._numba_cache import KERNEL_DIRS
+    layers = ("estimators", "pipeline", "warehouse", "reports", "dashboard", "validation", "studies", "stridelab")
+    kernel = re.compile(r"@(numba\.)?(njit|jit)\b|=\s*(numba\.)?(njit|jit)\(")
+    outside = [str(f.relative_to(ROOT)) for layer in layers for f in (ROOT / layer).rglob("*.py")
+               if kernel.search(f.read_text()) and not any(f.relative_to(ROOT).as_posix().startswith(d + "/")
+                                                           for d in KERNEL_DIRS)]
+    assert outside == [], f"kernels outside {KERNEL_DIRS}: {outside}; add their folder to KERNEL_DIRS"
 
 
 def test_the_demo_starts_the_warm_up_only_when_needed(monkeypatch):

@@ -53,7 +53,8 @@ def test_the_package_points_numba_at_the_venv_cache():
     assert env_dir == "None"      # numba's own config is set; the environment of the process and its children is not
     if sys.prefix == sys.base_prefix:
         pytest.skip("not running in a virtual environment: numba keeps its default cache")
-    assert numba_dir == str(Path(sys.prefix) / "var" / "cache" / "stridelab-numba" / "stridelab.estimators")
+    from stridelab.estimators._numba_cache import sources_key
+    assert numba_dir == str(Path(sys.prefix) / "var" / "cache" / "stridelab-numba" / "stridelab.estimators" / sources_key())
 
 
 # ``stridelab warm-kernels`` then every stage in a fresh process without compiling: tests/test_install.py
