@@ -265,6 +265,26 @@ def _trial_key(p: Path):
     return (int(s), int(t)) if s.isdigit() and t.isdigit() else (10 ** 9, 0)
 
 
+def voisard_truncated_copies(directory: Path | str) -> list[str]:
+    """Trials of a Voisard folder whose sensor files are a byte-for-byte truncated copy of another trial of the same
+    subject (the public set's trial 9-3 is the first 2270 lines of 9-4): one line per copy, for a bench's
+    ``warnings``. Such a trial is scored as recorded, in its subject's fold, so it weighs that subject twice but
+    leaks nothing between cross-validation folds."""
+    d = Path(directory)
+    by_subject: dict[str, list[Path]] = {}
+    for p in sorted(d.glob("*-*_lf.txt")):
+        by_subject.setdefault(p.name.split("-")[0], []).append(p)
+    out = []
+    for files in by_subject.values():
+        data = {p: p.read_bytes() for p in files}
+        for a in files:
+            for b in files:
+                if a != b and len(data[a]) < len(data[b]) and data[b].startswith(data[a]):
+                    out.append(f"{d}: trial {a.name[:-7]} is a truncated copy of trial {b.name[:-7]} "
+                               f"({a.name} is the first {len(data[a])} bytes of {b.name}); both are scored")
+    return out
+
+
 def load_voisard_dir(directory: Path | str, *, packet_grid: bool = True,
                      skipped: list | None = None) -> list[VoisardTrial]:
     """All trials of a folder (every ``N-M.json``) in subject, trial order; ``ValueError`` if there is none.

@@ -94,6 +94,16 @@ def test_voisard_folder_goes_on_past_a_bad_trial(tmp_path):
         load_voisard_dir(tmp_path)
 
 
+def test_a_trial_that_is_a_truncated_copy_of_another_of_its_subject_is_named(tmp_path):
+    from stridelab.pipeline.formats.xsens_mt import voisard_truncated_copies
+    _voisard_trial(tmp_path, "3-1", counters_lf=range(60))
+    _voisard_trial(tmp_path, "3-2", counters_lf=range(40))      # rows 0-39 of 3-1: a truncated copy
+    _voisard_trial(tmp_path, "3-3", counters_lf=range(5, 60))   # other rows: not a copy
+    _voisard_trial(tmp_path, "4-1", counters_lf=range(30))      # another subject: never compared
+    found = voisard_truncated_copies(tmp_path)
+    assert len(found) == 1 and "trial 3-2 is a truncated copy of trial 3-1" in found[0], found
+
+
 def test_import_of_a_folder_names_the_bad_file_and_imports_the_repeated_one(tmp_path):
     src = tmp_path / "src"
     src.mkdir()

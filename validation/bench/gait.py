@@ -360,7 +360,7 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
 
     from stridelab.estimators.gait import FootParams, foot_kinematics
     from stridelab.validation.bench._cv import logo_choose
-    from stridelab.pipeline.formats.xsens_mt import load_voisard_dir
+    from stridelab.pipeline.formats.xsens_mt import load_voisard_dir, voisard_truncated_copies
     skipped: list = []
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -368,7 +368,7 @@ def voisard_benchmark(directory: Path, *, show_progress: bool = True, gaitmap_di
             trials = load_voisard_dir(directory, skipped=skipped)
     except ValueError as e:
         raise UserError(str(e)) from e
-    reader_warnings = [str(w.message) for w in caught]
+    reader_warnings = [str(w.message) for w in caught] + voisard_truncated_copies(directory)
     shipped = FootParams()
     subjects = sorted({t.annotation.subject for t in trials})
     dets = {c: [] for c in range(len(EVENT_GRID))}          # per config: list of per-foot tuples
