@@ -114,7 +114,7 @@ class TrunkGaitParams:
     gsd_min_autocorr: float = 0.3
     gsd_merge_gap_s: float = 1.0
     gsd_slow_min_std_m_s2: float = 0.08
-    gsd_slow_min_autocorr: float = 0.6
+    gsd_slow_min_autocorr: float = 0.8
     ic_method: str = "peak"
     ic_zc_sigma_s: float = 0.159
     ic_zc_min_depth: float = 0.0

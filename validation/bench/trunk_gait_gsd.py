@@ -1,7 +1,7 @@
 """Gait-sequence detection's slow-walking rule (``TrunkGaitParams.gsd_slow_min_std_m_s2`` / ``gsd_slow_min_autocorr``)
 chosen by leave-one-group-out, and what it costs in non-walking (issue 42, point 3: slow and pathological walking).
 
-``python -m validation.bench.trunk_gait_gsd [--voisard DIR] [--mobilised DIR] [--uci DIR] [--json]``
+``stridelab bench trunk-gait-gsd [--voisard DIR] [--mobilised DIR] [--uci DIR] [--json]``
 
 Real data and what counts as walking / non-walking (each recording's whole length is analysed end to end by
 ``analyse_trunk_gait``; only the gait-sequence constants change between candidates):
@@ -42,8 +42,11 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.bench.trunk_gait import (DEFAULT_VOISARD, PROJECT_ROOT, Det, Rec, ic_loss, load_mobilised,
-                                         load_voisard, score)
+import click
+
+from stridelab.pipeline.console import emit_json, err_console
+from stridelab.validation.bench.trunk_gait import (DEFAULT_VOISARD, PROJECT_ROOT, Det, Rec, ic_loss, load_mobilised,
+                                                   load_voisard, score)
 
 DEFAULT_MOBILISED = PROJECT_ROOT.parent / "shared" / "data" / "mobilised_lab"
 DEFAULT_UCI = PROJECT_ROOT.parent / "shared" / "data" / "uci_chest"
@@ -220,7 +223,7 @@ def run(voisard: Path | None, mobilised: Path | None, uci: Path | None, show: bo
         p = dataclasses.replace(shipped, gsd_slow_min_std_m_s2=f, gsd_slow_min_autocorr=r)
         runs[c] = [run_item(it, p) for it in items]
         if show:
-            print(f"  candidate {c + 1}/{len(CANDIDATES)}: {_cand(c)}", file=sys.stderr)
+            err_console.print(f"  candidate {c + 1}/{len(CANDIDATES)}: {_cand(c)}", highlight=False)
     groups = [it.group for it in items]
     ug = sorted(set(groups))
     fig = {(g, c): group_figures(items, runs[c], [i for i, it in enumerate(items) if it.group == g])
@@ -267,17 +270,31 @@ def run(voisard: Path | None, mobilised: Path | None, uci: Path | None, show: bo
     return res
 
 
-def main(argv: list[str] | None = None) -> None:
-    import argparse
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--voisard", type=Path, default=DEFAULT_VOISARD)
-    ap.add_argument("--mobilised", type=Path, default=DEFAULT_MOBILISED)
-    ap.add_argument("--uci", type=Path, default=DEFAULT_UCI)
-    ap.add_argument("--json", action="store_true")
-    a = ap.parse_args(argv)
-    res = run(a.voisard, a.mobilised, a.uci)
-    print(json.dumps(res, indent=1, default=float) if a.json else json.dumps(res["cross_validated"], default=float))
+@click.command("trunk-gait-gsd")
+@click.option("--voisard", type=click.Path(path_type=Path), default=DEFAULT_VOISARD, show_default=True,
+              help="Voisard et al. 2023 folder (N-M.json + N-M_lb.txt)")
+@click.option("--mobilised", type=click.Path(path_type=Path), default=DEFAULT_MOBILISED, show_default=True,
+              help="Mobilise-D standardized data folder or one data.mat")
+@click.option("--uci", type=click.Path(path_type=Path), default=DEFAULT_UCI, show_default=True,
+              help="UCI chest-accelerometer folder (<n>.csv)")
+@click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
+def command(voisard: Path, mobilised: Path, uci: Path, as_json: bool) -> None:
+    """Trunk-gait gait-sequence detection: the slow-walking rule's constants by leave-one-group-out, false
+    detections in non-walking (standing, sitting) and contacts in reference walking, per data set.
+
+    \b
+    Example:
+      stridelab bench trunk-gait-gsd --json
+    """
+    res = run(voisard, mobilised, uci)
+    if as_json:
+        emit_json(res)
+    else:
+        for blk in ("off", "shipped_defaults", "cross_validated"):
+            if blk in res:
+                click.echo(f"{blk}: " + json.dumps(res[blk], default=float))
+        click.echo("in-sample choice: " + json.dumps(res["in_sample_choice"]))
 
 
 if __name__ == "__main__":  # pragma: no cover
-    main()
+    command(sys.argv[1:])
