@@ -32,6 +32,10 @@ class TrunkGaitParams:
       gsd_min_std_m_s2: minimum standard deviation of the acceleration norm in a walking window, m/s².
       gsd_min_autocorr: minimum normalised autocorrelation at the step lag (0.25-1.6 s) in a walking window.
       gsd_merge_gap_s: walking windows closer than this are merged into one gait sequence, s.
+      gsd_slow_min_std_m_s2: slow-walking rule (periodicity-led, ``_gsd``): minimum SD of the acceleration norm
+        band-passed to 0.5-3 Hz in a walking window, m/s² (inf = off).
+      gsd_slow_min_autocorr: slow-walking rule: minimum normalised autocorrelation of that band-passed norm at the
+        step lag.
     Initial contacts (``ic_method``: "peak" = peak of the smoothed upward acceleration, McCamley et al. 2012 /
     Zijlstra & Hof 2003, ``_icd``; "ionescu" = minima of the wavelet-smoothed vertical jerk between its zero
     crossings, Paraschiv-Ionescu et al. 2020, ``_icd_ionescu``):
@@ -109,6 +113,8 @@ class TrunkGaitParams:
     gsd_min_std_m_s2: float = 0.25
     gsd_min_autocorr: float = 0.3
     gsd_merge_gap_s: float = 1.0
+    gsd_slow_min_std_m_s2: float = 0.08
+    gsd_slow_min_autocorr: float = 0.8
     ic_method: str = "peak"
     ic_zc_sigma_s: float = 0.159
     ic_zc_min_depth: float = 0.0
