@@ -30,7 +30,8 @@ LOW_FRAME_CONFIDENCE = 0.2
 def _sequences(acc: np.ndarray, fs_hz: float, p: TrunkGaitParams) -> np.ndarray:
     return detect_gait_sequences(acc, fs_hz, window_s=p.gsd_window_s, hop_s=p.gsd_hop_s,
                                  min_std_m_s2=p.gsd_min_std_m_s2, min_autocorr=p.gsd_min_autocorr,
-                                 merge_gap_s=p.gsd_merge_gap_s)
+                                 merge_gap_s=p.gsd_merge_gap_s, slow_min_std_m_s2=p.gsd_slow_min_std_m_s2,
+                                 slow_min_autocorr=p.gsd_slow_min_autocorr)
 
 
 def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:

@@ -73,9 +73,6 @@ def test_slow_walk_is_found_with_the_shipped_defaults_where_the_strong_rule_alon
     assert res.bouts.cadence_spm[0] == pytest.approx(cad, rel=0.03)
 
 
-@pytest.mark.xfail(strict=True, reason="_pipeline._sequences forwards only the strong-rule GSD constants: "
-                                       "TrunkGaitParams.gsd_slow_* take effect through their defaults until it "
-                                       "forwards them too (one line, reported to the contacts/bouts helper)")
 def test_the_slow_rule_constants_reach_the_pipeline():
     acc, gyr, _ic, _ = pendulum_walk(0.3, 1.1, seed=4)
     off = dataclasses.replace(SHIPPED, gsd_slow_min_std_m_s2=float("inf"))
