@@ -39,7 +39,7 @@ from dataclasses import replace
 from stridelab.estimators.gait._events import (GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_heel_strike,
                                      refine_toe_off)
 from stridelab.estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
-from stridelab.estimators.trajectory import EskfParams, TrajectoryResult, eskf_trajectory
+from stridelab.estimators.trajectory import EskfParams, TrajectoryResult, ZuptParams, eskf_trajectory
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "refine_events", "SessionGait",
            "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
@@ -49,11 +49,21 @@ PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_tim
                  "gait_speed_m_s", "clearance_m", "turning_angle_deg")
 
 
+#: the gait events' stance detector (``FootParams.trajectory.zupt``), pinned here so that a stance-detector value
+#: chosen for the foot trajectory alone (``TRAJECTORY_ZUPT``) does not move the events (validation/provenance.toml)
+GAIT_ZUPT = ZuptParams(min_stance_s=0.05)
+
+
 @dataclass(frozen=True)
 class FootParams:
     """Everything that configures ``foot_kinematics``.
 
-    trajectory: ESKF/ZUPT/RTS parameters.  events: Algorithm 1 parameters; threshold T = −0.1 (≈ 5.7° toes down)
+    trajectory: ESKF/ZUPT/RTS parameters; their ``zupt`` is the stance detector of the events *and* of the
+        trajectory the strides are measured on (one mask for both, K0). Default: the trajectory's shipped
+        ``EskfParams`` with ``GAIT_ZUPT`` (the ``ZuptParams`` class defaults) as the stance detector, not the
+        trajectory's own ``TRAJECTORY_ZUPT``: the trajectory's leave-one-trial-out on PyShoe chose a longer minimum
+        stance (issue 43, fourth round) that the gait events' cross-validation (Voisard, gaitmap walk) did not.
+        events: Algorithm 1 parameters; threshold T = −0.1 (≈ 5.7° toes down)
         instead of the thesis' −0.2, chosen by leave-one-group-out over the Voisard subjects and the gaitmap walk
         (``stridelab bench gait --voisard``, docs/gait.md); the streaming ``GaitEventDetector`` keeps −0.2.
     min_stride_length_m: strides shorter than this are not used to find the anterior axis (K1).
@@ -86,7 +96,7 @@ class FootParams:
         leave-one-subject-out over the Voisard subjects and the gaitmap walk among the values that keep every
         matched IC of the training groups (validation/provenance.toml); None = off.
     """
-    trajectory: EskfParams = EskfParams()
+    trajectory: EskfParams = EskfParams(zupt=GAIT_ZUPT)
     events: IcTcParams = IcTcParams(threshold=-0.1)
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
@@ -560,8 +570,8 @@ def gait_session_pooled(trials) -> SessionGait:
 def foot_params_from_dict(d: dict) -> FootParams:
     """:class:`FootParams` from its ``dataclasses.asdict`` form (nested dicts; e.g. a stage's JSON params).
     Unknown keys raise ``TypeError`` (a misspelt manifest key must not be silently ignored)."""
-    from stridelab.estimators.trajectory import ZuptParams
     d = dict(d)
     traj = dict(d.pop("trajectory", {}))
-    zupt = ZuptParams(**traj.pop("zupt", {}))
-    return FootParams(trajectory=EskfParams(**traj, zupt=zupt), events=IcTcParams(**d.pop("events", {})), **d)
+    base = FootParams().trajectory                         # missing keys keep the gait defaults (GAIT_ZUPT)
+    zupt = replace(base.zupt, **traj.pop("zupt", {}))
+    return FootParams(trajectory=replace(base, **traj, zupt=zupt), events=IcTcParams(**d.pop("events", {})), **d)

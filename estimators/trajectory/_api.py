@@ -10,7 +10,7 @@ from numba import njit
 from stridelab.estimators.trajectory._eskf import GRAVITY, eskf_rts_kernel
 from stridelab.estimators.trajectory._saturation import repair_gyro_saturation
 
-__all__ = ["ZuptParams", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "rest_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
+__all__ = ["ZuptParams", "TRAJECTORY_ZUPT", "detect_zupt", "gait_cycle_period", "stance_gyro_bias", "rest_gyro_bias", "sensor_gravity", "EskfParams", "TrajectoryResult", "eskf_trajectory", "check_foot_imu"]
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,9 @@ class ZuptParams:
     acc_tolerance_m_s2: κ·θ_lo (1.25 m/s²: κ = 2.5/0.6, the ratio of the pre-issue-15 defaults).
     θ_lo = 0.3, θ_hi = 3.0, β = 3: chosen by leave-one-trial-out on the 28 PyShoe Vicon trials
         (``stridelab bench trajectory --pyshoe``; docs/gait.md "Parameters and how they were chosen").
-    window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped.
+    window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped (the class default
+        0.05 s is the gait events' detector, ``FootParams.trajectory.zupt``; the foot trajectory's own default is
+        ``EskfParams.zupt``, ``TRAJECTORY_ZUPT``, chosen by leave-one-trial-out on PyShoe).
     adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window
     (also the fallback of ``cycle_window``).  adapt_contrast: ρ.
     cycle_window: (Z5, issue 43) besides (Z3), the quietest window of every gait cycle is stance when it is below
@@ -238,6 +240,13 @@ def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
     return mask
 
 
+#: the foot trajectory's stance detector (``EskfParams.zupt``): the ``ZuptParams`` defaults except what the
+#: trajectory's leave-one-trial-out chose for itself: min_stance_s 0.1 s (``PYSHOE_GRID`` x 0.05 / 0.1 / 0.15 s,
+#: 0.1 s in 28/28 folds; in running the dropped short still runs are covered by the cycle window Z5), see
+#: validation/provenance.toml
+TRAJECTORY_ZUPT = ZuptParams(min_stance_s=0.1)
+
+
 @dataclass(frozen=True)
 class EskfParams:
     """Error-state Kalman filter with ZUPT and RTS smoother (equations E1–E7 in ``_eskf``).
@@ -301,7 +310,12 @@ class EskfParams:
     gyro_delay_s: d of (E1c): the accelerometer sample k is paired with the gyro at t_k + d (d > 0: the gyro's
         digital filter delays it by d more than the accelerometer's). Sensor-specific (filter group delays);
         the default is chosen by leave-one-trial-out over ``PYSHOE_GRID`` (validation/provenance.toml).
-    zupt: the stance detector parameters.
+    zupt: the stance detector parameters of the trajectory: ``TRAJECTORY_ZUPT``, its own frozen instance (issue 43,
+        fourth round), not the ``ZuptParams`` class default that the gait events keep (``FootParams.trajectory``
+        pins those): the two are chosen by different cross-validations (PyShoe trajectory error here, Voisard
+        event timing there), so a value one of them picks must not move the other. It differs from the class
+        default in ``min_stance_s`` only (chosen by leave-one-trial-out over ``PYSHOE_GRID``;
+        validation/provenance.toml).
     """
     acc_noise_m_s2: float = 0.5
     gyr_noise_rad_s: float = 0.02
@@ -321,7 +335,7 @@ class EskfParams:
     repair_saturation: bool = True
     normalise_gravity: bool = False
     gyro_bias: str = "none"
-    zupt: ZuptParams = ZuptParams()
+    zupt: ZuptParams = TRAJECTORY_ZUPT
     noise_model: str = "global"
     stance_height_var: float = 0.0
     attitude_rule: str = "midpoint"

@@ -123,7 +123,7 @@ def _cholesky_solve(A, b, n, L, y):
 
 @njit(cache=True)
 def _scalar_inject(P, n, idx, y, r2, tmp, K, p, v, q, ba, bg, dx):
-    """(E5d) one scalar measurement y = δx[idx] + noise (variance r2): Kalman update of P (optimal-gain form,
+    """(E5c, E5d) one scalar measurement y = δx[idx] + noise (variance r2): Kalman update of P (optimal-gain form,
     symmetrised), the correction K·y injected into the nominal state (E6) and added to ``dx``; returns q."""
     Sh = P[idx, idx] + r2
     for i in range(n):
@@ -247,31 +247,7 @@ def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag
                     bg[i] += dx[12 + i]
             if var_h > 0.0:
                 # ---- flat-floor stance height (E5c): z = 0 − p̂_z = δp_z + n_h (first stance at z = 0)
-                Sh = P[2, 2] + var_h
-                yh = -p[2]
-                for i in range(n):
-                    K[i, 0] = P[i, 2] / Sh
-                for i in range(n):
-                    for j in range(i, n):
-                        s = P[i, j] - K[i, 0] * P[2, j]
-                        tmp[i, j] = s
-                for i in range(n):
-                    for j in range(i, n):
-                        P[i, j] = tmp[i, j]
-                        P[j, i] = tmp[i, j]
-                dh = np.zeros(n)
-                for i in range(n):
-                    dh[i] = K[i, 0] * yh
-                    dx[i] += dh[i]
-                for i in range(3):
-                    p[i] += dh[i]
-                    v[i] += dh[3 + i]
-                q = quat_mul_1(_quat_small(dh[6:9]), q)
-                q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-                if n == 15:
-                    for i in range(3):
-                        ba[i] += dh[9 + i]
-                        bg[i] += dh[12 + i]
+                q = _scalar_inject(P, n, 2, -p[2], var_h, tmp, K, p, v, q, ba, bg, dx)
             if n == 15 and sig_zaru.shape[0] > 0 and sig_zaru[k] > 0.0:
                 # ---- zero angular rate (E5d): z = ω_k − b̂_g = δb_g + n, R = σ_zaru,k²
                 #      (sequential scalar updates)

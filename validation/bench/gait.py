@@ -503,7 +503,6 @@ def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) ->
 
     from stridelab.estimators.gait import FootParams, foot_kinematics
     from stridelab.estimators.gait.evaluation import paired_errors
-    from stridelab.estimators.trajectory import EskfParams
     from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     from stridelab.validation.simulator import simulate_lab_session, study_participants
     m = load_manifest(DEFAULT_MANIFEST)
@@ -514,7 +513,7 @@ def simulator_scan(participants: int = 4, acc_noise_rel=(0.0, 0.1, 0.3, 1.0)) ->
             feet += [(rec.imu[p].gyr, rec.imu[p].acc, truth.sensor_pos[p]) for p in ("foot_left", "foot_right")]
     out = {}
     for ca in acc_noise_rel:
-        fp = FootParams(trajectory=EskfParams(acc_noise_rel=ca))
+        fp = FootParams(trajectory=replace(FootParams().trajectory, acc_noise_rel=ca))
         est, ref = [], []
         for gyr, acc, pos in feet:
             with warnings.catch_warnings():

@@ -37,23 +37,30 @@ FAILED_ARMSE_M = 0.5
 #: gyro_bias "none"; and (issue 15) the saturation rule S1-S2 (a priori), β = 3, θ_lo = 0.3, θ_hi = 3 rad/s.
 #: Third round (issue 43): x gyro bias "none" (first) / "rest" (E1d: the mean gyro over the recording's quietest
 #: 2 s if it is a genuine rest, max |omega| <= 0.05 rad/s; a priori numbers) -> 40 points.
-GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s", "gyro_bias")
+#: Fourth round (issue 43): x the trajectory's own minimum stance duration (``TRAJECTORY_ZUPT.min_stance_s``,
+#: decoupled from the gait events' ``GAIT_ZUPT``) 0.05 (first) / 0.1 / 0.15 s -> 120 points.
+GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s", "gyro_bias", "min_stance_s")
 ATTITUDE_TIMINGS = (("euler", 0.0), ("midpoint", 0.0), ("midpoint", 0.00125), ("midpoint", 0.0025),
                     ("midpoint", 0.00375))
-PYSHOE_GRID = tuple((cg, ca, rule, d, gb) for gb in ("none", "rest") for cg in (0.03, 0.01) for ca in (0.3, 0.15)
-                    for rule, d in ATTITUDE_TIMINGS)
+MIN_STANCE_S = (0.05, 0.1, 0.15)
+PYSHOE_GRID = tuple((cg, ca, rule, d, gb, ms) for ms in MIN_STANCE_S for gb in ("none", "rest") for cg in (0.03, 0.01)
+                    for ca in (0.3, 0.15) for rule, d in ATTITUDE_TIMINGS)
 #: gaitmap RtsKalman grid, the same leave-one-trial-out: its ZUPT threshold (NormZuptDetector, deg/s, default
 #: 34) × level_walking (its flat-floor height update, default on) — its two options that matter on this data.
 GAITMAP_GRID = tuple((thr, lw) for thr in (34.0, 60.0, 100.0, 150.0, 200.0, 300.0) for lw in (True, False))
 
 
-def grid_params(cg: float, ca: float, rule: str, delay_s: float, gyro_bias: str = "none"):
-    """EskfParams of one grid point (everything else at the shipped defaults)."""
+def grid_params(cg: float, ca: float, rule: str, delay_s: float, gyro_bias: str = "none",
+                min_stance_s: float | None = None):
+    """EskfParams of one grid point (everything else at the shipped defaults; ``min_stance_s`` None keeps the
+    trajectory's stance detector as it ships)."""
     import dataclasses
 
     from stridelab.estimators.trajectory import EskfParams
-    return dataclasses.replace(EskfParams(), gyr_noise_rel=cg, acc_noise_rel=ca, attitude_rule=rule,
-                               gyro_delay_s=delay_s, gyro_bias=gyro_bias)
+    base = EskfParams()
+    zupt = base.zupt if min_stance_s is None else dataclasses.replace(base.zupt, min_stance_s=min_stance_s)
+    return dataclasses.replace(base, gyr_noise_rel=cg, acc_noise_rel=ca, attitude_rule=rule,
+                               gyro_delay_s=delay_s, gyro_bias=gyro_bias, zupt=zupt)
 
 
 def motion_type(gyr, zupt, pos, fs: float) -> str:

@@ -1,0 +1,60 @@
+"""Issue 43, fourth round: the foot trajectory has its own stance-detector parameters (``TRAJECTORY_ZUPT``, the
+default of ``EskfParams.zupt``), the gait events keep theirs (``GAIT_ZUPT`` in ``FootParams.trajectory``).
+
+A value that the trajectory's cross-validation chooses for its detector (PyShoe) must not move the gait events,
+whose detector is chosen by another cross-validation (Voisard, the gaitmap walk), and the other way round.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from stridelab.estimators.gait import FootParams
+from stridelab.estimators.gait._kinematics import GAIT_ZUPT, foot_params_from_dict
+from stridelab.estimators.trajectory import TRAJECTORY_ZUPT, EskfParams, detect_zupt, eskf_trajectory
+
+FS = 200.0
+
+
+def _short_stance_steps(n_cycles: int = 12, stance_s: float = 0.125, swing_s: float = 0.6, seed: int = 0):
+    """Running-like foot signal: still runs of ``stance_s`` between swings of 8 rad/s
+    about the sensor y axis (the foot pitches) with a 25 m/s² swing acceleration; a 1 s rest at each end."""
+    rng = np.random.default_rng(seed)
+    ns, nw, nr = int(round(stance_s * FS)), int(round(swing_s * FS)), int(FS)
+    w_parts, a_parts = [np.zeros(nr)], [np.zeros(nr)]
+    for _ in range(n_cycles):
+        w_parts += [np.zeros(ns), 8.0 * np.sin(np.pi * np.arange(nw) / nw)]
+        a_parts += [np.zeros(ns), 25.0 * np.sin(2 * np.pi * np.arange(nw) / nw)]
+    w_parts.append(np.zeros(ns + nr))
+    a_parts.append(np.zeros(ns + nr))
+    w, a = np.concatenate(w_parts), np.concatenate(a_parts)
+    gyr = np.column_stack([np.zeros_like(w), w, np.zeros_like(w)]) + 0.01 * rng.standard_normal((len(w), 3))
+    acc = np.column_stack([a, np.zeros_like(a), 9.81 + 0.3 * a]) + 0.05 * rng.standard_normal((len(w), 3))
+    return gyr, acc
+
+
+def test_trajectory_and_gait_each_own_their_stance_detector():
+    assert EskfParams().zupt == TRAJECTORY_ZUPT
+    assert FootParams().trajectory.zupt == GAIT_ZUPT
+    # everything but the stance detector stays one set of trajectory parameters
+    assert dataclasses.replace(FootParams().trajectory, zupt=TRAJECTORY_ZUPT) == EskfParams()
+    # a stage's JSON params without the detector keep the gait's, not the trajectory's
+    assert foot_params_from_dict({}).trajectory == FootParams().trajectory
+    assert foot_params_from_dict(dataclasses.asdict(FootParams())) == FootParams()
+    fp = foot_params_from_dict({"trajectory": {"acc_noise_rel": 0.3}})
+    assert fp.trajectory.zupt == GAIT_ZUPT and fp.trajectory.acc_noise_rel == 0.3
+
+
+def test_short_stances_are_detected_by_the_parameters_of_each_user():
+    """On still runs whose detected core (the 0.05 s window maximum of Z1 erodes 0.125 s to 0.09–0.11 s) lies
+    between the two minimum durations the two detectors differ, and each caller gets its own:
+    the trajectory's default drops them down to the cycle's quietest window (Z5), the gait's keeps them whole."""
+    gyr, acc = _short_stance_steps()
+    z_traj = detect_zupt(gyr, acc, sampling_rate_hz=FS, params=TRAJECTORY_ZUPT, gravity=9.81)
+    z_gait = detect_zupt(gyr, acc, sampling_rate_hz=FS, params=GAIT_ZUPT, gravity=9.81)
+    assert TRAJECTORY_ZUPT.min_stance_s != GAIT_ZUPT.min_stance_s
+    assert not np.array_equal(z_traj, z_gait)
+    assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS).zupt, z_traj)
+    assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=FootParams().trajectory).zupt,
+                          z_gait)
