@@ -172,7 +172,6 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
             continue
         todo.append((str(f), str(wh.root), options) if options else (str(f), str(wh.root)))
     on_phase("ingest", len(todo))
-    todo = _largest_first(todo, lambda it: _recording_bytes(Path(it[0])))
 
     def done(item, res):
         if isinstance(res, Exception) and (isinstance(res, StorageError) or _storage_problem(res)):
@@ -195,25 +194,6 @@ def ingest_files(wh: Warehouse, files: Iterable[Path], ex, summary: RunSummary,
 
     ex.run_all(ingest_mod.prepare, todo, done)
     publisher.flush()
-
-
-def _largest_first(items: list, size: Callable) -> list:
-    """``items`` by decreasing ``size`` (ties in their given order): the longest tasks go to the pool first, so a
-    phase ends on short tasks and no worker waits on a long one while the other is idle (the next phase starts
-    only when every task of this one is committed). In inbox order a 20-participant night's last free-living
-    day was ingested after the other worker had finished the lab files and waited for it."""
-    return [it for _, _, it in sorted((-size(it), i, it) for i, it in enumerate(items))]
-
-
-def _recording_bytes(path: Path) -> int:
-    """Bytes of a recording file, or of the files of a rosbag2 bag directory (0 when it cannot be read: the
-    ingest reports that)."""
-    try:
-        if path.is_dir():
-            return sum(f.stat().st_size for f in path.iterdir() if f.is_file())
-        return path.stat().st_size
-    except OSError:
-        return 0
 
 
 def inbox_recordings(inbox: Path) -> list[Path]:
@@ -412,6 +392,14 @@ def stage_levels(stages: list[Stage]) -> list[list[Stage]]:
     for st in stages:
         depth[st.name] = 1 + max((depth[n] for n in st.needs), default=-1)
     return [[st for st in stages if depth[st.name] == d] for d in range(max(depth.values(), default=-1) + 1)]
+
+
+def _largest_first(items: list, size: Callable) -> list:
+    """``items`` by decreasing ``size`` (ties in their given order): the longest tasks go to the pool first, so a
+    stage level ends on short tasks and no worker waits on a long one while the other is idle (the next level
+    starts only when every task of this one is committed). The ingest keeps the inbox's order: which of two
+    re-exports of one recording in the same run is ingested follows it."""
+    return [it for _, _, it in sorted((-size(it), i, it) for i, it in enumerate(items))]
 
 
 def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, failed_sessions: dict,
