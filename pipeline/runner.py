@@ -356,6 +356,11 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
     failed_sessions: dict[str, str] = {}
     stages = registry()
     by_name = {s.name: s for s in stages}
+    # a task's size: its session's IMU samples (a free-living day's activity and trunk-gait tasks take seconds, a
+    # lab session's stages a fraction of one)
+    samples = dict(wh.con.execute(
+        "SELECT r.session_id, coalesce(sum(s.n_samples), 0) FROM sensors s JOIN recordings r USING (content_hash) "
+        "WHERE r.status = 'ingested' AND s.kind = 'imu' GROUP BY 1").fetchall())
     for level in stage_levels(stages):
         batch, dispatch = [], {}
         for stage in level:
@@ -375,7 +380,7 @@ def run_stages(wh: Warehouse, run_id: str, ex, summary: RunSummary,
         # before it commits any result of the level): the workers start on the first tasks meanwhile
         on_phase(" + ".join(dispatch), len(batch))
         items = ((name, _session_inputs(wh, sid, by_name[name]), params, st)
-                 for name, sid, params, st in _longest_first(batch))
+                 for name, sid, params, st in _largest_first(batch, lambda it: samples.get(it[1], 0)))
         ex.run_all(_stage_task_4, items, lambda item, res: dispatch[item[0]](item, res))
         publisher.flush()
 
@@ -389,13 +394,12 @@ def stage_levels(stages: list[Stage]) -> list[list[Stage]]:
     return [[st for st in stages if depth[st.name] == d] for d in range(max(depth.values(), default=-1) + 1)]
 
 
-#: stages whose tasks run first within a level (a 24 h activity day takes seconds, a lab stage a fraction of
-#: one): the pool's last tasks are then short ones, and no worker waits on a long task at the level's end
-_LONG_STAGES = ("activity",)
-
-
-def _longest_first(items: list) -> list:
-    return sorted(items, key=lambda it: it[0] not in _LONG_STAGES)
+def _largest_first(items: list, size: Callable) -> list:
+    """``items`` by decreasing ``size`` (ties in their given order): the longest tasks go to the pool first, so a
+    stage level ends on short tasks and no worker waits on a long one while the other is idle (the next level
+    starts only when every task of this one is committed). The ingest keeps the inbox's order: which of two
+    re-exports of one recording in the same run is ingested follows it."""
+    return [it for _, _, it in sorted((-size(it), i, it) for i, it in enumerate(items))]
 
 
 def _plan_stage(wh: Warehouse, stage: Stage, stages: list[Stage], sessions, failed_sessions: dict,

@@ -225,3 +225,14 @@ def test_snapshots_are_published_at_most_once_per_interval_and_at_each_phase_end
     monkeypatch.setenv("STRIDELAB_PUBLISH_INTERVAL_S", "soon")
     with pytest.raises(ValueError, match="STRIDELAB_PUBLISH_INTERVAL_S='soon' is not a number of seconds"):
         runner._Publisher(wh0)
+
+
+def test_a_stage_level_hands_the_largest_sessions_tasks_out_first():
+    """Tasks of the session with the most IMU samples first, whatever their stage; equal sizes keep their order."""
+    from stridelab.pipeline.runner import _largest_first
+    batch = [("orientation", "P1-lab"), ("activity", "P1-free"), ("trunk_gait", "P1-lab"), ("trunk_gait", "P1-free"),
+             ("gait", "P2-lab")]
+    samples = {"P1-lab": 2_000, "P1-free": 17_000_000, "P2-lab": 3_000}
+    got = _largest_first(batch, lambda it: samples.get(it[1], 0))
+    assert got == [("activity", "P1-free"), ("trunk_gait", "P1-free"), ("gait", "P2-lab"), ("orientation", "P1-lab"),
+                   ("trunk_gait", "P1-lab")]
