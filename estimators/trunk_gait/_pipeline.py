@@ -198,7 +198,7 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarr
                                            fill_prominence=p.ic_fill_prominence,
                                            fill_edge_steps=p.ic_fill_edge_steps, fill_end_steps=p.ic_fill_end_steps,
                                            fill_start_prominence=p.ic_fill_start_prominence,
-                                           fill_end_rhythm=p.ic_fill_end_rhythm,
+                                           fill_end_rhythm=p.ic_fill_end_rhythm, fill_walk_ends=p.ic_fill_walk_ends,
                                            max_step_s=p.stride_max_s / 2.0, turning=turning,
                                            turn_prominence=p.ic_turn_prominence, return_closing=True)
     if p.ic_subsample and len(idx):
@@ -308,8 +308,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     turn = Turns(*(cat([getattr(tt, f) for tt in turns], float)
                    for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
 
-    first, st, en, length = strides_from_contacts(ic, runs, step_len)
-    stride_tilt = strides_from_contacts(ic, runs, cat(tilt_all, float))[3] / 2.0     # mean of its two steps
+    kw = dict(rule=p.stride_rule, max_stride_s=p.stride_max_s, no_start=closing)
+    first, st, en, length = strides_from_contacts(ic, runs, step_len, **kw)
+    stride_tilt = strides_from_contacts(ic, runs, cat(tilt_all, float), **kw)[3] / 2.0     # mean of its two steps
     dur = en - st
     valid = (dur >= p.stride_min_s) & (dur <= p.stride_max_s) & (np.nan_to_num(length) >= p.stride_min_length_m)
     bout_of = assemble_bouts(st, en, valid, max_break_s=p.wb_max_break_s, min_strides=p.wb_min_strides)

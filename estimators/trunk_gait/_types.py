@@ -61,6 +61,9 @@ class TrunkGaitParams:
       ic_fill_end_rhythm: with the closing-step fill on (``ic_fill_end_steps`` > 0), the first closing step is
         placed one median step after the last contact instead of at a weak peak (the closing heel strike gives the
         trunk no rebound; ``_icd.fill_missed_steps``).
+      ic_fill_walk_ends: with the closing-step fill on, closing steps are looked for after the last contact of every
+        walk (before every pause > 2.5 steps inside a gait sequence), not only after the sequence's last contact
+        (``_icd.fill_missed_steps``).
       ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
       ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
         instead of at the peak sample.
@@ -95,6 +98,9 @@ class TrunkGaitParams:
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
+      stride_rule: "run" (a stride IC_i -> IC_{i+2} only within a run of steps each ≤ stride_max_s / 2) or
+        "consensus" (every IC_i -> IC_{i+2} of at most stride_max_s, as Kluge et al. 2021 / mobgap; no stride starts
+        at a closing step; ``_wba.strides_from_contacts``).
       stride_min_s, stride_max_s: plausible stride duration, s.
       stride_min_length_m: strides shorter than this are not counted as walking, m.
     Turns (El-Gohary et al. 2014):
@@ -124,6 +130,7 @@ class TrunkGaitParams:
     ic_fill_end_steps: int = 2
     ic_fill_start_prominence: float = 0.0
     ic_fill_end_rhythm: bool = True
+    ic_fill_walk_ends: bool = False
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
     cadence_method: str = "count"
@@ -138,6 +145,7 @@ class TrunkGaitParams:
     speed_method: str = "cadence"
     sl_max_tilt_deg: float = 0.0
     wb_min_strides: int = 4
+    stride_rule: str = "run"
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
     stride_max_s: float = 3.0

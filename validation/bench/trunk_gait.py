@@ -94,13 +94,21 @@ GRID_CWT = (("shin", "norm", 0.0, 0.0), ("shin", "norm", 0.15, 0.0), ("hklee", "
             ("hklee", "norm", 0.1, 0.0), ("hklee", "vertical", 0.1, 0.0), ("hklee", "norm", 0.1, 0.3))
 # ic_fill_start_prominence (the first step of every walk, with the fill on): 0 = off, 0.4 SD
 GRID_FILL_START = (0.0, 0.4)
+# ic_fill_walk_ends (closing steps before every pause inside a sequence, not only at its end; with the closing-step
+# fill by the rhythm) and stride_rule ("run" / "consensus": strides IC_i -> IC_{i+2} of <= stride_max_s across a
+# stop, as Kluge et al. 2021 / mobgap), both added 2026-12-07 after the per-miss diagnosis of HA-001 (walks of 6-8
+# contacts with a 2 s stop dropped by the 4-stride rule); the stride rule only with the fill on
+GRID_WALK_ENDS = (False, True)
+GRID_STRIDE_RULE = ("run", "consensus")
 IC_CANDIDATES = tuple(
     [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
       "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
-      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er}
+      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er, "ic_fill_walk_ends": we,
+      "stride_rule": sr}
      for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
      for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
-     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er)]
+     for we in GRID_WALK_ENDS for sr in GRID_STRIDE_RULE
+     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er) and (er or not we) and (f[0] > 0 or sr == "run")]
     + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
        for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
     + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
@@ -108,7 +116,7 @@ IC_CANDIDATES = tuple(
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
              "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
-             "ic_offset_s", "cadence_method")
+             "ic_fill_walk_ends", "stride_rule", "ic_offset_s", "cadence_method")
 from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
 # the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s); 5 ms
 # steps: with sub-sample contact times the loss is no longer flat between whole samples
@@ -407,6 +415,10 @@ def _detector_name(p) -> str:
         fill += ", sub-sample peak (parabola vertex)"
     if p.ic_fill_end_rhythm and p.ic_fill_prominence > 0 and p.ic_fill_end_steps > 0:
         fill += ", first closing step one median step after the last contact"
+        if p.ic_fill_walk_ends:
+            fill += " of every walk"
+    if p.stride_rule != "run":
+        fill += f", stride rule {p.stride_rule}"
     return (f"peak (McCamley et al. 2012 / Zijlstra & Hof 2003: smoothed upward-acceleration peak, sigma "
             f"{p.ic_smooth_s} s, prominence {p.ic_prominence} SD{fill}), offset {p.ic_offset_s} s" + cad)
 
