@@ -137,7 +137,7 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
     acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
     base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, cadence_method="count", ic_fill_prominence=0.0,
-                               ic_fill_end_steps=0)
+                               ic_fill_end_steps=0, stride_rule="run")
     plain = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
     filled = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
                                 params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1))
@@ -149,6 +149,16 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     assert len(filled.strides) == len(plain.strides)
     np.testing.assert_allclose(filled.bouts.cadence_spm, plain.bouts.cadence_spm)
     assert filled.bouts.cadence_spm[0] == pytest.approx(60 / step, rel=0.01)
+    # the consensus stride rule (shipped): the closing contact ends the walk's last stride but starts none
+    cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                              params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1,
+                                                         stride_rule="consensus"))
+    closing_t = cons.initial_contacts_s[-1]
+    assert near(np.array([closing_t]), ic[-1])
+    assert np.sum(np.abs(cons.strides.end_s - closing_t) < 1e-9) == 1
+    assert not np.any(np.abs(cons.strides.start_s - closing_t) < 1e-9)
+    assert len(cons.strides) == len(plain.strides) + 1
+    np.testing.assert_allclose(cons.bouts.cadence_spm, plain.bouts.cadence_spm)
 
 
 def test_bout_cadence_count_is_steps_over_walking_time_and_counts_a_missed_contact():

@@ -325,7 +325,7 @@ def test_a_short_walk_with_a_stop_is_a_bout_under_the_consensus_stride_rule():
         yaw[m] = -0.4 * (1.0 if k % 2 == 0 else -1.0) * np.cos(np.pi * (t[m] - c) / 0.6)
     acc = np.column_stack([-0.05 * np.gradient(up, 1 / FS), up + 9.80665, 0 * t]) + rng.normal(0, 0.03, (len(t), 3))
     gyr = np.column_stack([0 * t, yaw, 0 * t]) + rng.normal(0, 0.003, (len(t), 3))
-    base = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_end_steps=0)
+    base = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_end_steps=0, stride_rule="run")
     run = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
     cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=dataclasses.replace(base, stride_rule="consensus"))
     assert len(run.bouts) == 0 and len(run.initial_contacts_s) == 0
