@@ -94,7 +94,8 @@ class TrunkGaitParams:
         up) are left out of the bout's stride length and speed (not pendular: rising from a chair, stooping;
         ``_spatial.step_tilt_deg``), deg (0 = off).
       speed_method: bout walking speed as the average of the stride speeds ("stride") or as bout stride length x
-        cadence / 120 ("cadence", mobgap's definition).
+        cadence / 120 ("cadence", mobgap's definition; the cadence there is the bout's steps over its walking time,
+        ``cadence_method`` "count", whatever cadence the bout reports: distance over time).
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
@@ -121,19 +122,19 @@ class TrunkGaitParams:
     ic_cwt_signal: str = "norm"
     ic_refine_s: float = 0.0
     ic_subsample: bool = False
-    ic_smooth_s: float = 0.11
+    ic_smooth_s: float = 0.14
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
-    ic_fill_prominence: float = 0.05
+    ic_fill_prominence: float = 0.1
     ic_fill_edge_steps: int = 0
-    ic_fill_end_steps: int = 2
+    ic_fill_end_steps: int = 1
     ic_fill_start_prominence: float = 0.0
     ic_fill_end_rhythm: bool = True
-    ic_fill_walk_ends: bool = False
+    ic_fill_walk_ends: bool = True
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
-    cadence_method: str = "count"
+    cadence_method: str = "step_mean"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.27
@@ -145,7 +146,7 @@ class TrunkGaitParams:
     speed_method: str = "cadence"
     sl_max_tilt_deg: float = 0.0
     wb_min_strides: int = 4
-    stride_rule: str = "run"
+    stride_rule: str = "consensus"
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
     stride_max_s: float = 3.0
@@ -224,7 +225,9 @@ class Bouts:
 class Strides:
     """Strides kept in walking bouts (arrays of length S): start_s, end_s (same-side initial contacts), side
     ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``), tilt_deg (the trunk's mean lean
-    from the walking posture over the stride, ``_spatial.step_tilt_deg``)."""
+    from the walking posture over the stride, ``_spatial.step_tilt_deg``), steady (its three contacts in one run of
+    regular steps: False for a stride over a stop, which ``stride_rule`` "consensus" keeps for the bout rules but
+    the bout's stride length and speed leave out; None = all steady)."""
     start_s: np.ndarray
     end_s: np.ndarray
     side: np.ndarray
@@ -232,6 +235,7 @@ class Strides:
     speed_m_s: np.ndarray
     bout: np.ndarray
     tilt_deg: np.ndarray
+    steady: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(len(self.start_s))

@@ -437,20 +437,22 @@ def run_ours(rec: Rec, params) -> Det:
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
                strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout,
-                        "tilt_deg": st.tilt_deg})
+                        "tilt_deg": st.tilt_deg, "steady": st.steady})
 
 
 def respatial(det: Det, average: str, strides: str, speed_method: str, max_tilt_deg: float = 0.0) -> Det:
     """``det`` with its bouts' stride length and speed recomputed from its strides by the estimator's
-    ``bout_spatial`` (bout average, strides used, speed method; the bouts' cadence as in ``det``, so after
-    ``_with_cadence`` the speed follows the chosen cadence method)."""
+    ``bout_spatial`` (bout average, strides used, speed method; the speed's cadence is the bouts' "count" cadence,
+    steps over walking time, as in the estimator whatever cadence the bouts report; strides over a stop left out)."""
     from stridelab.estimators.trunk_gait._pipeline import bout_spatial
     st = det.strides
     if st is None:
         return det
+    cad = det.cadence_by_method.get("count", det.bouts["cadence_spm"])   # speed: steps over walking time
     sl, sp = bout_spatial(st["length_m"], st["end_s"] - st["start_s"], st["bout"],
-                          np.asarray(det.bouts["cadence_spm"], float), average=average, strides=strides,
-                          speed_method=speed_method, tilt_deg=st["tilt_deg"], max_tilt_deg=max_tilt_deg)
+                          np.asarray(cad, float), average=average, strides=strides,
+                          speed_method=speed_method, tilt_deg=st["tilt_deg"], max_tilt_deg=max_tilt_deg,
+                          steady=st.get("steady"))
     return dataclasses.replace(det, bouts={**det.bouts, "stride_length_m": sl, "walking_speed_m_s": sp})
 
 

@@ -334,3 +334,27 @@ def test_a_short_walk_with_a_stop_is_a_bout_under_the_consensus_stride_rule():
     assert ic_metrics(m)["sensitivity"] == 1.0 and ic_metrics(m)["precision"] == 1.0
     assert cons.bouts.start_s[0] == pytest.approx(ic[0], abs=0.02) and cons.bouts.end_s[0] == pytest.approx(ic[-1],
                                                                                                            abs=0.02)
+    # the stride over the stop counts for the bout rules but not for its stride length and speed
+    assert cons.strides.steady.tolist() == [True, True, True, False]
+    assert cons.bouts.stride_length_m[0] == pytest.approx(np.median(cons.strides.length_m[:3]))
+    # speed = stride length x the bout's steps over its walking time (cadence "count"), whatever cadence it reports
+    count = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                               params=dataclasses.replace(base, stride_rule="consensus", cadence_method="count"))
+    assert cons.bouts.walking_speed_m_s[0] == pytest.approx(count.bouts.walking_speed_m_s[0])
+    assert count.bouts.walking_speed_m_s[0] == pytest.approx(
+        cons.bouts.stride_length_m[0] * count.bouts.cadence_spm[0] / 120)
+
+
+def test_bout_spatial_leaves_out_strides_over_a_stop_unless_none_is_left():
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    length = np.array([1.2, 1.2, 1.2, 3.0, 0.9, 0.9])
+    dur = np.array([1.0, 1.0, 1.0, 2.6, 1.0, 2.7])
+    bout = np.array([0, 0, 0, 0, 1, 1])
+    steady = np.array([True, True, True, False, False, False])
+    sl, sp = bout_spatial(length, dur, bout, np.array([120.0, 100.0]), average="mean", strides="all",
+                          speed_method="cadence", steady=steady)
+    np.testing.assert_allclose(sl, [1.2, 0.9])                  # bout 1 has no steady stride: all of its strides
+    np.testing.assert_allclose(sp, [1.2, 0.9 * 100 / 120])
+    sl_all, _ = bout_spatial(length, dur, bout, np.array([120.0, 100.0]), average="mean", strides="all",
+                             speed_method="cadence")
+    assert sl_all[0] == pytest.approx((3 * 1.2 + 3.0) / 4)
