@@ -368,4 +368,4 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
                            ic_side=np.where(left[keep_ic], "left", "right"),
                            gait_sequences_s=seqs.astype(float) / fs_hz, frame=frame or empty_frame,
                            height_m=height, leg_length_m=leg, height_source=hsrc, leg_length_source=lsrc,
-                           placement=placement, params=p, warnings=tuple(warnings))
+                           placement=placement, params=p, warnings=tuple(warnings), ic_closing=closing[keep_ic])

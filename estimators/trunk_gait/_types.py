@@ -267,6 +267,7 @@ class TrunkGaitResult:
     height_source: "given" | "default (1.70 m, documented)"; leg_length_source likewise ("given" |
     "from height (0.53 H)").
     placement, params, warnings (tuple of str).
+    ic_closing: (K,) bool, the contacts that are closing steps added by the fill (left out of the cadence).
     """
     bouts: Bouts
     strides: Strides
@@ -282,6 +283,7 @@ class TrunkGaitResult:
     placement: str
     params: TrunkGaitParams = field(default_factory=TrunkGaitParams)
     warnings: tuple[str, ...] = ()
+    ic_closing: np.ndarray | None = None
 
 
 DURATION_CLASSES_S = ((10.0, 30.0), (30.0, 60.0), (60.0, 120.0), (120.0, float("inf")))

@@ -430,10 +430,12 @@ def run_ours(rec: Rec, params) -> Det:
     from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
     ic = res.initial_contacts_s
+    if res.ic_closing is not None:          # closing steps are no steps of the cadence (as in the estimator)
+        ic = ic[~res.ic_closing]
     cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
                                      method=m) for s, e in zip(b.start_s, b.end_s)]) for m in CADENCE_METHODS}
     st = res.strides
-    return Det(ic_s=ic, bouts={"start_s": b.start_s, "end_s": b.end_s,
+    return Det(ic_s=res.initial_contacts_s, bouts={"start_s": b.start_s, "end_s": b.end_s,
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
                strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout,
