@@ -34,7 +34,7 @@ from stridelab.estimators.trunk_gait._filters import butter_sos
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,
                             prominence: float, local_window_s: float = 0.0, fill_prominence: float = 0.0,
                             fill_edge_steps: int = 0, fill_end_steps: int = 0, fill_start_prominence: float = 0.0,
-                            fill_end_rhythm: bool = False,
+                            fill_end_rhythm: bool = False, fill_walk_ends: bool = False,
                             max_step_s: float = 1.5, turning: np.ndarray | None = None,
                             turn_prominence: float = 1.0, return_closing: bool = False):
     """Sample indices of initial-contact peaks of the upward acceleration ``v_up`` (N,) m/s² (gravity removed).
@@ -46,7 +46,8 @@ def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, 
     turn, where the threshold is multiplied by ``turn_prominence`` (turning steps are shorter and lift the trunk
     less; on the Voisard U-turns about 40 % of the missed contacts). With ``return_closing`` the result is
     (indices, closing) where ``closing`` (K,) bool marks the contacts added after the last contact that passed
-    the threshold (the closing steps of a walk: contacts, but no stride of steady walking starts or ends there)."""
+    the threshold (the closing steps of a walk: contacts, but no stride of steady walking starts or ends there);
+    with ``fill_walk_ends`` also the closing steps added before every pause inside the sequence."""
     empty = np.empty(0, np.int64)
     if len(v_up) < 3:
         return (empty, np.zeros(0, bool)) if return_closing else empty
@@ -68,16 +69,18 @@ def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, 
     strong = props["prominences"] >= thr
     if fill_prominence <= 0 or strong.sum() < 3:
         out = peaks[strong].astype(np.int64)
+        closing = np.zeros(len(out), bool)
     else:
         weak = props["prominences"] >= fill_prominence * sd
-        out = fill_missed_steps(peaks[strong], peaks[weak & ~strong], props["prominences"][weak & ~strong],
-                                max_step=max(1, int(round(max_step_s * fs_hz))), edge_steps=fill_edge_steps,
-                                end_steps=fill_end_steps,
-                                start_prominence=fill_start_prominence * sd if fill_start_prominence > 0 else None,
-                                end_rhythm_before=len(v_up) if fill_end_rhythm and fill_end_steps > 0 else 0)
+        out, closing = fill_missed_steps(
+            peaks[strong], peaks[weak & ~strong], props["prominences"][weak & ~strong],
+            max_step=max(1, int(round(max_step_s * fs_hz))), edge_steps=fill_edge_steps, end_steps=fill_end_steps,
+            start_prominence=fill_start_prominence * sd if fill_start_prominence > 0 else None,
+            end_rhythm_before=len(v_up) if fill_end_rhythm and fill_end_steps > 0 else 0, walk_ends=fill_walk_ends,
+            return_closing=True)
     if not return_closing:
         return out
-    return out, (out > peaks[strong].max()) if strong.any() else np.zeros(len(out), bool)
+    return out, closing
 
 
 def parabolic_peaks(vs: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -99,7 +102,7 @@ def parabolic_peaks(vs: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray, *, max_step: int,
                       edge_steps: int = 0, end_steps: int = 0, start_prominence: float | None = None,
-                      end_rhythm_before: int = 0) -> np.ndarray:
+                      end_rhythm_before: int = 0, walk_ends: bool = False, return_closing: bool = False):
     """Add weaker peaks where the step rhythm expects a contact the prominence threshold missed.
 
     The closing step of a walk, the first step and the steps of a turn give smaller vertical accelerations than
@@ -113,12 +116,20 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
     times: the closing step, which brings the trailing foot beside the other, lifts the centre of mass least and
     is the contact a threshold misses most (on the Voisard trials the last heel strike was the single most missed
     contact, 46 of 104 trials, while the first steps were found). ``cand`` are peak indices with their
-    prominences."""
+    prominences.
+
+    ``walk_ends``: the closing steps (``end_steps``, with ``end_rhythm_before`` the first by the rhythm) are looked
+    for after the last contact of every walk, i.e. also before every pause (a step > 2.5 T) inside the sequence, as
+    the first step of every walk is with ``start_prominence`` (a sequence can hold several short walks: the
+    Mobilise-D course, HA-001 Test11, has walks of 6-8 contacts separated by 2-3 s stops inside one gait sequence,
+    whose closing steps the sequence-end fill never reached; on the Voisard trials the slow steps before the U-turn
+    are such ends too); each is added before the next walk's first contact minus 0.5 T.
+    ``return_closing``: (indices, closing (K,) bool = added by the closing-step fill)."""
     kept = np.sort(kept)
     d = np.diff(kept)
     d = d[d <= max_step]
     if len(d) < 2 or (len(cand) == 0 and not end_rhythm_before):
-        return kept
+        return (kept, np.zeros(len(kept), bool)) if return_closing else kept
     T = float(np.median(d))
 
     def best(lo: float, hi: float) -> int | None:
@@ -140,25 +151,39 @@ def fill_missed_steps(kept: np.ndarray, cand: np.ndarray, cand_prom: np.ndarray,
             c = best(a + 0.5 * T, b - 0.5 * T)
             if c is not None:
                 out.append(c)
-    first, last = kept[0], kept[-1]
+    first = kept[0]
     for _ in range(edge_steps):
         if (c := best(first - 1.5 * T, first - 0.5 * T)) is None:
             break
         out.append(c)
         first = c
-    for k in range(edge_steps + end_steps):
-        if k == edge_steps and end_rhythm_before and last + T < end_rhythm_before:
-            # the first closing step by the rhythm alone: its heel strike gives the trunk no rebound (prominence
-            # 0-0.04 SD on the Voisard trials, where the last heel strike was the most missed contact, 23 of 52
-            # with the peak fill: the most prominent peak there is noise), so it is placed one median step after
-            # the last contact when the signal goes on that long (``end_rhythm_before`` = its length in samples;
-            # 0 = off)
-            c = int(round(last + T))
-        elif (c := best(last + 0.5 * T, last + 1.5 * T)) is None:
-            break
-        out.append(c)
-        last = c
-    return np.array(sorted(out), np.int64)
+    # walk ends: the last kept contact (bounded by the signal) and, with walk_ends, every contact before a pause
+    # (bounded by the next walk's first contact - 0.5 T)
+    ends = [(kept[-1], end_rhythm_before if end_rhythm_before else np.inf)]
+    if walk_ends:
+        ends = [(a, b - 0.5 * T) for a, b in zip(kept[:-1], kept[1:]) if b - a > 2.5 * T] + ends
+    closing = []
+    for last, bound in ends:
+        for k in range(edge_steps + end_steps):
+            if k == edge_steps and end_rhythm_before and last + T < min(bound, end_rhythm_before):
+                # the first closing step by the rhythm alone: its heel strike gives the trunk no rebound
+                # (prominence 0-0.04 SD on the Voisard trials, where the last heel strike was the most missed
+                # contact, 23 of 52 with the peak fill: the most prominent peak there is noise), so it is placed one
+                # median step after the last contact when the signal goes on that long (``end_rhythm_before`` =
+                # its length in samples; 0 = off)
+                c = int(round(last + T))
+            elif (c := best(last + 0.5 * T, min(last + 1.5 * T, bound))) is None:
+                break
+            out.append(c)
+            closing.append(c)
+            last = c
+    out = np.array(sorted(out), np.int64)
+    if walk_ends and len(out) > 1:
+        # a closing step and the next walk's first step (start fill) can land on one peak in a short pause
+        out = out[np.r_[True, np.diff(out) >= 0.5 * T]]
+    if not return_closing:
+        return out
+    return out, np.isin(out, np.array(closing, np.int64))
 
 
 def regular_runs(ic_s: np.ndarray, *, max_step_s: float) -> np.ndarray:

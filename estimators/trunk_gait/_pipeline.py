@@ -67,7 +67,7 @@ def bout_cadence(ic_s: np.ndarray, *, max_step_s: float, method: str) -> float:
 
 def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray, cadence_spm: np.ndarray, *,
                  average: str, strides: str, speed_method: str, tilt_deg: np.ndarray | None = None,
-                 max_tilt_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                 max_tilt_deg: float = 0.0, steady: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(stride length m, walking speed m/s) per bout from its strides: (S,) ``length_m``, ``duration_s``, ``bout``
     (index 0..B-1) and the bouts' (B,) ``cadence_spm``.
 
@@ -82,7 +82,9 @@ def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray,
     mobgap's walking speed, Micó-Amigo et al. 2023 / Kirk et al. 2024: speed = cadence x stride length / 2 per
     second), which does not divide a noisy length by a noisy duration stride by stride. ``max_tilt_deg`` > 0: strides
     whose trunk leans more than that from the walking posture (``tilt_deg`` (S,), ``_spatial.step_tilt_deg``) are
-    left out, unless that would leave the bout without a stride (0 = off)."""
+    left out, unless that would leave the bout without a stride (0 = off). ``steady`` (S,) bool: strides over a stop
+    (False; kept by ``stride_rule`` "consensus" for the bout rules) are left out likewise: the inverted-pendulum
+    step length is not defined across a stop (None = all strides)."""
     if average not in ("mean", "median", "time"):
         raise ValueError(f"bout_average must be 'mean', 'median' or 'time', got {average!r}")
     if strides not in ("regular", "all"):
@@ -100,6 +102,8 @@ def bout_spatial(length_m: np.ndarray, duration_s: np.ndarray, bout: np.ndarray,
             continue
         if strides == "regular":
             m = m & (duration_s <= 1.5 * np.median(duration_s[m]))
+        if steady is not None and (m & steady).any():
+            m = m & steady
         if max_tilt_deg > 0 and tilt_deg is not None and (m & (tilt_deg <= max_tilt_deg)).any():
             m = m & (tilt_deg <= max_tilt_deg)
         x, d = length_m[m], duration_s[m]
@@ -199,7 +203,7 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarr
                                            fill_prominence=p.ic_fill_prominence,
                                            fill_edge_steps=p.ic_fill_edge_steps, fill_end_steps=p.ic_fill_end_steps,
                                            fill_start_prominence=p.ic_fill_start_prominence,
-                                           fill_end_rhythm=p.ic_fill_end_rhythm,
+                                           fill_end_rhythm=p.ic_fill_end_rhythm, fill_walk_ends=p.ic_fill_walk_ends,
                                            max_step_s=p.stride_max_s / 2.0, turning=turning,
                                            turn_prominence=p.ic_turn_prominence, return_closing=True)
     if p.ic_subsample and len(idx):
@@ -309,8 +313,10 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     turn = Turns(*(cat([getattr(tt, f) for tt in turns], float)
                    for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
 
-    first, st, en, length = strides_from_contacts(ic, runs, step_len)
-    stride_tilt = strides_from_contacts(ic, runs, cat(tilt_all, float))[3] / 2.0     # mean of its two steps
+    kw = dict(rule=p.stride_rule, max_stride_s=p.stride_max_s, no_start=closing)
+    first, st, en, length = strides_from_contacts(ic, runs, step_len, **kw)
+    steady = runs[first] == runs[first + 2] if len(first) else np.zeros(0, bool)
+    stride_tilt = strides_from_contacts(ic, runs, cat(tilt_all, float), **kw)[3] / 2.0     # mean of its two steps
     dur = en - st
     valid = (dur >= p.stride_min_s) & (dur <= p.stride_max_s) & (np.nan_to_num(length) >= p.stride_min_length_m)
     bout_of = assemble_bouts(st, en, valid, max_break_s=p.wb_max_break_s, min_strides=p.wb_min_strides)
@@ -318,7 +324,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     n_b = int(bout_of.max()) + 1 if in_b.any() else 0
     strides = Strides(start_s=st[in_b], end_s=en[in_b], side=np.where(left[first[in_b]], "left", "right"),
                       length_m=length[in_b], speed_m_s=length[in_b] / dur[in_b], bout=bout_of[in_b],
-                      tilt_deg=stride_tilt[in_b])
+                      tilt_deg=stride_tilt[in_b], steady=steady[in_b])
     b_start = np.array([strides.start_s[strides.bout == b].min() for b in range(n_b)])
     b_end = np.array([strides.end_s[strides.bout == b].max() for b in range(n_b)])
     ic_bout = np.full(len(ic), -1, np.int64)
@@ -332,9 +338,13 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     cadence = np.array([bout_cadence(ic[(ic_bout == b) & ~closing], max_step_s=p.stride_max_s / 2.0,
                                      method=p.cadence_method) for b in range(n_b)])
     n_str = np.bincount(strides.bout, minlength=n_b)
-    sl_b, sp_b = bout_spatial(strides.length_m, dur[in_b], strides.bout, cadence, average=p.bout_average,
+    # the speed's cadence: steps over walking time ("count"), distance over time whatever cadence is reported
+    cad_count = cadence if p.cadence_method == "count" else np.array(
+        [bout_cadence(ic[(ic_bout == b) & ~closing], max_step_s=p.stride_max_s / 2.0, method="count")
+         for b in range(n_b)])
+    sl_b, sp_b = bout_spatial(strides.length_m, dur[in_b], strides.bout, cad_count, average=p.bout_average,
                               strides=p.bout_strides, speed_method=p.speed_method, tilt_deg=strides.tilt_deg,
-                              max_tilt_deg=p.sl_max_tilt_deg)
+                              max_tilt_deg=p.sl_max_tilt_deg, steady=strides.steady)
     n_turns = np.array([int(np.sum((turn.start_s < b_end[b]) & (turn.end_s > b_start[b]))) for b in range(n_b)],
                        np.int64)
     flags = []
@@ -359,4 +369,4 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
                            ic_side=np.where(left[keep_ic], "left", "right"),
                            gait_sequences_s=seqs.astype(float) / fs_hz, frame=frame or empty_frame,
                            height_m=height, leg_length_m=leg, height_source=hsrc, leg_length_source=lsrc,
-                           placement=placement, params=p, warnings=tuple(warnings))
+                           placement=placement, params=p, warnings=tuple(warnings), ic_closing=closing[keep_ic])

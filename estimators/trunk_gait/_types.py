@@ -65,6 +65,9 @@ class TrunkGaitParams:
       ic_fill_end_rhythm: with the closing-step fill on (``ic_fill_end_steps`` > 0), the first closing step is
         placed one median step after the last contact instead of at a weak peak (the closing heel strike gives the
         trunk no rebound; ``_icd.fill_missed_steps``).
+      ic_fill_walk_ends: with the closing-step fill on, closing steps are looked for after the last contact of every
+        walk (before every pause > 2.5 steps inside a gait sequence), not only after the sequence's last contact
+        (``_icd.fill_missed_steps``).
       ic_turn_prominence: factor on the prominence threshold for peaks inside a detected turn (1 = off).
       ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
         instead of at the peak sample.
@@ -95,10 +98,14 @@ class TrunkGaitParams:
         up) are left out of the bout's stride length and speed (not pendular: rising from a chair, stooping;
         ``_spatial.step_tilt_deg``), deg (0 = off).
       speed_method: bout walking speed as the average of the stride speeds ("stride") or as bout stride length x
-        cadence / 120 ("cadence", mobgap's definition).
+        cadence / 120 ("cadence", mobgap's definition; the cadence there is the bout's steps over its walking time,
+        ``cadence_method`` "count", whatever cadence the bout reports: distance over time).
     Walking-bout assembly (Kluge et al. 2021 consensus):
       wb_min_strides: minimum number of strides of a walking bout (4, as mobgap's reading of Kluge 2021).
       wb_max_break_s: longest break between strides inside one walking bout, s.
+      stride_rule: "run" (a stride IC_i -> IC_{i+2} only within a run of steps each ≤ stride_max_s / 2) or
+        "consensus" (every IC_i -> IC_{i+2} of at most stride_max_s, as Kluge et al. 2021 / mobgap; no stride starts
+        at a closing step; ``_wba.strides_from_contacts``).
       stride_min_s, stride_max_s: plausible stride duration, s.
       stride_min_length_m: strides shorter than this are not counted as walking, m.
     Turns (El-Gohary et al. 2014):
@@ -121,18 +128,19 @@ class TrunkGaitParams:
     ic_cwt_signal: str = "norm"
     ic_refine_s: float = 0.0
     ic_subsample: bool = False
-    ic_smooth_s: float = 0.11
+    ic_smooth_s: float = 0.14
     ic_min_step_s: float = 0.25
     ic_prominence: float = 0.7
     ic_local_window_s: float = 0.0
-    ic_fill_prominence: float = 0.05
+    ic_fill_prominence: float = 0.1
     ic_fill_edge_steps: int = 0
-    ic_fill_end_steps: int = 2
+    ic_fill_end_steps: int = 1
     ic_fill_start_prominence: float = 0.0
     ic_fill_end_rhythm: bool = True
+    ic_fill_walk_ends: bool = True
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
-    cadence_method: str = "count"
+    cadence_method: str = "step_mean"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.27
@@ -144,6 +152,7 @@ class TrunkGaitParams:
     speed_method: str = "cadence"
     sl_max_tilt_deg: float = 0.0
     wb_min_strides: int = 4
+    stride_rule: str = "consensus"
     wb_max_break_s: float = 3.0
     stride_min_s: float = 0.2
     stride_max_s: float = 3.0
@@ -222,7 +231,9 @@ class Bouts:
 class Strides:
     """Strides kept in walking bouts (arrays of length S): start_s, end_s (same-side initial contacts), side
     ("left"/"right" per stride), length_m, speed_m_s, bout (index into ``Bouts``), tilt_deg (the trunk's mean lean
-    from the walking posture over the stride, ``_spatial.step_tilt_deg``)."""
+    from the walking posture over the stride, ``_spatial.step_tilt_deg``), steady (its three contacts in one run of
+    regular steps: False for a stride over a stop, which ``stride_rule`` "consensus" keeps for the bout rules but
+    the bout's stride length and speed leave out; None = all steady)."""
     start_s: np.ndarray
     end_s: np.ndarray
     side: np.ndarray
@@ -230,6 +241,7 @@ class Strides:
     speed_m_s: np.ndarray
     bout: np.ndarray
     tilt_deg: np.ndarray
+    steady: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(len(self.start_s))
@@ -261,6 +273,7 @@ class TrunkGaitResult:
     height_source: "given" | "default (1.70 m, documented)"; leg_length_source likewise ("given" |
     "from height (0.53 H)").
     placement, params, warnings (tuple of str).
+    ic_closing: (K,) bool, the contacts that are closing steps added by the fill (left out of the cadence).
     """
     bouts: Bouts
     strides: Strides
@@ -276,6 +289,7 @@ class TrunkGaitResult:
     placement: str
     params: TrunkGaitParams = field(default_factory=TrunkGaitParams)
     warnings: tuple[str, ...] = ()
+    ic_closing: np.ndarray | None = None
 
 
 DURATION_CLASSES_S = ((10.0, 30.0), (30.0, 60.0), (60.0, 120.0), (120.0, float("inf")))

@@ -12,9 +12,17 @@ from __future__ import annotations
 import numpy as np
 
 
-def strides_from_contacts(ic_s: np.ndarray, runs: np.ndarray, step_len_m: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Candidate strides IC_i -> IC_{i+2} inside one run of regular steps.
+def strides_from_contacts(ic_s: np.ndarray, runs: np.ndarray, step_len_m: np.ndarray, *,
+                          rule: str = "run", max_stride_s: float = 3.0,
+                          no_start: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """Candidate strides IC_i -> IC_{i+2}.
 
+    ``rule`` "run": only inside one run of regular steps (all three contacts in one run: no step longer than
+    the run's limit, so no stride spans a stop). "consensus": every IC_i -> IC_{i+2} lasting at most
+    ``max_stride_s``, as the Mobilise-D definition of a stride (Kluge et al. 2021: initial contact to the next
+    initial contact of the same foot, 0.2-3 s; mobgap pairs consecutive same-foot contacts whatever lies between,
+    and the INDIP reference strides of HA-001 Test11 include a 2.7 s stride over a 2 s stop), except that no
+    stride starts at a contact marked ``no_start`` (K,) (a closing step added by the fill: it ends its walk).
     ``step_len_m`` (K-1,) is the length of step i (IC_i -> IC_{i+1}). Returns (first contact index (S,),
     start_s, end_s, length_m)."""
     k = len(ic_s)
@@ -22,7 +30,14 @@ def strides_from_contacts(ic_s: np.ndarray, runs: np.ndarray, step_len_m: np.nda
         e = np.empty(0)
         return np.empty(0, np.int64), e, e, e
     i = np.arange(k - 2)
-    ok = runs[i] == runs[i + 2]
+    if rule == "run":
+        ok = runs[i] == runs[i + 2]
+    elif rule == "consensus":
+        ok = ic_s[i + 2] - ic_s[i] <= max_stride_s
+        if no_start is not None:
+            ok &= ~no_start[i]
+    else:
+        raise ValueError(f"stride_rule must be 'run' or 'consensus', got {rule!r}")
     i = i[ok]
     return i, ic_s[i], ic_s[i + 2], step_len_m[i] + step_len_m[i + 1]
 

@@ -219,5 +219,7 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
                                 for r in pairs])
 
 
-STAGE = shaped_stage("trunk_gait", "5", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+# version 6: bout stride length / speed leave out strides over a stop and the speed uses the count cadence (the
+# estimator logic changed, not only its defaults, which are in the stamp anyway)
+STAGE = shaped_stage("trunk_gait", "6", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))

@@ -94,13 +94,21 @@ GRID_CWT = (("shin", "norm", 0.0, 0.0), ("shin", "norm", 0.15, 0.0), ("hklee", "
             ("hklee", "norm", 0.1, 0.0), ("hklee", "vertical", 0.1, 0.0), ("hklee", "norm", 0.1, 0.3))
 # ic_fill_start_prominence (the first step of every walk, with the fill on): 0 = off, 0.4 SD
 GRID_FILL_START = (0.0, 0.4)
+# ic_fill_walk_ends (closing steps before every pause inside a sequence, not only at its end; with the closing-step
+# fill by the rhythm) and stride_rule ("run" / "consensus": strides IC_i -> IC_{i+2} of <= stride_max_s across a
+# stop, as Kluge et al. 2021 / mobgap), both added 2026-12-07 after the per-miss diagnosis of HA-001 (walks of 6-8
+# contacts with a 2 s stop dropped by the 4-stride rule); the stride rule only with the fill on
+GRID_WALK_ENDS = (False, True)
+GRID_STRIDE_RULE = ("run", "consensus")
 IC_CANDIDATES = tuple(
     [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
       "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
-      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er}
+      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er, "ic_fill_walk_ends": we,
+      "stride_rule": sr}
      for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
      for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
-     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er)]
+     for we in GRID_WALK_ENDS for sr in GRID_STRIDE_RULE
+     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er) and (er or not we) and (f[0] > 0 or sr == "run")]
     + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
        for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
     + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
@@ -108,7 +116,7 @@ IC_CANDIDATES = tuple(
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
              "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
-             "ic_offset_s", "cadence_method")
+             "ic_fill_walk_ends", "stride_rule", "ic_offset_s", "cadence_method")
 from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
 # the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s); 5 ms
 # steps: with sub-sample contact times the loss is no longer flat between whole samples
@@ -407,6 +415,10 @@ def _detector_name(p) -> str:
         fill += ", sub-sample peak (parabola vertex)"
     if p.ic_fill_end_rhythm and p.ic_fill_prominence > 0 and p.ic_fill_end_steps > 0:
         fill += ", first closing step one median step after the last contact"
+        if p.ic_fill_walk_ends:
+            fill += " of every walk"
+    if p.stride_rule != "run":
+        fill += f", stride rule {p.stride_rule}"
     return (f"peak (McCamley et al. 2012 / Zijlstra & Hof 2003: smoothed upward-acceleration peak, sigma "
             f"{p.ic_smooth_s} s, prominence {p.ic_prominence} SD{fill}), offset {p.ic_offset_s} s" + cad)
 
@@ -418,27 +430,31 @@ def run_ours(rec: Rec, params) -> Det:
     from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
     ic = res.initial_contacts_s
+    if res.ic_closing is not None:          # closing steps are no steps of the cadence (as in the estimator)
+        ic = ic[~res.ic_closing]
     cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
                                      method=m) for s, e in zip(b.start_s, b.end_s)]) for m in CADENCE_METHODS}
     st = res.strides
-    return Det(ic_s=ic, bouts={"start_s": b.start_s, "end_s": b.end_s,
+    return Det(ic_s=res.initial_contacts_s, bouts={"start_s": b.start_s, "end_s": b.end_s,
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
                strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout,
-                        "tilt_deg": st.tilt_deg})
+                        "tilt_deg": st.tilt_deg, "steady": st.steady})
 
 
 def respatial(det: Det, average: str, strides: str, speed_method: str, max_tilt_deg: float = 0.0) -> Det:
     """``det`` with its bouts' stride length and speed recomputed from its strides by the estimator's
-    ``bout_spatial`` (bout average, strides used, speed method; the bouts' cadence as in ``det``, so after
-    ``_with_cadence`` the speed follows the chosen cadence method)."""
+    ``bout_spatial`` (bout average, strides used, speed method; the speed's cadence is the bouts' "count" cadence,
+    steps over walking time, as in the estimator whatever cadence the bouts report; strides over a stop left out)."""
     from stridelab.estimators.trunk_gait._pipeline import bout_spatial
     st = det.strides
     if st is None:
         return det
+    cad = det.cadence_by_method.get("count", det.bouts["cadence_spm"])   # speed: steps over walking time
     sl, sp = bout_spatial(st["length_m"], st["end_s"] - st["start_s"], st["bout"],
-                          np.asarray(det.bouts["cadence_spm"], float), average=average, strides=strides,
-                          speed_method=speed_method, tilt_deg=st["tilt_deg"], max_tilt_deg=max_tilt_deg)
+                          np.asarray(cad, float), average=average, strides=strides,
+                          speed_method=speed_method, tilt_deg=st["tilt_deg"], max_tilt_deg=max_tilt_deg,
+                          steady=st.get("steady"))
     return dataclasses.replace(det, bouts={**det.bouts, "stride_length_m": sl, "walking_speed_m_s": sp})
 
 

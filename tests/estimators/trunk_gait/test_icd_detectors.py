@@ -137,7 +137,7 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
     acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
     base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, cadence_method="count", ic_fill_prominence=0.0,
-                               ic_fill_end_steps=0)
+                               ic_fill_end_steps=0, stride_rule="run")
     plain = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
     filled = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
                                 params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1))
@@ -149,6 +149,16 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     assert len(filled.strides) == len(plain.strides)
     np.testing.assert_allclose(filled.bouts.cadence_spm, plain.bouts.cadence_spm)
     assert filled.bouts.cadence_spm[0] == pytest.approx(60 / step, rel=0.01)
+    # the consensus stride rule (shipped): the closing contact ends the walk's last stride but starts none
+    cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                              params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1,
+                                                         stride_rule="consensus"))
+    closing_t = cons.initial_contacts_s[-1]
+    assert near(np.array([closing_t]), ic[-1])
+    assert np.sum(np.abs(cons.strides.end_s - closing_t) < 1e-9) == 1
+    assert not np.any(np.abs(cons.strides.start_s - closing_t) < 1e-9)
+    assert len(cons.strides) == len(plain.strides) + 1
+    np.testing.assert_allclose(cons.bouts.cadence_spm, plain.bouts.cadence_spm)
 
 
 def test_bout_cadence_count_is_steps_over_walking_time_and_counts_a_missed_contact():
@@ -255,3 +265,37 @@ def test_a_closing_step_without_a_trunk_rebound_is_found_by_the_rhythm():
     near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
     assert not near(peak_fill, ic[-1])
     assert near(rhythm, ic[-1])
+
+
+def test_walk_ends_add_the_closing_step_before_every_pause_not_only_the_last():
+    # two walks inside one sequence (T = 50 samples) separated by a stop of 6 T; neither closing step has a peak
+    kept = np.array([100, 150, 200, 250, 300, 600, 650, 700, 750])
+    cand = np.array([450])                                  # standing sway in the stop, 3 T after walk 1
+    prom = np.array([0.3])
+    kw = dict(max_step=150, end_steps=1, end_rhythm_before=1000)
+    assert fill_missed_steps(kept, cand, prom, **kw).tolist() == kept.tolist() + [800]        # sequence end only
+    got, closing = fill_missed_steps(kept, cand, prom, **kw, walk_ends=True, return_closing=True)
+    assert got.tolist() == [100, 150, 200, 250, 300, 350, 600, 650, 700, 750, 800]
+    assert got[closing].tolist() == [350, 800]
+    # a second closing step is looked for among the peaks, but not closer than 0.5 T to the next walk
+    kept2 = np.array([100, 150, 200, 250, 300, 440, 490, 540, 590])      # a stop of 2.8 T
+    got2 = fill_missed_steps(kept2, np.array([395, 415]), np.array([0.3, 0.5]), max_step=150, end_steps=2,
+                             end_rhythm_before=1000, walk_ends=True).tolist()
+    assert got2 == [100, 150, 200, 250, 300, 350, 395, 440, 490, 540, 590, 640]      # 415 is not < 440 - 0.5 T
+
+
+def test_the_walk_end_fill_finds_the_closing_step_of_a_walk_inside_a_sequence():
+    # walk 1 (8 contacts, the last without a trunk rebound), a 2.5 s stop with a little sway, walk 2 (10 contacts)
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 16, 1 / FS)
+    w1 = 1.0 + 0.6 * np.arange(8)
+    w2 = w1[-1] + 2.5 + 0.6 * np.arange(10)
+    v = sum(np.exp(-0.5 * ((t - c) / 0.07) ** 2) for c in np.r_[w1[:-1], w2]) + rng.normal(0, 0.01, len(t))
+    v = v - v.mean()
+    kw = dict(smooth_s=0.11, min_step_s=0.25, prominence=0.7, fill_prominence=0.05, fill_end_steps=1,
+              fill_end_rhythm=True, return_closing=True)
+    near = lambda x, c: bool(np.any(np.abs(x - c) < 0.03))    # noqa: E731
+    seq_end, _ = detect_initial_contacts(v, FS, **kw)
+    every, closing = detect_initial_contacts(v, FS, **kw, fill_walk_ends=True)
+    assert not near(seq_end / FS, w1[-1]) and near(every / FS, w1[-1])
+    assert near(every[closing] / FS, w1[-1]) and len(every) == len(seq_end) + 1

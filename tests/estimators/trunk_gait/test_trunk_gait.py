@@ -288,3 +288,73 @@ def test_fill_finds_a_weak_step_inside_a_synthetic_walk():
     filled = detect_initial_contacts(v, fs, **kw, fill_prominence=0.1) / fs
     assert not np.any(np.abs(plain - ic[10]) < 0.05)
     assert np.any(np.abs(filled - ic[10]) < 0.05) and len(filled) == len(plain) + 1
+
+
+def test_consensus_strides_span_a_stop_as_kluge_and_mobgap_do():
+    from stridelab.estimators.trunk_gait._wba import strides_from_contacts
+    from stridelab.estimators.trunk_gait._icd import regular_runs
+    ic = np.r_[0.6 * np.arange(5), 2.4 + 1.9, 2.4 + 1.9 + 2.0]      # 5 steps, a 1.9 s stop, a contact, a 2 s stop
+    runs = regular_runs(ic, max_step_s=1.5)
+    step = np.ones(len(ic) - 1)
+    first, st, en, _ = strides_from_contacts(ic, runs, step)                       # rule "run": inside runs only
+    assert first.tolist() == [0, 1, 2]
+    first, st, en, ln = strides_from_contacts(ic, runs, step, rule="consensus", max_stride_s=3.0)
+    assert first.tolist() == [0, 1, 2, 3]                  # 1.8 → 4.3 (2.5 s) is a stride; 2.4 → 6.3 (3.9 s) is not
+    np.testing.assert_allclose(en - st, [1.2, 1.2, 1.2, 2.5])
+    np.testing.assert_allclose(ln, 2.0)
+    closing = np.zeros(len(ic), bool)
+    closing[5] = True                                      # a closing step added by the fill starts no stride
+    assert strides_from_contacts(ic, runs, step, rule="consensus", max_stride_s=4.0,
+                                 no_start=closing)[0].tolist() == [0, 1, 2, 3, 4]
+    with pytest.raises(ValueError, match="stride_rule"):
+        strides_from_contacts(ic, runs, step, rule="foot")
+
+
+def test_a_short_walk_with_a_stop_is_a_bout_under_the_consensus_stride_rule():
+    # hand-made walk of known answer: 5 steps of 0.6 s, a 1.6 s stop, one last contact (6 contacts, 4 strides, as
+    # the INDIP reference bout of HA-001 Test11 at 28.6 s); the run rule splits off the last contact and leaves 3
+    # strides, below the 4-stride bout rule, the consensus rule keeps the whole walk
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 16, 1 / FS)
+    ic = np.r_[4.0 + 0.6 * np.arange(5), 4.0 + 0.6 * 4 + 1.6]
+    up = sum(2.0 * np.exp(-0.5 * ((t - c) / 0.08) ** 2) for c in ic)
+    up -= np.convolve(up, np.ones(200) / 200, "same")
+    yaw = np.zeros_like(t)
+    for k, c in enumerate(ic):
+        m = (t >= c - 0.3) & (t < c + 0.3)
+        yaw[m] = -0.4 * (1.0 if k % 2 == 0 else -1.0) * np.cos(np.pi * (t[m] - c) / 0.6)
+    acc = np.column_stack([-0.05 * np.gradient(up, 1 / FS), up + 9.80665, 0 * t]) + rng.normal(0, 0.03, (len(t), 3))
+    gyr = np.column_stack([0 * t, yaw, 0 * t]) + rng.normal(0, 0.003, (len(t), 3))
+    base = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_end_steps=0, stride_rule="run")
+    run = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
+    cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=dataclasses.replace(base, stride_rule="consensus"))
+    assert len(run.bouts) == 0 and len(run.initial_contacts_s) == 0
+    assert len(cons.bouts) == 1 and cons.bouts.n_strides.tolist() == [4] and cons.bouts.n_steps.tolist() == [5]
+    m = match_initial_contacts(cons.initial_contacts_s, ic, tolerance_s=0.05)
+    assert ic_metrics(m)["sensitivity"] == 1.0 and ic_metrics(m)["precision"] == 1.0
+    assert cons.bouts.start_s[0] == pytest.approx(ic[0], abs=0.02) and cons.bouts.end_s[0] == pytest.approx(ic[-1],
+                                                                                                           abs=0.02)
+    # the stride over the stop counts for the bout rules but not for its stride length and speed
+    assert cons.strides.steady.tolist() == [True, True, True, False]
+    assert cons.bouts.stride_length_m[0] == pytest.approx(np.median(cons.strides.length_m[:3]))
+    # speed = stride length x the bout's steps over its walking time (cadence "count"), whatever cadence it reports
+    count = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                               params=dataclasses.replace(base, stride_rule="consensus", cadence_method="count"))
+    assert cons.bouts.walking_speed_m_s[0] == pytest.approx(count.bouts.walking_speed_m_s[0])
+    assert count.bouts.walking_speed_m_s[0] == pytest.approx(
+        cons.bouts.stride_length_m[0] * count.bouts.cadence_spm[0] / 120)
+
+
+def test_bout_spatial_leaves_out_strides_over_a_stop_unless_none_is_left():
+    from stridelab.estimators.trunk_gait._pipeline import bout_spatial
+    length = np.array([1.2, 1.2, 1.2, 3.0, 0.9, 0.9])
+    dur = np.array([1.0, 1.0, 1.0, 2.6, 1.0, 2.7])
+    bout = np.array([0, 0, 0, 0, 1, 1])
+    steady = np.array([True, True, True, False, False, False])
+    sl, sp = bout_spatial(length, dur, bout, np.array([120.0, 100.0]), average="mean", strides="all",
+                          speed_method="cadence", steady=steady)
+    np.testing.assert_allclose(sl, [1.2, 0.9])                  # bout 1 has no steady stride: all of its strides
+    np.testing.assert_allclose(sp, [1.2, 0.9 * 100 / 120])
+    sl_all, _ = bout_spatial(length, dur, bout, np.array([120.0, 100.0]), average="mean", strides="all",
+                             speed_method="cadence")
+    assert sl_all[0] == pytest.approx((3 * 1.2 + 3.0) / 4)
