@@ -14,9 +14,8 @@ lab trials (McRoberts: anterior = sensor +z).
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import sosfiltfilt
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 from stridelab.estimators.trunk_gait._types import TrunkFrame
 
 G = 9.80665
@@ -44,8 +43,7 @@ def check_units(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float) -> None:
 
 def _bandpass(x: np.ndarray, fs_hz: float) -> np.ndarray:
     hi = min(_BAND_HZ[1], 0.45 * fs_hz)
-    sos = butter_sos(2, (_BAND_HZ[0], hi), "bandpass", fs_hz)
-    return sosfiltfilt(sos, x, axis=0)
+    return butter_filtfilt(2, (_BAND_HZ[0], hi), "bandpass", fs_hz, x, axis=0)
 
 
 def anterior_evidence(acc: np.ndarray, fs_hz: float, up: np.ndarray) -> tuple[np.ndarray, float, float]:

@@ -22,9 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy.signal import sosfiltfilt
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 from stridelab.estimators.trunk_gait._types import TrunkGaitParams
 
 GSD_RATE_HZ = 25.0
@@ -86,7 +85,7 @@ def detect_gait_sequences(acc: np.ndarray, fs_hz: float, *, window_s: float, hop
     cand = np.flatnonzero(_window_sd(x, starts_all, w) >= min_std_m_s2)
     walking[cand] = _step_autocorr(x, starts_all[cand], w, fs_d) >= min_autocorr
     if np.isfinite(slow_min_std_m_s2) and GAIT_BAND_HZ[1] < fs_d / 2 and len(x) > 27:
-        xb = sosfiltfilt(butter_sos(2, GAIT_BAND_HZ, "bandpass", fs_d), x - x.mean())
+        xb = butter_filtfilt(2, GAIT_BAND_HZ, "bandpass", fs_d, x - x.mean())
         rest = np.flatnonzero(~walking)
         cand = rest[_window_sd(xb, starts_all[rest], w) >= slow_min_std_m_s2]
         walking[cand] = _step_autocorr(xb, starts_all[cand], w, fs_d) >= slow_min_autocorr

@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, uniform_filter1d
-from scipy.signal import find_peaks, sosfiltfilt
+from scipy.signal import find_peaks
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 
 
 def detect_initial_contacts(v_up: np.ndarray, fs_hz: float, *, smooth_s: float, min_step_s: float,
@@ -201,8 +201,8 @@ def assign_sides(yaw_rate: np.ndarray, fs_hz: float, ic_idx: np.ndarray, runs: n
     if k == 0:
         return np.zeros(0, bool)
     if len(yaw_rate) > 12:
-        sos = butter_sos(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs_hz)
-        r = sosfiltfilt(sos, yaw_rate, padlen=min(len(yaw_rate) - 1, 3 * 6))
+        r = butter_filtfilt(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs_hz, yaw_rate,
+                            padlen=min(len(yaw_rate) - 1, 3 * 6))
     else:
         r = yaw_rate
     at = np.clip(ic_idx + int(round(lag_s * fs_hz)), 0, len(r) - 1)

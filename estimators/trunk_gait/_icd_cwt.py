@@ -50,9 +50,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d, grey_closing, grey_opening
-from scipy.signal import savgol_filter, sosfiltfilt
+from scipy.signal import savgol_filter
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 from stridelab.estimators.trunk_gait._icd_ionescu import IONESCU_BAND_HZ
 
 SOURCE_RATE_HZ = 40.0                               # the rate the source's sample counts refer to
@@ -78,8 +78,8 @@ def cwt_chain_signal(a: np.ndarray, fs_hz: float, *, cwt_sigma_s: float = CWT_SI
     x = np.asarray(a, float)
     n = len(x)
     x = _savgol(x, *SAVGOL_1, fs_hz)
-    sos = butter_sos(2, (IONESCU_BAND_HZ[0], min(IONESCU_BAND_HZ[1], 0.45 * fs_hz)), "bandpass", fs_hz)
-    x = sosfiltfilt(sos, x, padlen=min(n - 1, int(round(3 * fs_hz))))
+    x = butter_filtfilt(2, (IONESCU_BAND_HZ[0], min(IONESCU_BAND_HZ[1], 0.45 * fs_hz)), "bandpass", fs_hz, x,
+                        padlen=min(n - 1, int(round(3 * fs_hz))))
     x = gaussian_filter1d(x, cwt_sigma_s * fs_hz, order=2, mode="reflect") * fs_hz ** 2
     x = _savgol(x, *SAVGOL_2, fs_hz)
     x = gaussian_filter1d(x, cwt_sigma_s * fs_hz, order=2, mode="reflect") * fs_hz ** 2

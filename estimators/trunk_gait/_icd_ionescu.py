@@ -36,9 +36,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from scipy.ndimage import gaussian_filter1d
-from scipy.signal import sosfiltfilt
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 
 IONESCU_BAND_HZ = (0.15, 3.14)      # Paraschiv-Ionescu et al. 2020 pre-filter band
 IONESCU_SIGMA_S = 9 / 40 / np.sqrt(2)   # their gaus2 scale (9 samples at 40 Hz) as a Gaussian σ, Eq. (3): 0.159 s
@@ -49,8 +48,8 @@ def ionescu_signal(v_up: np.ndarray, fs_hz: float, *, sigma_s: float = IONESCU_S
     """W of Eqs. (1)-(3): the band-passed vertical acceleration's Gaussian-smoothed derivative, mean removed."""
     n = len(v_up)
     hi = min(band_hz[1], 0.45 * fs_hz)
-    sos = butter_sos(2, (band_hz[0], hi), "bandpass", fs_hz)
-    x = sosfiltfilt(sos, np.asarray(v_up, float), padlen=min(n - 1, int(round(3 * fs_hz))))
+    x = butter_filtfilt(2, (band_hz[0], hi), "bandpass", fs_hz, np.asarray(v_up, float),
+                        padlen=min(n - 1, int(round(3 * fs_hz))))
     w = gaussian_filter1d(x, sigma_s * fs_hz, order=1, mode="nearest") * fs_hz
     return w - w.mean()
 

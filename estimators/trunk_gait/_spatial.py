@@ -13,21 +13,21 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
-from scipy.signal import sosfiltfilt
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 
 
 def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.ndarray:
     """(N,) vertical position, m, from the upward acceleration (m/s², gravity removed) of one gait sequence."""
     if len(v_up) < 16:
         return np.zeros(len(v_up))
-    sos = butter_sos(4, highpass_hz, "highpass", fs_hz)
     pad = min(len(v_up) - 1, int(3 * fs_hz))
     dt = 1.0 / fs_hz
-    a = sosfiltfilt(sos, v_up, padlen=pad)
-    vel = sosfiltfilt(sos, cumulative_trapezoid(a, dx=dt, initial=0.0), padlen=pad)
-    return sosfiltfilt(sos, cumulative_trapezoid(vel, dx=dt, initial=0.0), padlen=pad)
+
+    def hp(x):
+        return butter_filtfilt(4, highpass_hz, "highpass", fs_hz, x, padlen=pad)
+    vel = hp(cumulative_trapezoid(hp(v_up), dx=dt, initial=0.0))
+    return hp(cumulative_trapezoid(vel, dx=dt, initial=0.0))
 
 
 def hampel(x: np.ndarray, half_width: int, n_sigma: float, groups: np.ndarray | None = None) -> np.ndarray:

@@ -10,9 +10,8 @@ gyroscope onto the gravity-aligned vertical of each gait sequence (tilt < 30 deg
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import sosfiltfilt
 
-from stridelab.estimators.trunk_gait._filters import butter_sos
+from stridelab.estimators.trunk_gait._filters import butter_filtfilt
 from stridelab.estimators.trunk_gait._types import Turns
 
 EMPTY_TURNS = Turns(start_s=np.empty(0), end_s=np.empty(0), angle_deg=np.empty(0), peak_rate_deg_s=np.empty(0))
@@ -24,8 +23,8 @@ def detect_turns(yaw_rate_rad_s: np.ndarray, fs_hz: float, *, t0_s: float, lowpa
     n = len(yaw_rate_rad_s)
     if n < 16:
         return EMPTY_TURNS
-    sos = butter_sos(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs_hz)
-    w = np.rad2deg(sosfiltfilt(sos, yaw_rate_rad_s, padlen=min(n - 1, 15)))
+    w = np.rad2deg(butter_filtfilt(2, min(lowpass_hz, 0.45 * fs_hz), "lowpass", fs_hz, yaw_rate_rad_s,
+                                   padlen=min(n - 1, 15)))
     active = np.abs(w) >= edge_deg_s
     sign = np.sign(w)
     # segments of constant sign above the edge threshold
