@@ -114,28 +114,10 @@ def load_items(voisard: Path | None, mobilised: Path | None, uci: Path | None) -
     return items, failed
 
 
-def _sequences_with(p):
-    """``_pipeline._sequences`` forwarding the slow-walking constants of ``p`` (the estimator's own forwards the
-    strong-rule constants; the slow-rule defaults are TrunkGaitParams')."""
-    from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
-
-    def seq(acc, fs_hz, q):
-        return detect_gait_sequences(acc, fs_hz, window_s=q.gsd_window_s, hop_s=q.gsd_hop_s,
-                                     min_std_m_s2=q.gsd_min_std_m_s2, min_autocorr=q.gsd_min_autocorr,
-                                     merge_gap_s=q.gsd_merge_gap_s, slow_min_std_m_s2=p.gsd_slow_min_std_m_s2,
-                                     slow_min_autocorr=p.gsd_slow_min_autocorr)
-    return seq
-
-
 def run_item(it: Item, params) -> dict:
-    from stridelab.estimators.trunk_gait import _pipeline, analyse_trunk_gait
-    orig = _pipeline._sequences
-    _pipeline._sequences = _sequences_with(params)
-    try:
-        res = analyse_trunk_gait(it.acc, it.gyr, it.fs, placement=it.placement, height_m=it.height_m,
-                                 leg_length_m=it.rec.leg_length_m if it.rec is not None else None, params=params)
-    finally:
-        _pipeline._sequences = orig
+    from stridelab.estimators.trunk_gait import analyse_trunk_gait
+    res = analyse_trunk_gait(it.acc, it.gyr, it.fs, placement=it.placement, height_m=it.height_m,
+                             leg_length_m=it.rec.leg_length_m if it.rec is not None else None, params=params)
     n = len(it.acc)
     ic_idx = np.clip(np.rint(res.initial_contacts_s * it.fs).astype(np.int64), 0, n - 1)
     in_bout = np.zeros(n, bool)
