@@ -154,7 +154,10 @@ def fig_home(cap: pd.DataFrame, days: pd.DataFrame):
         a1.bar(x + (k - 1) * 0.27, cap[col].astype(float).fillna(0).to_numpy(), width=0.27, label=lab)
     a1.set_xticks(x, [f"visit {v}" for v in cap["visit"]])
     a1.set_ylabel("m/s")
-    a1.legend(fontsize=6, frameon=False)
+    top = np.nanmax(cap[["lab_speed_m_s", "home_speed_median_m_s", "home_speed_p95_m_s"]].astype(float).to_numpy(),
+                    initial=0.0)
+    a1.set_ylim(0, max(top, 0.1) * 1.3)                    # headroom: the legend sits above the bars, not on them
+    a1.legend(fontsize=6, frameon=False, loc="upper center", ncol=3)
     if len(days):
         a2.plot(days["date"], days["speed_median_m_s"], "o-", label="median")
         a2.plot(days["date"], days["speed_p95_m_s"], "s--", label="95th centile")
