@@ -67,11 +67,6 @@ def _align(pos: int, n: int) -> int:
     return 4 + (rel + n - 1) // n * n
 
 
-def _header_dtype_fields(frame_id: bytes):
-    return [("encap", "u1", (4,)), ("sec", "<i4"), ("nsec", "<u4"), ("slen", "<u4"),
-            ("frame", "S", len(frame_id) + 1)]
-
-
 def encode_doubles(schema: str, t_ns: np.ndarray, values: np.ndarray, frame_id: str) -> np.ndarray:
     """Encode messages whose body (after the header) is float64 only; returns ``(N, L)`` uint8.
 
@@ -195,6 +190,17 @@ def _u32(buf, p):
 
 
 @njit(cache=True, nogil=True)
+def _read_header(buf, p, L):
+    """The little-endian encapsulation and ``std_msgs/Header`` of the message at ``p`` (``L`` bytes): (status 0 ok,
+    1 big-endian or unknown encapsulation, 2 too short; stamp ns; its nanoseconds field; frame_id length with NUL)."""
+    if L < 16 or buf[p] != 0 or buf[p + 1] != 1:
+        return (1 if L >= 16 else 2), np.int64(0), np.int64(0), np.int64(0)
+    sec = np.int64(np.int32(_u32(buf, p + 4)))
+    nsec = np.int64(_u32(buf, p + 8))
+    return 0, sec * 1_000_000_000 + nsec, nsec, np.int64(_u32(buf, p + 12))
+
+
+@njit(cache=True, nogil=True)
 def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_vals_u8, status):
     """Decode header stamp and selected float64 fields of N messages.
 
@@ -208,13 +214,11 @@ def decode_doubles_kernel(buf, starts, lengths, fields, n_doubles, out_t, out_va
     for i in range(starts.shape[0]):
         p = starts[i]
         L = lengths[i]
-        if L < 16 or buf[p] != 0 or buf[p + 1] != 1:
-            status[i] = 1 if L >= 16 else 2
+        code, t_ns, nsec, slen = _read_header(buf, p, L)
+        if code:
+            status[i] = code
             continue
-        sec = np.int64(np.int32(_u32(buf, p + 4)))
-        nsec = np.int64(_u32(buf, p + 8))
-        out_t[i] = sec * 1_000_000_000 + nsec
-        slen = np.int64(_u32(buf, p + 12))
+        out_t[i] = t_ns
         rel = 16 + slen - 4
         body = 4 + (rel + 7) // 8 * 8
         need = body + 8 * n_doubles
@@ -242,13 +246,11 @@ def decode_range_kernel(buf, starts, lengths, n_floats, out_t, out_vals_u8, stat
     for i in range(starts.shape[0]):
         p = starts[i]
         L = lengths[i]
-        if L < 16 or buf[p] != 0 or buf[p + 1] != 1:
-            status[i] = 1 if L >= 16 else 2
+        code, t_ns, nsec, slen = _read_header(buf, p, L)
+        if code:
+            status[i] = code
             continue
-        sec = np.int64(np.int32(_u32(buf, p + 4)))
-        nsec = np.int64(_u32(buf, p + 8))
-        out_t[i] = sec * 1_000_000_000 + nsec
-        slen = np.int64(_u32(buf, p + 12))
+        out_t[i] = t_ns
         pos = 16 + slen + 1
         rel = pos - 4
         start = 4 + (rel + 3) // 4 * 4
