@@ -572,6 +572,7 @@ def foot_params_from_dict(d: dict) -> FootParams:
     Unknown keys raise ``TypeError`` (a misspelt manifest key must not be silently ignored)."""
     d = dict(d)
     traj = dict(d.pop("trajectory", {}))
-    base = FootParams().trajectory                         # missing keys keep the gait defaults (GAIT_ZUPT)
-    zupt = replace(base.zupt, **traj.pop("zupt", {}))
-    return FootParams(trajectory=replace(base, **traj, zupt=zupt), events=IcTcParams(**d.pop("events", {})), **d)
+    defaults = FootParams()                                # missing keys keep the gait defaults (GAIT_ZUPT, T = -0.1)
+    zupt = replace(defaults.trajectory.zupt, **traj.pop("zupt", {}))
+    return FootParams(trajectory=replace(defaults.trajectory, **traj, zupt=zupt),
+                      events=replace(defaults.events, **d.pop("events", {})), **d)

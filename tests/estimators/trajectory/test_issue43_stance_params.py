@@ -41,6 +41,8 @@ def test_trajectory_and_gait_each_own_their_stance_detector():
     assert dataclasses.replace(FootParams().trajectory, zupt=TRAJECTORY_ZUPT) == EskfParams()
     # a stage's JSON params without the detector keep the gait's, not the trajectory's
     assert foot_params_from_dict({}).trajectory == FootParams().trajectory
+    assert foot_params_from_dict({}) == FootParams()                  # the events too (T = -0.1, not the class's -0.2)
+    assert foot_params_from_dict({"events": {"refractory_s": 0.2}}).events.threshold == FootParams().events.threshold
     assert foot_params_from_dict(dataclasses.asdict(FootParams())) == FootParams()
     fp = foot_params_from_dict({"trajectory": {"acc_noise_rel": 0.3}})
     assert fp.trajectory.zupt == GAIT_ZUPT and fp.trajectory.acc_noise_rel == 0.3
