@@ -53,11 +53,6 @@ class ZuptParams:
         counted 54 of 191 on its held-back trials); with (Z5) 9 of 218. θ_hi = 3 rad/s is the bound: the foot rolls
         over at most about 30° in a 0.2 s running stance (≈ 2.6 rad/s), so a cycle whose quietest window turns
         faster has no stance to give. Chosen on by leave-one-trial-out (validation/provenance.toml).
-    restore_edges_min_s: (Z6, issue 43 fifth round) the window maximum of (Z1) erodes every still run by half a
-        window (``window_s``/2) at each end; a final stance run of at least this duration gets those samples back
-        (a walking foot-flat: its ends are still, and the ZUPT lever term (E5b) weighs the rolling edge samples
-        down). Short runs (running contacts, pauses, Z5 windows) stay eroded: their ends are the impact and the
-        push-off. None = off (the class default, so the gait events' detector does not have it).
     """
     gyr_threshold_rad_s: float = 0.3
     acc_tolerance_m_s2: float = 1.25
@@ -69,7 +64,6 @@ class ZuptParams:
     adapt_window_s: float = 1.0
     adapt_contrast: float = 10.0
     cycle_window: bool = True
-    restore_edges_min_s: float | None = None
 
 
 @njit(cache=True)
@@ -243,20 +237,7 @@ def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
             quietest = np.isfinite(per) & (m <= _window_min_var(m, hk)) & (m <= params.adapt_max_rad_s)
             hw = max(0, int(round(params.window_s * fs / 2)))
             mask |= _window_max(quietest.astype(float), hw) > 0
-    if params.restore_edges_min_s is not None:                                                   # (Z6)
-        mask = _restore_edges(mask, max(0, int(round(params.window_s * fs / 2))),
-                              max(1, int(round(params.restore_edges_min_s * fs))))
     return mask
-
-
-def _restore_edges(mask: np.ndarray, half: int, min_len: int) -> np.ndarray:
-    """(Z6) runs of ``mask`` at least ``min_len`` samples long, widened by ``half`` samples at each end."""
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    out = mask.copy()
-    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-        if b - a >= min_len:
-            out[max(0, a - half):min(len(mask), b + half)] = True
-    return out
 
 
 #: the foot trajectory's stance detector (``EskfParams.zupt``), its own instance: the ``ZuptParams`` defaults but a

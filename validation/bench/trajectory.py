@@ -39,39 +39,26 @@ FAILED_ARMSE_M = 0.5
 #: 2 s if it is a genuine rest, max |omega| <= 0.05 rad/s; a priori numbers) -> 40 points.
 #: Fourth round (issue 43): x the trajectory's own minimum stance duration (``TRAJECTORY_ZUPT.min_stance_s``,
 #: decoupled from the gait events' ``GAIT_ZUPT``) 0.05 (first) / 0.1 / 0.15 s -> 120 points.
-#: Fifth round (issue 43): the stance-edge restoration (Z6, ``ZuptParams.restore_edges_min_s``) off (None, every
-#: point above) / on for runs >= 0.25 / 0.4 s, added after the 120 points (so it must earn its place) at the values
-#: the fourth round chose in 28/28 folds (c_g 0.03, c_a 0.15, midpoint) x gyro delay 2.5 / 3.75 ms x gyro bias
-#: none / rest x min stance 0.05 / 0.1 s -> 136 points.
-GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s", "gyro_bias", "min_stance_s",
-             "restore_edges_min_s")
+GRID_KEYS = ("gyr_noise_rel", "acc_noise_rel", "attitude_rule", "gyro_delay_s", "gyro_bias", "min_stance_s")
 ATTITUDE_TIMINGS = (("euler", 0.0), ("midpoint", 0.0), ("midpoint", 0.00125), ("midpoint", 0.0025),
                     ("midpoint", 0.00375))
 MIN_STANCE_S = (0.05, 0.1, 0.15)
-RESTORE_EDGES_MIN_S = (0.25, 0.4)
-PYSHOE_GRID = tuple((cg, ca, rule, d, gb, ms, None) for ms in MIN_STANCE_S for gb in ("none", "rest")
-                    for cg in (0.03, 0.01) for ca in (0.3, 0.15) for rule, d in ATTITUDE_TIMINGS) + \
-    tuple((0.03, 0.15, "midpoint", d, gb, ms, re) for re in RESTORE_EDGES_MIN_S for ms in (0.05, 0.1)
-          for gb in ("none", "rest") for d in (0.0025, 0.00375))
+PYSHOE_GRID = tuple((cg, ca, rule, d, gb, ms) for ms in MIN_STANCE_S for gb in ("none", "rest") for cg in (0.03, 0.01)
+                    for ca in (0.3, 0.15) for rule, d in ATTITUDE_TIMINGS)
 #: gaitmap RtsKalman grid, the same leave-one-trial-out: its ZUPT threshold (NormZuptDetector, deg/s, default
 #: 34) × level_walking (its flat-floor height update, default on) — its two options that matter on this data.
 GAITMAP_GRID = tuple((thr, lw) for thr in (34.0, 60.0, 100.0, 150.0, 200.0, 300.0) for lw in (True, False))
 
 
-_SHIPPED = object()
-
-
 def grid_params(cg: float, ca: float, rule: str, delay_s: float, gyro_bias: str = "none",
-                min_stance_s: float | None = None, restore_edges_min_s=_SHIPPED):
-    """EskfParams of one grid point (everything else at the shipped defaults; ``min_stance_s`` None and
-    ``restore_edges_min_s`` not given keep the trajectory's stance detector as it ships)."""
+                min_stance_s: float | None = None):
+    """EskfParams of one grid point (everything else at the shipped defaults; ``min_stance_s`` None keeps the
+    trajectory's stance detector as it ships)."""
     import dataclasses
 
     from stridelab.estimators.trajectory import EskfParams
     base = EskfParams()
     zupt = base.zupt if min_stance_s is None else dataclasses.replace(base.zupt, min_stance_s=min_stance_s)
-    if restore_edges_min_s is not _SHIPPED:
-        zupt = dataclasses.replace(zupt, restore_edges_min_s=restore_edges_min_s)
     return dataclasses.replace(base, gyr_noise_rel=cg, acc_noise_rel=ca, attitude_rule=rule,
                                gyro_delay_s=delay_s, gyro_bias=gyro_bias, zupt=zupt)
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from stridelab.estimators.gait import FootParams, foot_kinematics, foot_trajectory
 from stridelab.estimators.gait._kinematics import GAIT_ZUPT, foot_params_from_dict
-from stridelab.estimators.trajectory import TRAJECTORY_ZUPT, EskfParams, ZuptParams, detect_zupt, eskf_trajectory
+from stridelab.estimators.trajectory import TRAJECTORY_ZUPT, EskfParams, detect_zupt, eskf_trajectory
 
 FS = 200.0
 
@@ -116,34 +116,3 @@ def test_a_filter_run_is_reused_only_for_the_same_mask_and_filter():
     other_mask = dataclasses.replace(p, zupt=dataclasses.replace(p.zupt, min_stance_s=0.1))
     m = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=other_mask, reuse=r)
     assert not np.array_equal(m.zupt, z) and m.pos is not r.pos
-
-
-def _runs(mask):
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
-def test_stance_edge_restoration_widens_long_runs_by_the_eroded_half_window_only():
-    """(Z6) The window maximum (Z1) erodes each still run by half a window at both ends; with
-    ``restore_edges_min_s`` the runs at least that long get exactly those samples back, shorter runs do not, and
-    None (the class default, the gait events' detector) changes nothing."""
-    rng = np.random.default_rng(1)
-    parts_w = [np.zeros(int(0.5 * FS)), 6.0 * np.ones(int(0.4 * FS)), np.zeros(int(0.15 * FS)),
-               6.0 * np.ones(int(0.4 * FS)), np.zeros(int(0.5 * FS))]
-    w = np.concatenate(parts_w)
-    gyr = np.column_stack([np.zeros_like(w), w, np.zeros_like(w)]) + 0.005 * rng.standard_normal((len(w), 3))
-    acc = np.column_stack([np.zeros_like(w), np.zeros_like(w), 9.81 * np.ones_like(w)])
-    base = ZuptParams(adaptive=False)
-    off = detect_zupt(gyr, acc, sampling_rate_hz=FS, params=base)
-    on = detect_zupt(gyr, acc, sampling_rate_hz=FS, params=dataclasses.replace(base, restore_edges_min_s=0.25))
-    assert np.array_equal(detect_zupt(gyr, acc, sampling_rate_hz=FS, params=ZuptParams(adaptive=False,
-                                                                                      restore_edges_min_s=None)), off)
-    half = int(round(base.window_s * FS / 2))
-    r_off, r_on = _runs(off), _runs(on)
-    assert len(r_off) == len(r_on) == 3
-    for (a0, b0), (a1, b1) in zip(r_off, r_on):
-        if b0 - a0 >= 0.25 * FS:
-            assert (a1, b1) == (max(0, a0 - half), min(len(w), b0 + half))
-        else:
-            assert (a1, b1) == (a0, b0)
-    assert r_off[1][1] - r_off[1][0] < 0.25 * FS <= r_off[0][1] - r_off[0][0]     # one short, the others long
