@@ -8,12 +8,14 @@ from __future__ import annotations
 from stridelab.estimators.gait._events import (GaitEventDetector, GaitEvents, IcTcParams, detect_ic_tc, pitch_signal,
                                      refine_heel_strike, refine_toe_off)
 from stridelab.estimators.gait._kinematics import (PARAM_COLUMNS, STRIDE_COLUMNS, FootKinematics, FootParams, SessionGait,
-                                         StrideTable, foot_kinematics, foot_params_from_dict, gait_session,
+                                         StrideTable, foot_kinematics, foot_params_from_dict, foot_trajectory,
+                                         gait_session,
                                          gait_session_pooled, refine_events)
 
 __all__ = ["GaitEventDetector", "GaitEvents", "IcTcParams", "detect_ic_tc", "pitch_signal", "refine_toe_off",
            "refine_heel_strike",
            "FootKinematics",
-           "FootParams", "SessionGait", "StrideTable", "foot_kinematics", "gait_session", "gait_session_pooled",
+           "FootParams", "SessionGait", "StrideTable", "foot_kinematics", "foot_trajectory", "gait_session",
+           "gait_session_pooled",
            "foot_params_from_dict", "refine_events", "PARAM_COLUMNS",
            "STRIDE_COLUMNS"]

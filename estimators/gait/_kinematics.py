@@ -22,6 +22,9 @@ from the pitch maximum into the loading rotation (H1, ``refine_heel_strike``; ``
         swing = IC − TC; stance = TC − previous IC; gait speed = length / stride time;
         clearance = max p_z over [TC, IC] − p_z(m_i) (height of the sensor point above its stance level);
         turning angle = change of the heading of R u_S between the two mid-stances (deg, + = to the left, ENU).
+    K4  the foot trajectory itself (``foot_trajectory``: what the gait stage stores and scores) is the ESKF on the
+        trajectory's own stance detector (``FootParams.trajectory_zupt``, default ``TRAJECTORY_ZUPT``), not on the
+        events' mask (K0, ``GAIT_ZUPT``): each detector is the one its own cross-validation chose.
 Session (``gait_session``):
     S1  cadence = 120 / mean stride time (steps/min, both feet);  S2  double support % = share of each stride
         (previous IC → IC) during which both feet are in stance (stance = IC → next TC of that foot);
@@ -39,9 +42,11 @@ from dataclasses import replace
 from stridelab.estimators.gait._events import (GaitEvents, IcTcParams, detect_ic_tc, pitch_signal, refine_heel_strike,
                                      refine_toe_off)
 from stridelab.estimators.gait._swing import HEEL_STRIKER_FRACTION, complete_swing_events, heel_strike_fraction
-from stridelab.estimators.trajectory import EskfParams, TrajectoryResult, ZuptParams, eskf_trajectory
+from stridelab.estimators.trajectory import (TRAJECTORY_ZUPT, EskfParams, TrajectoryResult, ZuptParams,
+                                            eskf_trajectory)
 
-__all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "refine_events", "SessionGait",
+__all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "foot_trajectory", "refine_events",
+           "SessionGait",
            "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
 
 STRIDE_COLUMNS = ("start", "end", "tc", "ic", "pre_ic")
@@ -59,11 +64,16 @@ class FootParams:
     """Everything that configures ``foot_kinematics``.
 
     trajectory: ESKF/ZUPT/RTS parameters; their ``zupt`` is the stance detector of the events *and* of the
-        trajectory the strides are measured on (one mask for both, K0). Default: the trajectory's shipped
-        ``EskfParams`` with ``GAIT_ZUPT`` (the ``ZuptParams`` class defaults) as the stance detector, not the
-        trajectory's own ``TRAJECTORY_ZUPT``: the trajectory's leave-one-trial-out on PyShoe chose a longer minimum
-        stance (issue 43, fourth round) that the gait events' cross-validation (Voisard, gaitmap walk) did not.
-        events: Algorithm 1 parameters; threshold T = −0.1 (≈ 5.7° toes down)
+        trajectory the events and strides are measured on (``FootKinematics.trajectory``, one mask for both, K0).
+        Default: the trajectory's shipped ``EskfParams`` with ``GAIT_ZUPT`` (the ``ZuptParams`` class defaults) as
+        the stance detector, not the trajectory's own ``TRAJECTORY_ZUPT``: the trajectory's leave-one-trial-out on
+        PyShoe chose a longer minimum stance (issue 43, fourth round) that the gait events' cross-validation
+        (Voisard, gaitmap walk) did not.
+    trajectory_zupt: the stance detector of the foot trajectory itself (``foot_trajectory``, K4: what the gait stage
+        stores and scores): ``trajectory`` with this ``zupt``. Default ``TRAJECTORY_ZUPT``, so the stored trajectory
+        is what ``stridelab bench trajectory`` scores as shipped (``EskfParams()``); None = the events' trajectory
+        (``FootKinematics.trajectory``, the behaviour before).
+    events: Algorithm 1 parameters; threshold T = −0.1 (≈ 5.7° toes down)
         instead of the thesis' −0.2, chosen by leave-one-group-out over the Voisard subjects and the gaitmap walk
         (``stridelab bench gait --voisard``, docs/gait.md); the streaming ``GaitEventDetector`` keeps −0.2.
     min_stride_length_m: strides shorter than this are not used to find the anterior axis (K1).
@@ -97,6 +107,7 @@ class FootParams:
         matched IC of the training groups (validation/provenance.toml); None = off.
     """
     trajectory: EskfParams = EskfParams(zupt=GAIT_ZUPT)
+    trajectory_zupt: ZuptParams | None = TRAJECTORY_ZUPT
     events: IcTcParams = IcTcParams(threshold=-0.1)
     min_stride_length_m: float = 0.2
     max_stride_time_s: float = 3.0
@@ -473,6 +484,22 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     return FootKinematics(traj, s, u, mids, ev, strides, fs, status, tuple(notes))
 
 
+def foot_trajectory(gyr: np.ndarray, acc: np.ndarray, fk: FootKinematics, *, sampling_rate_hz: float,
+                    params: FootParams = FootParams()) -> TrajectoryResult:
+    """(K4) The foot trajectory on its own stance detector: ``eskf_trajectory`` with ``params.trajectory`` and
+    ``zupt = params.trajectory_zupt`` (no K0: the events' rule for slow-swing pauses is theirs), i.e. with the
+    defaults exactly ``eskf_trajectory(gyr, acc, params=EskfParams())``, what ``stridelab bench trajectory``
+    scores. ``fk`` is ``foot_kinematics`` of the same arrays with the same ``params``: its trajectory is returned
+    as it is when ``trajectory_zupt`` is None, and reused (no second filter run) when the two detectors give the
+    same stance mask (``eskf_trajectory(reuse=…)``). The events and strides stay on ``fk.trajectory``."""
+    if params.trajectory_zupt is None:
+        return fk.trajectory
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return eskf_trajectory(gyr, acc, sampling_rate_hz=sampling_rate_hz,
+                               params=replace(params.trajectory, zupt=params.trajectory_zupt), reuse=fk.trajectory)
+
+
 @dataclass(frozen=True)
 class SessionGait:
     """Session parameters from both feet (S1–S3); NaN where a foot has no strides.
@@ -574,5 +601,7 @@ def foot_params_from_dict(d: dict) -> FootParams:
     traj = dict(d.pop("trajectory", {}))
     defaults = FootParams()                                # missing keys keep the gait defaults (GAIT_ZUPT, T = -0.1)
     zupt = replace(defaults.trajectory.zupt, **traj.pop("zupt", {}))
+    if d.get("trajectory_zupt") is not None:              # missing keys keep TRAJECTORY_ZUPT; None stays None
+        d["trajectory_zupt"] = replace(TRAJECTORY_ZUPT, **d["trajectory_zupt"])
     return FootParams(trajectory=replace(defaults.trajectory, **traj, zupt=zupt),
                       events=replace(defaults.events, **d.pop("events", {})), **d)

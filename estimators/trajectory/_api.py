@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit
@@ -38,7 +38,7 @@ class ZuptParams:
         (``stridelab bench trajectory --pyshoe``; docs/gait.md "Parameters and how they were chosen").
     window_s: centred window length (0.05 s).  min_stance_s: shorter still runs are dropped (the class default
         0.05 s is the gait events' detector, ``FootParams.trajectory.zupt``; the foot trajectory's own default is
-        ``EskfParams.zupt``, ``TRAJECTORY_ZUPT``, chosen by leave-one-trial-out on PyShoe).
+        ``EskfParams.zupt``, ``TRAJECTORY_ZUPT``: 0.1 s, chosen by leave-one-trial-out on PyShoe).
     adaptive: Z2–Z4 on.  adapt_ratio: β.  adapt_max_rad_s: θ_hi.  adapt_window_s: half-width of the n_k window
     (also the fallback of ``cycle_window``).  adapt_contrast: ρ.
     cycle_window: (Z5, issue 43) besides (Z3), the quietest window of every gait cycle is stance when it is below
@@ -240,13 +240,12 @@ def detect_zupt(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
     return mask
 
 
-#: the foot trajectory's stance detector (``EskfParams.zupt``), its own instance so that the trajectory can be given
-#: a value of its own. Today the ``ZuptParams`` defaults: the trajectory's leave-one-trial-out chose min_stance_s
-#: 0.1 s (``PYSHOE_GRID`` x 0.05 / 0.1 / 0.15 s, 28/28 folds), but the foot trajectory the pipeline stores is the gait
-#: stage's (``FootParams.trajectory``, one stance mask for events and trajectory, K0), whose detector the gait
-#: events' cross-validation chose; a bench's shipped_defaults must be what the pipeline stores
-#: (tests/pipeline/test_stage_bench_agreement.py), so 0.1 s is not shipped (validation/provenance.toml)
-TRAJECTORY_ZUPT = ZuptParams()
+#: the foot trajectory's stance detector (``EskfParams.zupt``), its own instance: the ``ZuptParams`` defaults but a
+#: minimum stance of 0.1 s, chosen by the trajectory's leave-one-trial-out (``PYSHOE_GRID`` x 0.05 / 0.1 / 0.15 s,
+#: 28/28 folds; validation/provenance.toml). The gait events keep theirs (``GAIT_ZUPT``, 0.05 s, in
+#: ``FootParams.trajectory``); the gait stage stores the trajectory on this one (``foot_trajectory``, K4), so the
+#: trajectory bench's shipped_defaults are what the pipeline stores (tests/pipeline/test_stage_bench_agreement.py)
+TRAJECTORY_ZUPT = ZuptParams(min_stance_s=0.1)
 
 
 @dataclass(frozen=True)
@@ -316,7 +315,7 @@ class EskfParams:
         fourth round), not the ``ZuptParams`` class default that the gait events keep (``FootParams.trajectory``
         pins those): the two are chosen by different cross-validations (PyShoe trajectory error here, Voisard
         event timing there), so a value one of them picks must not move the other. It differs from the class
-        default in ``min_stance_s`` only (chosen by leave-one-trial-out over ``PYSHOE_GRID``;
+        default in ``min_stance_s`` only (0.1 s, chosen by leave-one-trial-out over ``PYSHOE_GRID``;
         validation/provenance.toml).
     """
     acc_noise_m_s2: float = 0.5
@@ -478,12 +477,22 @@ def _attitude_gyro(gyr: np.ndarray, params: EskfParams, fs: float) -> np.ndarray
     return np.ascontiguousarray(np.column_stack([np.interp(t + shift, t, gyr[:, j]) for j in range(3)]))
 
 
+def _same_filter(a: EskfParams, b: EskfParams) -> bool:
+    """True when two parameter sets give the same filter for the same stance mask: they differ at most in the
+    detector's minimum stance duration, which acts only through the mask (``_drop_short`` in ``detect_zupt``)."""
+    return a == replace(b, zupt=replace(b.zupt, min_stance_s=a.zupt.min_stance_s))
+
+
 def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float,
-                    params: EskfParams = EskfParams(), zupt: np.ndarray | None = None) -> TrajectoryResult:
+                    params: EskfParams = EskfParams(), zupt: np.ndarray | None = None,
+                    reuse: "TrajectoryResult | None" = None) -> TrajectoryResult:
     """Foot position, velocity and attitude by ESKF + ZUPT + RTS (module ``_eskf`` equations E1–E7).
 
     gyr (N, 3) rad/s, acc (N, 3) m/s² specific force (any mounting). ``zupt`` (N,) bool overrides the detector.
     No stance → a warning and ``status="no_stance"`` with all-NaN arrays (no invented trajectory).
+    ``reuse``: a result of this function on the *same* gyr, acc and rate (the caller's promise); when its stance
+    mask and filter parameters equal this call's (they may differ in ``zupt.min_stance_s`` only), its arrays are
+    returned instead of running the filter again (the same numbers: the filter is deterministic), with ``params``.
     """
     gyr, acc = check_foot_imu(gyr, acc, sampling_rate_hz)
     n_s = gyr.shape[0]
@@ -502,6 +511,9 @@ def eskf_trajectory(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     zupt = np.ascontiguousarray(zupt, dtype=np.bool_)
     if zupt.shape != (n_s,):
         raise ValueError(f"zupt must be (N,) bool with N = {n_s}; got {zupt.shape}")
+    if reuse is not None and reuse.zupt.shape == zupt.shape and np.array_equal(reuse.zupt, zupt) \
+            and _same_filter(reuse.params, params):
+        return replace(reuse, params=params)
     nan3 = np.full((n_s, 3), np.nan)
     if not zupt.any():
         warnings.warn("eskf_trajectory: no stance (zero-velocity) sample detected; no trajectory computed",

@@ -122,6 +122,22 @@ def _cholesky_solve(A, b, n, L, y):
 
 
 @njit(cache=True)
+def _inject(d, n, p, v, q, ba, bg):
+    """(E6) the error-state correction ``d`` (n,) into the nominal state: p, v (and b_a, b_g when n = 15) additively
+    in place, q ← quat(δθ) ⊗ q normalised; returns q."""
+    for i in range(3):
+        p[i] += d[i]
+        v[i] += d[3 + i]
+    q = quat_mul_1(_quat_small(d[6:9]), q)
+    q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    if n == 15:
+        for i in range(3):
+            ba[i] += d[9 + i]
+            bg[i] += d[12 + i]
+    return q
+
+
+@njit(cache=True)
 def _scalar_inject(P, n, idx, y, r2, tmp, K, p, v, q, ba, bg, dx):
     """(E5c, E5d) one scalar measurement y = δx[idx] + noise (variance r2): Kalman update of P (optimal-gain form,
     symmetrised), the correction K·y injected into the nominal state (E6) and added to ``dx``; returns q."""
@@ -139,16 +155,7 @@ def _scalar_inject(P, n, idx, y, r2, tmp, K, p, v, q, ba, bg, dx):
     for i in range(n):
         d[i] = K[i, 0] * y
         dx[i] += d[i]
-    for i in range(3):
-        p[i] += d[i]
-        v[i] += d[3 + i]
-    q = quat_mul_1(_quat_small(d[6:9]), q)
-    q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-    if n == 15:
-        for i in range(3):
-            ba[i] += d[9 + i]
-            bg[i] += d[12 + i]
-    return q
+    return _inject(d, n, p, v, q, ba, bg)
 
 
 @njit(cache=True)
@@ -236,15 +243,7 @@ def eskf_rts_kernel(gyr, acc, zupt, T, k0, q0, bg0, n, qd, sig_a, sig_g, p0_diag
                     s += r2 * (K[i, 0] * K[j, 0] + K[i, 1] * K[j, 1] + K[i, 2] * K[j, 2])
                     P[i, j] = s
                     P[j, i] = s
-            for i in range(3):
-                p[i] += dx[i]
-                v[i] += dx[3 + i]
-            q = quat_mul_1(_quat_small(dx[6:9]), q)
-            q = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-            if n == 15:
-                for i in range(3):
-                    ba[i] += dx[9 + i]
-                    bg[i] += dx[12 + i]
+            q = _inject(dx, n, p, v, q, ba, bg)
             if var_h > 0.0:
                 # ---- flat-floor stance height (E5c): z = 0 − p̂_z = δp_z + n_h (first stance at z = 0)
                 q = _scalar_inject(P, n, 2, -p[2], var_h, tmp, K, p, v, q, ba, bg, dx)

@@ -43,6 +43,20 @@ def rms_error_per_axis(estimate: np.ndarray, reference: np.ndarray) -> np.ndarra
     return out
 
 
+def _hold_leading_rows(p: np.ndarray) -> bool:
+    """The estimate rule of every ARMSE here, in place on ``p`` (N, D): leading non-finite rows (a filter that starts at
+    the first stance) take the first finite row (the foot has not moved before it); any other non-finite row is a
+    ValueError. False when no row is finite (the caller returns NaN)."""
+    ok = np.all(np.isfinite(p), axis=1)
+    if not ok.any():
+        return False
+    k0 = int(np.argmax(ok))
+    p[:k0] = p[k0]
+    if not np.all(np.isfinite(p)):
+        raise ValueError("estimate has non-finite rows after its first finite one")
+    return True
+
+
 def armse_2d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_distance_m: float = ALIGN_DISTANCE_M,
                      fallback_sample: int = ALIGN_FALLBACK_SAMPLE) -> tuple[float, np.ndarray]:
     """(M1)–(M2): 2-D Euclidean ARMSE (m) and the aligned estimate (N, 2).
@@ -55,13 +69,8 @@ def armse_2d_aligned(estimate: np.ndarray, reference: np.ndarray, *, align_dista
     r = np.asarray(reference, float)[:, :2]
     if p.shape != r.shape or len(p) < 2:
         raise ValueError(f"estimate and reference need the same (N >= 2, 2+) shape; got {p.shape} and {r.shape}")
-    ok = np.all(np.isfinite(p), axis=1)
-    if not ok.any():
+    if not _hold_leading_rows(p):
         return float("nan"), p
-    k0 = int(np.argmax(ok))
-    p[:k0] = p[k0]
-    if not np.all(np.isfinite(p)):
-        raise ValueError("estimate has non-finite rows after its first finite one")
     rv = np.all(np.isfinite(r), axis=1)
     r0 = r[int(np.argmax(rv))]
     p = p - p[0]
@@ -107,13 +116,8 @@ def armse_pyshoe(estimate: np.ndarray, reference: np.ndarray, *, dims: int = 2,
     r = np.asarray(reference, float)[:, :3]
     if p.shape != r.shape or len(p) < 2:
         raise ValueError(f"estimate and reference need the same (N >= 2, 3) shape; got {p.shape} and {r.shape}")
-    ok = np.all(np.isfinite(p), axis=1)
-    if not ok.any():
+    if not _hold_leading_rows(p):
         return float("nan")
-    k0 = int(np.argmax(ok))
-    p[:k0] = p[k0]
-    if not np.all(np.isfinite(p)):
-        raise ValueError("estimate has non-finite rows after its first finite one")
     rv = np.all(np.isfinite(r), axis=1)
     p = p - p[0]
     rr = r - r[int(np.argmax(rv))]

@@ -37,13 +37,14 @@ def foot_rows(sid: str, rec: dict, placement: str, side: str, t_ns: np.ndarray, 
     return {"gait_events": ev, "strides": strides}
 
 
-def trajectory_table(t_ns: np.ndarray, fks: list[tuple[int, int, object]], ds: list | None) -> pa.Table:
-    """The foot trajectory series (``t_ns, px, py, pz, vx, vy, vz, stance`` [+ ``pz_floor, range_used_a/b``])."""
+def trajectory_table(t_ns: np.ndarray, trajs: list[tuple[int, int, object]], ds: list | None) -> pa.Table:
+    """The foot trajectory series (``t_ns, px, py, pz, vx, vy, vz, stance`` [+ ``pz_floor, range_used_a/b``]) from
+    the segments' ``TrajectoryResult`` (``(a, b, result)``; ``stance`` = the trajectory's zero-velocity samples)."""
     n = len(t_ns)
     pos, vel = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     stance = np.zeros(n, bool)
-    for a, b, fk in fks:
-        pos[a:b], vel[a:b], stance[a:b] = fk.trajectory.pos, fk.trajectory.vel, fk.trajectory.zupt
+    for a, b, tr in trajs:
+        pos[a:b], vel[a:b], stance[a:b] = tr.pos, tr.vel, tr.zupt
     cols = {"t_ns": t_ns, "px": pos[:, 0], "py": pos[:, 1], "pz": pos[:, 2], "vx": vel[:, 0], "vy": vel[:, 1],
             "vz": vel[:, 2], "stance": stance}
     if ds is not None:

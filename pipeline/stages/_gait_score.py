@@ -80,18 +80,19 @@ def event_rows(sid: str, det: dict, ref: dict, spans: dict, tol_s: float,
     return metrics, pairs
 
 
-def trajectory_rows(sid: str, placement: str, t_ns: np.ndarray, fks: list, ref, notes: list, trial) -> list[dict]:
+def trajectory_rows(sid: str, placement: str, t_ns: np.ndarray, trajs: list, ref, notes: list, trial) -> list[dict]:
     """Foot trajectory vs the optical foot position (PyShoe's Vicon): 2-D Euclidean ARMSE after PyShoe's alignment
     (the scorer of ``stridelab bench trajectory --pyshoe``), per segment with a reference on at least half its
-    samples, pooled weighted by length; and the 3-D error after the same alignment (metric ``armse_3d_m``)."""
+    samples, pooled weighted by length; and the 3-D error after the same alignment (metric ``armse_3d_m``).
+    ``trajs``: the stored trajectories ``(a, b, TrajectoryResult)`` of the segments."""
     from stridelab.estimators.trajectory.evaluation import armse_2d_aligned, armse_3d_aligned
     rt, rp = ref
     if len(rt) < 2:
         return []
     half = 0.5 * float(np.median(np.diff(rt)))
     parts = []
-    for a, b, fk in fks:
-        if fk.status == "no_stance":
+    for a, b, tr in trajs:
+        if tr.status != "ok":
             continue
         t = t_ns[a:b]
         j = np.clip(np.searchsorted(rt, t), 1, len(rt) - 1)
@@ -100,8 +101,8 @@ def trajectory_rows(sid: str, placement: str, t_ns: np.ndarray, fks: list, ref, 
         if np.all(np.isfinite(on), axis=1).mean() < 0.5:
             continue
         try:
-            e, _ = armse_2d_aligned(fk.trajectory.pos, on)
-            e3 = armse_3d_aligned(fk.trajectory.pos, on)
+            e, _ = armse_2d_aligned(tr.pos, on)
+            e3 = armse_3d_aligned(tr.pos, on)
         except ValueError as err:
             notes.append(f"{trial} {placement}: trajectory not scored ({err})")
             continue

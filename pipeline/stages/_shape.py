@@ -43,10 +43,13 @@ def params_to_dict(p) -> dict:
     return json.loads(json.dumps(dataclasses.asdict(p), default=list))
 
 
-def params_from_dict(cls, d: dict | None, where: str = ""):
+def params_from_dict(cls, d: dict | None, where: str = "", base=None):
     """dict (as stored in the ledger / the study manifest) → ``cls``; nested dataclass fields rebuilt (their class
     is the class of the field's default, so a stage module need not import an estimator package to declare its
-    parameters), lists to tuples, unknown keys refused naming where they are and the field names the class has."""
+    parameters), lists to tuples, unknown keys refused naming where they are and the field names the class has.
+    A nested table keeps the keys it does not give at the enclosing default's value (``base``), not at its class's
+    defaults: ``foot.trajectory_zupt = {window_s = 0.03}`` keeps ``TRAJECTORY_ZUPT``'s minimum stance, and
+    ``foot.trajectory.zupt`` the gait's ``GAIT_ZUPT``."""
     d = dict(d or {})
     where = where or cls.__name__
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -57,14 +60,16 @@ def params_from_dict(cls, d: dict | None, where: str = ""):
     out = {}
     for k, v in d.items():
         f = fields[k]
-        proto = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        proto = getattr(base, k) if base is not None else None
+        if not dataclasses.is_dataclass(proto):
+            proto = f.default if f.default is not dataclasses.MISSING else (
+                f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
         if dataclasses.is_dataclass(proto) and isinstance(v, dict):
-            v = params_from_dict(type(proto), v, f"{where}.{k}")
+            v = params_from_dict(type(proto), v, f"{where}.{k}", proto)
         elif isinstance(v, list):
             v = tuple(v)
         out[k] = v
-    return cls(**out)
+    return dataclasses.replace(base, **out) if base is not None else cls(**out)
 
 
 def shaped_stage(name: str, version: str, params_cls, compute: Callable[[StageContext, object], None], *,

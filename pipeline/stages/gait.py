@@ -2,7 +2,9 @@
 warehouse -> stridelab.estimators.gait -> warehouse.
 
 ``compute``: for each walking trial (recording whose trial is not ``calibration``) and each foot IMU
-(``foot_left``, ``foot_right``), :func:`stridelab.estimators.gait.foot_kinematics` per contiguous segment of samples; when
+(``foot_left``, ``foot_right``), :func:`stridelab.estimators.gait.foot_kinematics` (events, strides) and
+:func:`stridelab.estimators.gait.foot_trajectory` (the stored foot trajectory, on the trajectory's own stance
+detector ``TRAJECTORY_ZUPT``: what ``stridelab bench trajectory`` scores) per contiguous segment of samples; when
 the recording carries the shoe distance sensors (``/range/<foot>/<A|B>``) and ``distance_sensors.use`` is on, the
 foot's vertical trajectory from the Duong & Suh filter (:func:`stridelab.estimators.trajectory.duong_suh_trajectory`);
 :func:`stridelab.estimators.gait.gait_session_pooled` over the whole session. ``score`` (separate step,
@@ -70,7 +72,7 @@ def walking_recordings(recordings: list[dict]) -> list[dict]:
 
 
 def compute(ctx: StageContext, p: GaitParams) -> None:
-    from stridelab.estimators.gait import foot_kinematics, gait_session_pooled
+    from stridelab.estimators.gait import foot_kinematics, foot_trajectory, gait_session_pooled
     sid, f, pairs = ctx.session_id, _Found(), []
     notes, dp = f.notes, p.distance_sensors
     recs = walking_recordings(ctx.recordings)
@@ -90,10 +92,12 @@ def compute(ctx: StageContext, p: GaitParams) -> None:
                 continue
             fs, t_ns = float(data.sampling_rate_hz), data.t_ns
             segs = [(a, b) for a, b in contiguous_segments(t_ns) if b - a >= p.min_segment_s * fs]
-            fks, mine = [], []
+            fks, trajs, mine = [], [], []
             for a, b in segs:
                 fk = foot_kinematics(data.gyr[a:b], data.acc[a:b], sampling_rate_hz=fs, params=p.foot)
                 fks.append((a, b, fk))
+                trajs.append((a, b, foot_trajectory(data.gyr[a:b], data.acc[a:b], fk, sampling_rate_hz=fs,
+                                                    params=p.foot)))
                 f.statuses[side].append(fk.status)
                 notes += [f"{rec['trial']} {placement}: {n}" for n in fk.notes]
                 rows = foot_rows(sid, rec, placement, side, t_ns[a:b], fk)
@@ -115,16 +119,16 @@ def compute(ctx: StageContext, p: GaitParams) -> None:
                 st = [r.status for *_, r in ds]
                 ds_status = "ok" if "ok" in st else (st[0] if st else "too_short")
             rel = ctx.write_series(placement, f"foot-trajectory-{rec['content_hash'][:12]}-{ctx.params_key[:12]}",
-                                   trajectory_table(t_ns, fks, ds))
+                                   trajectory_table(t_ns, trajs, ds))
             ctx.emit("foot_trajectories", [{
                 "session_id": sid, "content_hash": rec["content_hash"], "trial": rec["trial"], "placement": placement,
                 "side": side, "estimator": ESTIMATOR, "n_samples": len(t_ns), "sampling_rate_hz": fs,
-                "status": "ok" if any(fk.status != "no_stance" for *_, fk in fks) else "no_stance",
+                "status": "ok" if any(tr.status == "ok" for *_, tr in trajs) else "no_stance",
                 "range_estimator": None if ds is None else (
                     "duong_suh_21" if dp.filter.estimate_calibration else "duong_suh_9"),
                 "range_status": ds_status, "range_geometry": geo_src,
                 "range_used_fraction": num(ds[0][2].used_fraction) if ds else None, "series_path": rel}])
-            f.feet.append((rec, side, t_ns, fks, len(notes), mine))
+            f.feet.append((rec, side, t_ns, fks, trajs, len(notes), mine))
         # both feet on one grid: pair their segments for double support; otherwise each foot alone
         if "left" in fk_by_side and "right" in fk_by_side and np.array_equal(fk_by_side["left"][0],
                                                                             fk_by_side["right"][0]):
@@ -141,12 +145,12 @@ def compute(ctx: StageContext, p: GaitParams) -> None:
 def score(ctx: StageContext, p: GaitParams) -> None:
     f, sid, events = ctx.found[0], ctx.session_id, ctx.inp.events
     det_ev, ref_ev, spans, traj, inserts = {}, {}, {}, [], []
-    for rec, side, t_ns, fks, note_at, mine in f.feet:
+    for rec, side, t_ns, fks, trajs, note_at, mine in f.feet:
         placement = f"foot_{side}"
         ref = ctx.reference_pose(rec, placement, ("px", "py", "pz"))
         if ref is not None:
             extra = []
-            traj += sc.trajectory_rows(sid, placement, t_ns, fks, ref, extra, rec["trial"])
+            traj += sc.trajectory_rows(sid, placement, t_ns, trajs, ref, extra, rec["trial"])
             inserts.append((note_at, extra))
             sc.stride_reference_lengths(mine, ref, events, rec, side)
         spans.setdefault(side, []).append(sc.annotated_span(events, rec, placement))
@@ -175,5 +179,5 @@ def finish(ctx: StageContext, p: GaitParams) -> None:
     ctx.set_note(f"gait {status}" + (f": {note}" if note and status != "ok" else ""))
 
 
-STAGE = shaped_stage("gait", "6", GaitParams, compute, score=score, finish=finish, tables=TABLES,
+STAGE = shaped_stage("gait", "7", GaitParams, compute, score=score, finish=finish, tables=TABLES,
                      session_kinds=("lab",))

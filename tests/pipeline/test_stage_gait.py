@@ -49,7 +49,7 @@ def warehouse(lab_files, tmp_path_factory):
 
 
 def test_rows_equal_the_estimator_on_the_same_arrays(warehouse):
-    from stridelab.estimators.gait import foot_kinematics, foot_params_from_dict
+    from stridelab.estimators.gait import foot_kinematics, foot_params_from_dict, foot_trajectory
     params = gait_stage.STAGE.default_params()
     traj = _df(warehouse, "SELECT * FROM foot_trajectories ORDER BY placement")
     assert list(traj["placement"]) == ["foot_left", "foot_right"] and set(traj["trial"]) == {"walk-1"}
@@ -57,11 +57,13 @@ def test_rows_equal_the_estimator_on_the_same_arrays(warehouse):
     try:
         for _, r in traj.iterrows():
             s = read_imu(con, warehouse, r["content_hash"], r["placement"])
-            fk = foot_kinematics(s.gyr, s.acc, sampling_rate_hz=s.sampling_rate_hz,
-                                 params=foot_params_from_dict(params["foot"]))
+            fp = foot_params_from_dict(params["foot"])
+            fk = foot_kinematics(s.gyr, s.acc, sampling_rate_hz=s.sampling_rate_hz, params=fp)
+            tr = foot_trajectory(s.gyr, s.acc, fk, sampling_rate_hz=s.sampling_rate_hz, params=fp)   # K4
             t = read_table(warehouse, r["series_path"])
             got = np.column_stack([t.column(c).to_numpy() for c in ("px", "py", "pz", "vx", "vy", "vz")])
-            np.testing.assert_array_equal(got, np.hstack([fk.trajectory.pos, fk.trajectory.vel]))
+            np.testing.assert_array_equal(got, np.hstack([tr.pos, tr.vel]))
+            np.testing.assert_array_equal(t.column("stance").to_numpy(), tr.zupt)
             np.testing.assert_array_equal(t.column("t_ns").to_numpy(), s.t_ns)
             for typ, idx in (("IC", fk.events.ic_idx), ("TC", fk.events.tc_idx)):
                 ev = [x for (x,) in con.execute("SELECT t_ns FROM gait_events WHERE placement = ? AND type = ? "

@@ -59,6 +59,23 @@ def test_a_nested_unknown_key_is_refused_naming_its_place():
     assert p.min_segment_s == 3 and p.foot == GaitParams().foot
 
 
+def test_a_nested_table_keeps_the_keys_it_does_not_give_at_the_stage_defaults():
+    """A manifest that sets one key of a nested table keeps the others as the stage ships them, also where the
+    enclosing default differs from the nested class's defaults (the trajectory's own stance detector, the gait
+    events' threshold)."""
+    import dataclasses
+
+    from stridelab.pipeline.stages.gait import GaitParams
+    foot = GaitParams().foot
+    p = params_from_dict(GaitParams, {"foot": {"trajectory_zupt": {"window_s": 0.03}, "events": {"refractory_s": 0.2},
+                                               "trajectory": {"zupt": {"adapt_ratio": 4.0}}}})
+    assert p.foot.trajectory_zupt == dataclasses.replace(foot.trajectory_zupt, window_s=0.03)
+    assert p.foot.events == dataclasses.replace(foot.events, refractory_s=0.2)
+    assert p.foot.trajectory == dataclasses.replace(foot.trajectory,
+                                                    zupt=dataclasses.replace(foot.trajectory.zupt, adapt_ratio=4.0))
+    assert params_from_dict(GaitParams, {"foot": {"trajectory_zupt": None}}).foot.trajectory_zupt is None
+
+
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory):
     """One simulated lab session (calibration + one walking trial, optical reference) through every stage."""

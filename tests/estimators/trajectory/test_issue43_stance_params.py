@@ -2,7 +2,9 @@
 default of ``EskfParams.zupt``), the gait events keep theirs (``GAIT_ZUPT`` in ``FootParams.trajectory``).
 
 A value that the trajectory's cross-validation chooses for its detector (PyShoe) must not move the gait events,
-whose detector is chosen by another cross-validation (Voisard, the gaitmap walk), and the other way round.
+whose detector is chosen by another cross-validation (Voisard, the gaitmap walk), and the other way round. The
+trajectory the gait stage stores is ``foot_trajectory`` (K4): the trajectory on its own detector, reusing the
+events' filter run when both detectors give the same mask.
 """
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from stridelab.estimators.gait import FootParams
+from stridelab.estimators.gait import FootParams, foot_kinematics, foot_trajectory
 from stridelab.estimators.gait._kinematics import GAIT_ZUPT, foot_params_from_dict
 from stridelab.estimators.trajectory import TRAJECTORY_ZUPT, EskfParams, detect_zupt, eskf_trajectory
 
@@ -46,6 +48,11 @@ def test_trajectory_and_gait_each_own_their_stance_detector():
     assert foot_params_from_dict(dataclasses.asdict(FootParams())) == FootParams()
     fp = foot_params_from_dict({"trajectory": {"acc_noise_rel": 0.3}})
     assert fp.trajectory.zupt == GAIT_ZUPT and fp.trajectory.acc_noise_rel == 0.3
+    # the stored foot trajectory (K4) is the trajectory's own: FootParams' trajectory with its detector is EskfParams()
+    assert dataclasses.replace(FootParams().trajectory, zupt=FootParams().trajectory_zupt) == EskfParams()
+    assert foot_params_from_dict({"trajectory_zupt": None}).trajectory_zupt is None
+    fp = foot_params_from_dict({"trajectory_zupt": {"window_s": 0.03}})
+    assert fp.trajectory_zupt == dataclasses.replace(TRAJECTORY_ZUPT, window_s=0.03)
 
 
 def test_short_stances_are_detected_by_the_parameters_of_each_user():
@@ -61,5 +68,53 @@ def test_short_stances_are_detected_by_the_parameters_of_each_user():
     assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=EskfParams(zupt=longer)).zupt, z_long)
     assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=FootParams().trajectory).zupt,
                           z_gait)
-    # shipped: the trajectory on its own detects stance as the pipeline's stored (gait stage) trajectory does
-    assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS).zupt, z_gait)
+    # shipped: the trajectory on its own detects stance with TRAJECTORY_ZUPT, as the stored (gait stage) one does
+    z_traj = detect_zupt(gyr, acc, sampling_rate_hz=FS, params=TRAJECTORY_ZUPT, gravity=9.81)
+    assert np.array_equal(eskf_trajectory(gyr, acc, sampling_rate_hz=FS).zupt, z_traj)
+    fk = foot_kinematics(gyr, acc, sampling_rate_hz=FS)
+    assert np.array_equal(foot_trajectory(gyr, acc, fk, sampling_rate_hz=FS).zupt, z_traj)
+
+
+def _arrays(r):
+    return (r.pos, r.vel, r.quat, r.bias, r.zupt)
+
+
+def test_the_stored_trajectory_is_the_trajectorys_own_and_the_events_do_not_move():
+    """K4 on short stances that the two detectors see differently: ``foot_trajectory`` is ``eskf_trajectory`` with
+    the trajectory's detector (what the trajectory bench scores), the events and strides are those of the events'
+    detector alone (``trajectory_zupt=None``), and None gives the events' trajectory back."""
+    gyr, acc = _short_stance_steps()
+    longer = dataclasses.replace(TRAJECTORY_ZUPT, min_stance_s=0.1)
+    fp = dataclasses.replace(FootParams(), trajectory_zupt=longer)
+    fk = foot_kinematics(gyr, acc, sampling_rate_hz=FS, params=fp)
+    own = foot_trajectory(gyr, acc, fk, sampling_rate_hz=FS, params=fp)
+    bench = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=dataclasses.replace(fp.trajectory, zupt=longer))
+    assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(_arrays(own), _arrays(bench)))
+    assert not np.array_equal(own.zupt, fk.trajectory.zupt)
+    before = foot_kinematics(gyr, acc, sampling_rate_hz=FS, params=dataclasses.replace(fp, trajectory_zupt=None))
+    for f in ("ic_idx", "tc_idx"):
+        assert np.array_equal(getattr(fk.events, f), getattr(before.events, f))
+    assert np.array_equal(fk.strides.values, before.strides.values, equal_nan=True)
+    assert foot_trajectory(gyr, acc, before, sampling_rate_hz=FS,
+                           params=dataclasses.replace(fp, trajectory_zupt=None)) is before.trajectory
+
+
+def test_a_filter_run_is_reused_only_for_the_same_mask_and_filter():
+    """``eskf_trajectory(reuse=r)`` returns r's arrays (no second run) when the mask and every filter parameter but
+    the minimum stance agree, and they equal a fresh run; a different mask or filter parameter runs the filter."""
+    gyr, acc = _short_stance_steps()
+    p = FootParams().trajectory
+    r = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=p)
+    z = r.zupt
+    same_mask = dataclasses.replace(p, zupt=dataclasses.replace(p.zupt, min_stance_s=0.04))
+    assert np.array_equal(detect_zupt(gyr, acc, sampling_rate_hz=FS, params=same_mask.zupt, gravity=9.81), z)
+    again = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=same_mask, reuse=r)
+    assert again.pos is r.pos and again.params == same_mask
+    fresh = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=same_mask)
+    assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(_arrays(again), _arrays(fresh)))
+    other_filter = dataclasses.replace(p, acc_noise_rel=0.3)
+    o = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=other_filter, reuse=r)
+    assert o.pos is not r.pos and not np.array_equal(o.pos, r.pos, equal_nan=True)
+    other_mask = dataclasses.replace(p, zupt=dataclasses.replace(p.zupt, min_stance_s=0.1))
+    m = eskf_trajectory(gyr, acc, sampling_rate_hz=FS, params=other_mask, reuse=r)
+    assert not np.array_equal(m.zupt, z) and m.pos is not r.pos
