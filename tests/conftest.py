@@ -114,6 +114,30 @@ def pytest_collection_modifyitems(config, items):
                                order[id(it)]))
 
 
+@pytest.hookimpl(trylast=True, specname="pytest_collection_modifyitems")
+def pytest_collection_modifyitems_xdist_group_suffix(config, items):
+    """The ``@<group>`` suffix of each test id, which ``--dist loadgroup`` schedules by. pytest-xdist 3.8 adds it by
+    assigning ``item._nodeid``, which pytest >= 9.2 no longer reads (the id is ``item._id``, a NodeId): the suffix
+    was silently lost, every test was its own unit, and the session fixtures (``small_home``, ``demo_wh``, the clean
+    installation of tests/test_install.py, ...) were built once on EACH worker. Here the suffix is added where
+    pytest reads it, after xdist's own hook, when that hook did not manage to."""
+    if not _is_xdist_worker(config):
+        return
+    for item in items:
+        mark = item.get_closest_marker("xdist_group")
+        if mark is None or item.nodeid.endswith(f"@{mark.args[0]}"):
+            continue
+        nodeid = f"{item.nodeid}@{mark.args[0]}"
+        if hasattr(item, "_id"):
+            from _pytest.nodeid import NodeId
+            item._id = NodeId.parse(nodeid)
+        else:                                                            # pytest < 9.2 (xdist's hook did it)
+            item._nodeid = nodeid
+        if not item.nodeid.endswith(f"@{mark.args[0]}"):
+            raise pytest.UsageError(f"could not give {item.nodeid} its xdist group: --dist loadgroup would build "
+                                    f"each session fixture on every worker (tests/conftest.py)")
+
+
 # --- CPU time per test (``--cpu-durations=N``) ---------------------------------------------------------------------
 # Wall-clock durations (``--durations``) depend on what else the machine runs; the CPU seconds a test used (its own
 # process plus the child processes it started and waited for: runs, pools, servers) do much less. Each phase's CPU

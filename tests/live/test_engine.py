@@ -80,6 +80,7 @@ def test_truncated_input_leaves_every_earlier_output_unchanged(lab_streams, lab_
     assert len(ev_full) > 0 or cut < 800                # the later cut falls in the walking
 
 
+@pytest.mark.slow          # the live engine over the whole 30-s walk: 2.8 CPU-s
 def test_lost_samples_are_counted_and_left_empty_not_filled(lab_streams, lab_calibration):
     lost = set(range(1200, 1210)) | {1500}
     eng, al, outs = _run(lab_streams, lab_calibration, drop={"shank_left": lost})

@@ -83,17 +83,26 @@ def test_read_only_warehouse_stops_with_a_clear_error_and_stays_readable(tmp_pat
     assert "RECORDINGS 1" in out, out
 
 
-@pytest.mark.slow
-def test_a_worker_killed_mid_task_is_retried_and_nothing_is_lost(tmp_path):
-    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
-    clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "-j", "2")
+@pytest.fixture(scope="module")
+def local_run(tmp_path_factory):
+    """(inbox of 2 sessions, fingerprint of a clean local run over it with 2 workers): the reference of the
+    worker-kill and the Dask tests below, run once for both."""
+    base = tmp_path_factory.mktemp("local_run")
+    make_inbox(base / "inbox", n_sessions=2, seconds=10)
+    clean = cli("run", "--inbox", base / "inbox", "--warehouse", base / "clean", "-j", "2")
     assert clean.returncode == 0, clean.stderr
+    return base / "inbox", snapshot_fingerprint(base / "clean")
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_task_is_retried_and_nothing_is_lost(tmp_path, local_run):
+    inbox, expected = local_run
     marker = tmp_path / "killed-once"
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "-j", "2",
+    r = cli("run", "--inbox", inbox, "--warehouse", tmp_path / "wh", "-j", "2",
             env={"STRIDELAB_TEST_KILL_WORKER_ONCE": str(marker), **FAULT_PLUGIN})
     assert r.returncode == 0, r.stderr
     assert marker.exists(), "the fault was not injected"
-    assert snapshot_fingerprint(tmp_path / "wh") == snapshot_fingerprint(tmp_path / "clean")
+    assert snapshot_fingerprint(tmp_path / "wh") == expected
     con = connect_snapshot(tmp_path / "wh")
     # every stage ran exactly once per session: nothing duplicated
     assert con.execute("SELECT stage, session_id, count(*) FROM stage_runs WHERE status = 'ok' GROUP BY ALL "
@@ -102,13 +111,11 @@ def test_a_worker_killed_mid_task_is_retried_and_nothing_is_lost(tmp_path):
 
 
 @pytest.mark.slow
-def test_dask_engine_gives_the_same_warehouse_as_the_local_engine(tmp_path):
-    make_inbox(tmp_path / "inbox", n_sessions=2, seconds=10)
-    a = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "local", "-j", "2")
-    assert a.returncode == 0, a.stderr
-    b = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "dask", "-j", "2", "--engine", "dask")
+def test_dask_engine_gives_the_same_warehouse_as_the_local_engine(tmp_path, local_run):
+    inbox, local = local_run
+    b = cli("run", "--inbox", inbox, "--warehouse", tmp_path / "dask", "-j", "2", "--engine", "dask")
     assert b.returncode == 0, b.stderr
-    assert snapshot_fingerprint(tmp_path / "dask") == snapshot_fingerprint(tmp_path / "local")
+    assert snapshot_fingerprint(tmp_path / "dask") == local
 
 
 @pytest.mark.slow

@@ -141,7 +141,9 @@ def test_every_file_simulate_writes_opens_in_rosbags_and_mcap_ros2(tmp_path):
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
     from stridelab.validation.simulate import simulate_to_dir
-    files = simulate_to_dir(tmp_path / "inbox", participants=1, hours=0.05)
+    # one visit: every kind of file simulate writes (calibration and walking trials with the optical reference and
+    # distance sensors, the free-living chest day), at half the messages to decode in pure Python of two visits
+    files = simulate_to_dir(tmp_path / "inbox", participants=1, hours=0.05, visits=1)
     mcaps = [Path(f) for f in files if str(f).endswith(".mcap")]
     assert mcaps
     for f in mcaps:

@@ -81,18 +81,25 @@ def test_run_computes_orientation_for_every_imu_then_is_fresh(tmp_path):
     assert (out["stage_runs"], out["fresh"], out["ingested"]) == (0, 2 * n_stages, 0)
 
 
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """(inbox, fingerprint of an uninterrupted run over it): the reference of both kill points below, made once
+    (the same inbox run twice to the same fingerprint proved nothing more)."""
+    base = tmp_path_factory.mktemp("uninterrupted")
+    make_inbox(base / "inbox", n_sessions=3, seconds=60)
+    clean = cli("run", "--inbox", base / "inbox", "--warehouse", base / "clean", "--jobs", "2")
+    assert clean.returncode == 0, clean.stderr
+    return base / "inbox", snapshot_fingerprint(base / "clean")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kill_at_snapshot", [2, 7])     # during ingest (6 files), during the stages (3 sessions)
-def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapshot):
-    files = make_inbox(tmp_path / "inbox", n_sessions=3, seconds=60)
-    clean = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "clean", "--jobs", "2")
-    assert clean.returncode == 0, clean.stderr
-    expected = snapshot_fingerprint(tmp_path / "clean")
-
+def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapshot, uninterrupted):
+    inbox, expected = uninterrupted
     wh = tmp_path / "killed"
     # a snapshot after every commit (not at most every PUBLISH_INTERVAL_S), so that the snapshot count marks
     # the point of the run to kill it at
-    p = subprocess.Popen([*STRIDELAB, "run", "--inbox", str(tmp_path / "inbox"), "--warehouse", str(wh), "--jobs", "2"],
+    p = subprocess.Popen([*STRIDELAB, "run", "--inbox", str(inbox), "--warehouse", str(wh), "--jobs", "2"],
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
                          env={**os.environ, "STRIDELAB_PUBLISH_INTERVAL_S": "0"})
     deadline = time.time() + 300
@@ -112,7 +119,7 @@ def test_kill_9_then_rerun_equals_an_uninterrupted_run(tmp_path, kill_at_snapsho
     con.close()
     assert status == "running" and done < 3, "the run finished before it was killed: the test proved nothing"
 
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", wh, "--jobs", "2")
+    r = cli("run", "--inbox", inbox, "--warehouse", wh, "--jobs", "2")
     assert r.returncode == 0, r.stderr
     assert snapshot_fingerprint(wh) == expected
     con = connect_snapshot(wh)
