@@ -782,8 +782,10 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     shipped = TrunkGaitParams()
     # group-level means of the IC loss: each candidate = (IC detector candidate, offset)
     dets: dict[int, list[Det]] = {}
+    # every candidate without the shipped per-kind offsets (chosen in the second stage below, GRID_KIND_OFFSETS)
     for ci, ic in enumerate(IC_CANDIDATES):
-        dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0)) for r in recs]
+        dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0, ic_fill_offset_s=0.0,
+                                                    ic_walk_end_offset_s=0.0)) for r in recs]
         if show:
             _say(f"  grid {ci + 1}/{len(IC_CANDIDATES)}: " + " ".join(f"{k}={v}" for k, v in ic.items()))
     full = [(ci, o) for ci in range(len(IC_CANDIDATES)) for o in GRID_OFFSET_S]
