@@ -262,6 +262,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     frame = frame_from_sequences(acc, fs_hz, seqs) if len(acc) else None
     warnings = list(frame.warnings) if frame is not None else ["no samples"]
     ic_all, left_all, run_all, step_all, closing_all, tilt_all, kind_all = [], [], [], [], [], [], []
+    ic_rep_all = []
     turns: list[Turns] = []
     run_offset = 0
     offset_n = p.ic_offset_s
@@ -282,8 +283,10 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
                 turning[max(0, int(round(a0 * fs_hz)) - s):max(0, int(round(a1 * fs_hz)) - s)] = True
         ic_pos, closing, kinds = _contacts(v, fs_hz, p, turning, a)
         t = (s + ic_pos) / fs_hz + offset_n
-        if p.ic_fill_offset_s or p.ic_walk_end_offset_s:
-            t = t + kind_offsets_s(kinds, fill_offset_s=p.ic_fill_offset_s, walk_end_offset_s=p.ic_walk_end_offset_s)
+        # the per-kind offsets time the reported heel strikes only; strides, bouts and cadence keep the contact
+        # times of the one constant offset (the walk-end and fill contacts are not re-spaced)
+        ic_rep_all.append(t + kind_offsets_s(kinds, fill_offset_s=p.ic_fill_offset_s,
+                                             walk_end_offset_s=p.ic_walk_end_offset_s))
         peaks = np.clip(np.rint(ic_pos).astype(np.int64), 0, max(e - s - 1, 0))
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         # a closing step gets a run of its own: no stride starts or ends there (the reference walking bouts of
@@ -310,6 +313,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         turns.append(tt)
     cat = lambda xs, dt: np.concatenate(xs) if xs else np.empty(0, dt)  # noqa: E731
     ic = cat(ic_all, float)
+    ic_rep = cat(ic_rep_all, float)
     left = cat(left_all, bool)
     runs = cat(run_all, np.int64)
     closing = cat(closing_all, bool)
@@ -370,7 +374,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     keep_ic = ic_bout >= 0
     empty_frame = TrunkFrame(R=np.eye(3), confidence=0.0, vertical_axis=1, vertical_sign=1, anterior_axis=0,
                              anterior_sign=1, walking_found=False, warnings=("no samples",))
-    return TrunkGaitResult(bouts=bouts, strides=strides, turns=turn, initial_contacts_s=ic[keep_ic],
+    return TrunkGaitResult(bouts=bouts, strides=strides, turns=turn, initial_contacts_s=ic_rep[keep_ic],
                            ic_side=np.where(left[keep_ic], "left", "right"),
                            gait_sequences_s=seqs.astype(float) / fs_hz, frame=frame or empty_frame,
                            height_m=height, leg_length_m=leg, height_source=hsrc, leg_length_source=lsrc,

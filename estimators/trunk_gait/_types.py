@@ -75,7 +75,8 @@ class TrunkGaitParams:
       ic_fill_offset_s: added on top of ``ic_offset_s`` to the contacts the fill added (closing steps, gaps; not the
         threshold peaks), s (0 = off; ``_icd.kind_offsets_s``).
       ic_walk_end_offset_s: added on top of ``ic_offset_s`` to the last threshold peak before a closing step, s
-        (0 = off; ``_icd.kind_offsets_s``).
+        (0 = off; ``_icd.kind_offsets_s``). Both time the reported initial contacts only: strides, bouts and
+        cadence use the contact times with ``ic_offset_s`` alone.
       ic_refine_s: for "ionescu" / "shin" / "hklee": each contact is moved to the highest sample of the upward
         acceleration smoothed with σ ``ic_smooth_s`` within ± this (the amplitude-free detector counts the steps,
         the acceleration peak of "peak" times them; 0 = off), s.

@@ -438,6 +438,10 @@ def run_ours(rec: Rec, params) -> Det:
     from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
     ic = res.initial_contacts_s
+    if res.ic_kind is not None:       # the estimator's cadence uses the times without the per-kind offsets
+        from stridelab.estimators.trunk_gait._icd import kind_offsets_s
+        ic = ic - kind_offsets_s(res.ic_kind, fill_offset_s=params.ic_fill_offset_s,
+                                 walk_end_offset_s=params.ic_walk_end_offset_s)
     if res.ic_closing is not None:          # closing steps are no steps of the cadence (as in the estimator)
         ic = ic[~res.ic_closing]
     cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
