@@ -21,7 +21,9 @@ Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cros
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
 one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_smooth_s``, ``ic_prominence``,
 ``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, ``ic_turn_prominence``, or "ionescu" with
-``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then ``cadence_method``; the block
+``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then, given the fold's candidate,
+the per-kind offsets ``ic_fill_offset_s`` x ``ic_walk_end_offset_s`` (``GRID_KIND_OFFSETS``) jointly with
+``ic_offset_s``, then ``cadence_method``; the block
 ``shipped_defaults`` names the detector that ships under ``ic_detector``, ``ic_grid_in_sample`` scores every
 candidate in-sample); the turn shortening ``sl_turn_per_rad`` (SL_TURN_GRID, at the stride level), then the
 stride-length factor ``sl_correction`` jointly with the step-length Hampel filter ``sl_hampel_half_width``, the bout
