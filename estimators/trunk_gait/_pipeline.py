@@ -12,8 +12,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from stridelab.estimators.trunk_gait._frame import check_units, frame_from_axes, frame_from_sequences
 from stridelab.estimators.trunk_gait._gsd import detect_gait_sequences
-from stridelab.estimators.trunk_gait._icd import (assign_sides, detect_initial_contacts, parabolic_peaks,
-                                                  regular_runs)
+from stridelab.estimators.trunk_gait._icd import (assign_sides, detect_initial_contacts, kind_offsets_s,
+                                                  parabolic_peaks, regular_runs)
 from stridelab.estimators.trunk_gait._icd_cwt import (detect_initial_contacts_hklee, detect_initial_contacts_shin,
                                                      refine_to_peaks)
 from stridelab.estimators.trunk_gait._icd_ionescu import detect_initial_contacts_ionescu
@@ -178,14 +178,15 @@ CADENCE_METHODS = ("median", "count", "step_mean", "per_second")
 
 def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarray | None = None,
               acc_seq: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(sample positions, closing (K,) bool: closing steps added by the fill, see ``_icd.detect_initial_contacts``).
+    """(sample positions, closing (K,) bool: closing steps added by the fill, kinds (K,) int8: how each was found,
+    ``_icd.IC_KINDS``; see ``_icd.detect_initial_contacts``).
     Positions are float for "shin" (sub-sample zero crossings), else integer sample indices. ``acc_seq`` (N, 3):
     the sequence's acceleration, for the norm input of "shin" / "hklee"."""
     if p.ic_method == "ionescu":
         idx = detect_initial_contacts_ionescu(v, fs_hz, sigma_s=p.ic_zc_sigma_s, min_depth=p.ic_zc_min_depth,
                                               min_step_s=p.ic_min_step_s)
         idx = _refine(idx, v, fs_hz, p)
-        return idx, np.zeros(len(idx), bool)
+        return idx, np.zeros(len(idx), bool), np.zeros(len(idx), np.int8)
     if p.ic_method in ("shin", "hklee"):
         if p.ic_cwt_signal == "norm" and acc_seq is not None:
             x = np.sqrt(np.einsum("ij,ij->i", acc_seq, acc_seq))
@@ -195,20 +196,20 @@ def _contacts(v: np.ndarray, fs_hz: float, p: TrunkGaitParams, turning: np.ndarr
             raise ValueError(f"ic_cwt_signal must be 'norm' or 'vertical', got {p.ic_cwt_signal!r}")
         det = detect_initial_contacts_shin if p.ic_method == "shin" else detect_initial_contacts_hklee
         idx = _refine(det(x, fs_hz, min_step_s=p.ic_min_step_s, min_height=p.ic_zc_min_depth), v, fs_hz, p)
-        return idx, np.zeros(len(idx), bool)
+        return idx, np.zeros(len(idx), bool), np.zeros(len(idx), np.int8)
     if p.ic_method != "peak":
         raise ValueError(f"ic_method must be one of {IC_METHODS}, got {p.ic_method!r}")
-    idx, closing = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
+    idx, closing, kinds = detect_initial_contacts(v, fs_hz, smooth_s=p.ic_smooth_s, min_step_s=p.ic_min_step_s,
                                            prominence=p.ic_prominence, local_window_s=p.ic_local_window_s,
                                            fill_prominence=p.ic_fill_prominence,
                                            fill_edge_steps=p.ic_fill_edge_steps, fill_end_steps=p.ic_fill_end_steps,
                                            fill_start_prominence=p.ic_fill_start_prominence,
                                            fill_end_rhythm=p.ic_fill_end_rhythm, fill_walk_ends=p.ic_fill_walk_ends,
                                            max_step_s=p.stride_max_s / 2.0, turning=turning,
-                                           turn_prominence=p.ic_turn_prominence, return_closing=True)
+                                           turn_prominence=p.ic_turn_prominence, return_kinds=True)
     if p.ic_subsample and len(idx):
         idx = parabolic_peaks(gaussian_filter1d(v, p.ic_smooth_s * fs_hz, mode="nearest"), idx)
-    return idx, closing
+    return idx, closing, kinds
 
 
 def detect_trunk_frame(acc: np.ndarray, gyr: np.ndarray | None, fs_hz: float, *,
@@ -260,7 +261,8 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     seqs = _sequences(acc, fs_hz, p)
     frame = frame_from_sequences(acc, fs_hz, seqs) if len(acc) else None
     warnings = list(frame.warnings) if frame is not None else ["no samples"]
-    ic_all, left_all, run_all, step_all, closing_all, tilt_all = [], [], [], [], [], []
+    ic_all, left_all, run_all, step_all, closing_all, tilt_all, kind_all = [], [], [], [], [], [], []
+    ic_rep_all = []
     turns: list[Turns] = []
     run_offset = 0
     offset_n = p.ic_offset_s
@@ -279,8 +281,12 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
             turning = np.zeros(e - s, bool)
             for a0, a1 in zip(tt.start_s, tt.end_s):
                 turning[max(0, int(round(a0 * fs_hz)) - s):max(0, int(round(a1 * fs_hz)) - s)] = True
-        ic_pos, closing = _contacts(v, fs_hz, p, turning, a)
+        ic_pos, closing, kinds = _contacts(v, fs_hz, p, turning, a)
         t = (s + ic_pos) / fs_hz + offset_n
+        # the per-kind offsets time the reported heel strikes only; strides, bouts and cadence keep the contact
+        # times of the one constant offset (the walk-end and fill contacts are not re-spaced)
+        ic_rep_all.append(t + kind_offsets_s(kinds, fill_offset_s=p.ic_fill_offset_s,
+                                             walk_end_offset_s=p.ic_walk_end_offset_s))
         peaks = np.clip(np.rint(ic_pos).astype(np.int64), 0, max(e - s - 1, 0))
         runs = regular_runs(t, max_step_s=p.stride_max_s / 2.0) + run_offset
         # a closing step gets a run of its own: no stride starts or ends there (the reference walking bouts of
@@ -299,6 +305,7 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
             sl = hampel(sl, p.sl_hampel_half_width, 3.0, np.where(same, runs[1:], -1 - np.arange(len(sl))))
         ic_all.append(t)
         closing_all.append(closing)
+        kind_all.append(kinds)
         left_all.append(left)
         run_all.append(runs)
         step_all.append(np.r_[sl, np.nan] if len(peaks) else np.empty(0))   # step i -> i+1; last has none
@@ -306,9 +313,11 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
         turns.append(tt)
     cat = lambda xs, dt: np.concatenate(xs) if xs else np.empty(0, dt)  # noqa: E731
     ic = cat(ic_all, float)
+    ic_rep = cat(ic_rep_all, float)
     left = cat(left_all, bool)
     runs = cat(run_all, np.int64)
     closing = cat(closing_all, bool)
+    kind = cat(kind_all, np.int8)
     step_len = cat(step_all, float)
     turn = Turns(*(cat([getattr(tt, f) for tt in turns], float)
                    for f in ("start_s", "end_s", "angle_deg", "peak_rate_deg_s"))) if turns else EMPTY_TURNS
@@ -365,8 +374,9 @@ def analyse_trunk_gait(acc_m_s2: np.ndarray, gyr_rad_s: np.ndarray, fs_hz: float
     keep_ic = ic_bout >= 0
     empty_frame = TrunkFrame(R=np.eye(3), confidence=0.0, vertical_axis=1, vertical_sign=1, anterior_axis=0,
                              anterior_sign=1, walking_found=False, warnings=("no samples",))
-    return TrunkGaitResult(bouts=bouts, strides=strides, turns=turn, initial_contacts_s=ic[keep_ic],
+    return TrunkGaitResult(bouts=bouts, strides=strides, turns=turn, initial_contacts_s=ic_rep[keep_ic],
                            ic_side=np.where(left[keep_ic], "left", "right"),
                            gait_sequences_s=seqs.astype(float) / fs_hz, frame=frame or empty_frame,
                            height_m=height, leg_length_m=leg, height_source=hsrc, leg_length_source=lsrc,
-                           placement=placement, params=p, warnings=tuple(warnings), ic_closing=closing[keep_ic])
+                           placement=placement, params=p, warnings=tuple(warnings), ic_closing=closing[keep_ic],
+                           ic_kind=kind[keep_ic])

@@ -72,6 +72,11 @@ class TrunkGaitParams:
       ic_subsample: each peak at the vertex of the parabola through its three samples (``_icd.parabolic_peaks``)
         instead of at the peak sample.
       ic_offset_s: added to every detected contact time (trunk event vs heel strike; both methods), s.
+      ic_fill_offset_s: added on top of ``ic_offset_s`` to the contacts the fill added (closing steps, gaps; not the
+        threshold peaks), s (0 = off; ``_icd.kind_offsets_s``).
+      ic_walk_end_offset_s: added on top of ``ic_offset_s`` to the last threshold peak before a closing step, s
+        (0 = off; ``_icd.kind_offsets_s``). Both time the reported initial contacts only: strides, bouts and
+        cadence use the contact times with ``ic_offset_s`` alone.
       ic_refine_s: for "ionescu" / "shin" / "hklee": each contact is moved to the highest sample of the upward
         acceleration smoothed with σ ``ic_smooth_s`` within ± this (the amplitude-free detector counts the steps,
         the acceleration peak of "peak" times them; 0 = off), s.
@@ -140,6 +145,8 @@ class TrunkGaitParams:
     ic_fill_walk_ends: bool = True
     ic_turn_prominence: float = 1.0
     ic_offset_s: float = -0.07
+    ic_fill_offset_s: float = -0.07
+    ic_walk_end_offset_s: float = -0.04
     cadence_method: str = "step_mean"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
@@ -274,6 +281,8 @@ class TrunkGaitResult:
     "from height (0.53 H)").
     placement, params, warnings (tuple of str).
     ic_closing: (K,) bool, the contacts that are closing steps added by the fill (left out of the cadence).
+    ic_kind: (K,) int8, how each contact was found: an index into ``_icd.IC_KINDS`` ("peak", "gap_fill",
+      "edge_fill", "start_fill", "closing_rhythm", "closing_peak"; the other detectors: all "peak").
     """
     bouts: Bouts
     strides: Strides
@@ -290,6 +299,7 @@ class TrunkGaitResult:
     params: TrunkGaitParams = field(default_factory=TrunkGaitParams)
     warnings: tuple[str, ...] = ()
     ic_closing: np.ndarray | None = None
+    ic_kind: np.ndarray | None = None
 
 
 DURATION_CLASSES_S = ((10.0, 30.0), (30.0, 60.0), (60.0, 120.0), (120.0, float("inf")))

@@ -221,5 +221,7 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
 
 # version 6: bout stride length / speed leave out strides over a stop and the speed uses the count cadence (the
 # estimator logic changed, not only its defaults, which are in the stamp anyway)
-STAGE = shaped_stage("trunk_gait", "6", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+# version 7: per-kind contact offsets (ic_fill_offset_s, ic_walk_end_offset_s): the stored contact times of closing
+# steps, gap fills and the last step of each walk move
+STAGE = shaped_stage("trunk_gait", "7", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))

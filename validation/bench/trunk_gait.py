@@ -21,7 +21,9 @@ Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cros
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
 one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_smooth_s``, ``ic_prominence``,
 ``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, ``ic_turn_prominence``, or "ionescu" with
-``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then ``cadence_method``; the block
+``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then, given the fold's candidate,
+the per-kind offsets ``ic_fill_offset_s`` x ``ic_walk_end_offset_s`` (``GRID_KIND_OFFSETS``) jointly with
+``ic_offset_s``, then ``cadence_method``; the block
 ``shipped_defaults`` names the detector that ships under ``ic_detector``, ``ic_grid_in_sample`` scores every
 candidate in-sample); the turn shortening ``sl_turn_per_rad`` (SL_TURN_GRID, at the stride level), then the
 stride-length factor ``sl_correction`` jointly with the step-length Hampel filter ``sl_hampel_half_width``, the bout
@@ -116,8 +118,15 @@ IC_CANDIDATES = tuple(
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
              "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
-             "ic_fill_walk_ends", "stride_rule", "ic_offset_s", "cadence_method")
+             "ic_fill_walk_ends", "stride_rule", "ic_offset_s", "ic_fill_offset_s", "ic_walk_end_offset_s",
+             "cadence_method")
 from stridelab.estimators.trunk_gait._pipeline import CADENCE_METHODS  # noqa: E402  chosen after the IC constants
+# per-kind offsets (2026-12-08, issue 42 timing): (ic_fill_offset_s, ic_walk_end_offset_s) added to the contacts the
+# fill placed and to the last threshold peak before a closing step (``_icd.kind_offsets_s``); chosen after the
+# detector candidate, jointly with ic_offset_s, by the same leave-one-group-out on the fold's training groups (only
+# for "peak" candidates with the fill on; the others keep (0, 0)). A development run with -0.07 / -0.09 / -0.11 /
+# -0.13 x -0.04 / -0.06 / -0.08 found the optimum inside this grid (-0.07 / -0.04 in 10/10 folds)
+GRID_KIND_OFFSETS = tuple((fo, we) for fo in (0.0, -0.03, -0.05, -0.07, -0.09) for we in (0.0, -0.02, -0.04, -0.06))
 # the jerk minimum lags the heel strike more; the Shin zero crossing leads it by about 0.1 s (up to +0.15 s); 5 ms
 # steps: with sub-sample contact times the loss is no longer flat between whole samples
 GRID_OFFSET_S = tuple(np.round(np.arange(-0.30, 0.1501, 0.005), 4))
@@ -291,6 +300,7 @@ class Det:
     bouts: dict             # start_s, end_s, cadence_spm, stride_length_m, walking_speed_m_s
     cadence_by_method: dict = field(default_factory=dict)   # ours: per-bout cadence of each CADENCE_METHODS
     strides: dict | None = None   # start_s, end_s, length_m of the strides in bouts (ours only)
+    ic_kind: np.ndarray | None = None   # ours: how each contact was found (index into _icd.IC_KINDS)
 
 
 def _with_cadence(d: Det, method: str | None) -> Det:
@@ -430,6 +440,10 @@ def run_ours(rec: Rec, params) -> Det:
     from stridelab.estimators.trunk_gait._pipeline import bout_cadence
     b = res.bouts
     ic = res.initial_contacts_s
+    if res.ic_kind is not None:       # the estimator's cadence uses the times without the per-kind offsets
+        from stridelab.estimators.trunk_gait._icd import kind_offsets_s
+        ic = ic - kind_offsets_s(res.ic_kind, fill_offset_s=params.ic_fill_offset_s,
+                                 walk_end_offset_s=params.ic_walk_end_offset_s)
     if res.ic_closing is not None:          # closing steps are no steps of the cadence (as in the estimator)
         ic = ic[~res.ic_closing]
     cad = {m: np.array([bout_cadence(ic[(ic >= s - 1e-9) & (ic <= e + 1e-9)], max_step_s=params.stride_max_s / 2.0,
@@ -439,7 +453,7 @@ def run_ours(rec: Rec, params) -> Det:
                                "cadence_spm": b.cadence_spm, "stride_length_m": b.stride_length_m,
                                "walking_speed_m_s": b.walking_speed_m_s}, cadence_by_method=cad,
                strides={"start_s": st.start_s, "end_s": st.end_s, "length_m": st.length_m, "bout": st.bout,
-                        "tilt_deg": st.tilt_deg, "steady": st.steady})
+                        "tilt_deg": st.tilt_deg, "steady": st.steady}, ic_kind=res.ic_kind)
 
 
 def respatial(det: Det, average: str, strides: str, speed_method: str, max_tilt_deg: float = 0.0) -> Det:
@@ -542,6 +556,48 @@ def ic_context(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
         out["voisard_extra"] = vo_fp
     if bouts:
         out["mobilised_reference_bouts"] = bouts
+    return out
+
+
+def ic_timing_by_kind(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
+    """Timing error of the matched contacts by how each was found (``Det.ic_kind``: a threshold peak, a gap fill, an
+    edge or start fill, a closing step placed by the rhythm or at a weak peak), the threshold peak right before a
+    closing step counted apart ("peak_before_closing": the step that stops a walk); per data set: matched, extra,
+    timing MAE and bias (ms), and the sum of |error| (the share of the timing MAE). ``offsets``: per-recording
+    held-out offsets."""
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS
+    from stridelab.estimators.trunk_gait.evaluation import match_initial_contacts
+    offsets = offsets if offsets is not None else [0.0] * len(recs)
+    closing_k = (IC_KINDS.index("closing_rhythm"), IC_KINDS.index("closing_peak"))
+    acc: dict = {}
+    for r, d, o in zip(recs, dets, offsets):
+        if d.ic_kind is None:
+            continue
+        k = np.asarray(d.ic_kind)
+        lab = np.array([IC_KINDS[x] for x in k], dtype=object)
+        before = np.flatnonzero(np.isin(k[1:], closing_k) & (k[:-1] == 0)) if len(k) > 1 else np.empty(0, int)
+        lab[before] = "peak_before_closing"
+        win = r.ic_windows_s if r.ic_windows_s is not None and len(r.ic_windows_s) else np.array([r.window_s])
+        m = match_initial_contacts(d.ic_s + o, r.ref_ic_s, windows_s=win)
+        a = acc.setdefault(r.dataset, {"missed": 0, "kinds": {}})
+        a["missed"] += len(m.fn_idx)
+        for i, e in zip(m.det_idx, m.error_s):
+            a["kinds"].setdefault(lab[i], {"e": [], "extra": 0})["e"].append(e)
+        for i in m.fp_idx:
+            a["kinds"].setdefault(lab[i], {"e": [], "extra": 0})["extra"] += 1
+    out = {}
+    for ds, a in acc.items():
+        n_all = sum(len(v["e"]) for v in a["kinds"].values())
+        rows = {}
+        for kind in (*IC_KINDS[:1], "peak_before_closing", *IC_KINDS[1:]):
+            if kind not in a["kinds"]:
+                continue
+            e = 1000.0 * np.asarray(a["kinds"][kind]["e"], float)
+            rows[kind] = {"matched": int(len(e)), "extra": a["kinds"][kind]["extra"],
+                          "timing_mae_ms": round(float(np.mean(np.abs(e))), 1) if len(e) else None,
+                          "timing_bias_ms": round(float(np.mean(e)), 1) if len(e) else None,
+                          "share_of_timing_mae_ms": round(float(np.sum(np.abs(e))) / n_all, 2) if n_all else None}
+        out[ds] = {"missed": a["missed"], "by_kind": rows}
     return out
 
 
@@ -732,8 +788,10 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     shipped = TrunkGaitParams()
     # group-level means of the IC loss: each candidate = (IC detector candidate, offset)
     dets: dict[int, list[Det]] = {}
+    # every candidate without the shipped per-kind offsets (chosen in the second stage below, GRID_KIND_OFFSETS)
     for ci, ic in enumerate(IC_CANDIDATES):
-        dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0)) for r in recs]
+        dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0, ic_fill_offset_s=0.0,
+                                                    ic_walk_end_offset_s=0.0)) for r in recs]
         if show:
             _say(f"  grid {ci + 1}/{len(IC_CANDIDATES)}: " + " ".join(f"{k}={v}" for k, v in ic.items()))
     full = [(ci, o) for ci in range(len(IC_CANDIDATES)) for o in GRID_OFFSET_S]
@@ -759,47 +817,99 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         sc = score(recs, dets[ci], offset_s=full[c][1])
         grid_table.append({**ic, "ic_offset_s": full[c][1], "loss_ms": round(min(losses), 2),
                            **{k: sc[k] for k in ("ic_sensitivity", "ic_precision", "ic_timing_mae_ms")}})
+    # second stage: the per-kind offsets (GRID_KIND_OFFSETS) jointly with ic_offset_s, given each fold's detector
+    # candidate, on the same training groups (the first stage's offset is re-chosen with them; (0, 0) is in the grid)
+    kdets: dict = {}
+
+    def kdet(ci: int, ko: tuple) -> list[Det]:
+        if ko == (0.0, 0.0):
+            return dets[ci]
+        if (ci, ko) not in kdets:
+            kdets[(ci, ko)] = [run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+                                                               ic_fill_offset_s=ko[0], ic_walk_end_offset_s=ko[1]))
+                               for r in recs]
+        return kdets[(ci, ko)]
+    kcache: dict = {}
+
+    def kloss(g: str, ci: int, ko: tuple) -> np.ndarray:
+        """(len(GRID_OFFSET_S),) the group's IC loss for every ic_offset_s."""
+        if (g, ci, ko) not in kcache:
+            idx = [i for i, r in enumerate(recs) if r.group == g]
+            d = kdet(ci, ko)
+            kcache[(g, ci, ko)] = np.array([ic_loss(score([recs[i] for i in idx], [d[i] for i in idx], offset_s=o))
+                                            for o in GRID_OFFSET_S])
+        return kcache[(g, ci, ko)]
+
+    def kind_grid(ci: int) -> tuple:
+        c = IC_CANDIDATES[ci]
+        return GRID_KIND_OFFSETS if c["ic_method"] == "peak" and c.get("ic_fill_prominence", 0) > 0 else ((0.0, 0.0),)
+
+    def choose_kind(ci: int, train: list[str]) -> tuple[tuple, float, float]:
+        """((ic_fill_offset_s, ic_walk_end_offset_s), ic_offset_s, training loss) for candidate ``ci``."""
+        best = (None, None, np.inf)
+        for ko in kind_grid(ci):
+            lo = np.mean([kloss(g, ci, ko) for g in train], axis=0)
+            j = int(np.argmin(lo))
+            if lo[j] < best[2]:
+                best = (ko, float(GRID_OFFSET_S[j]), float(lo[j]))
+        return best
+    ug0 = sorted(set(groups))
+    ic_held = {}
+    for g in ug0:
+        ci = full[logo["held_out_choice"][g]][0]
+        ko, o, _l = choose_kind(ci, [x for x in ug0 if x != g] or [g])
+        ic_held[g] = (ci, ko, o)
+    ci_in = full[logo["in_sample_choice"]][0]
+    ko_in, o_in, _l = choose_kind(ci_in, ug0)
+    kind_table = [{"ic_fill_offset_s": ko[0], "ic_walk_end_offset_s": ko[1],
+                   "ic_offset_s": float(GRID_OFFSET_S[int(np.argmin(lo))]), "loss_ms": round(float(np.min(lo)), 2)}
+                  for ko in kind_grid(ci_in)
+                  for lo in [np.mean([kloss(g, ci_in, ko) for g in ug0], axis=0)]]
     ship_dets = [run_ours(r, shipped) for r in recs]
     sl_held, sl_ins = choose_spatial(recs, shipped)
     ship_v = (shipped.sl_hampel_half_width, shipped.bout_average, shipped.sl_turn_per_rad, shipped.bout_strides,
               shipped.sl_max_tilt_deg)
     ship_sp = (ship_v, shipped.sl_correction, shipped.speed_method)
 
-    def with_sl(r: Rec, ci: int, v: tuple, cad: str, speed_method: str) -> Det:
-        """The fold's IC candidate and spatial variant; the speed after the fold's cadence method."""
-        d = (dets[ci][i_of[r.name]] if v[0] == ship_v[0] and v[2] == ship_v[2] else
+    def with_sl(r: Rec, ci: int, ko: tuple, v: tuple, cad: str, speed_method: str) -> Det:
+        """The fold's IC candidate (with its per-kind offsets ``ko``) and spatial variant; the speed after the fold's
+        cadence method."""
+        d = (kdet(ci, ko)[i_of[r.name]] if v[0] == ship_v[0] and v[2] == ship_v[2] else
              run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+                                             ic_fill_offset_s=ko[0], ic_walk_end_offset_s=ko[1],
                                              sl_hampel_half_width=v[0], sl_turn_per_rad=v[2])))
         return respatial(_with_cadence(d, cad), v[1], v[3], speed_method, v[4])
     i_of = {r.name: i for i, r in enumerate(recs)}
     # cadence method: leave-one-group-out on the cadence MAPE of the bouts of the fold's IC choice (nested: the
     # held-out group's IC choice was made without it, its cadence method too)
-    def cad_loss(ci: int, gs: list[str], m: str) -> float:
+    def cad_loss(ci: int, ko: tuple, gs: list[str], m: str) -> float:
         idx = [i for i, r in enumerate(recs) if r.group in gs]
-        v = score([recs[i] for i in idx], [_with_cadence(dets[ci][i], m) for i in idx])["cadence_mape_pct"]
+        d = kdet(ci, ko)
+        v = score([recs[i] for i in idx], [_with_cadence(d[i], m) for i in idx])["cadence_mape_pct"]
         return float("inf") if v is None else float(v)
     ug = sorted(set(groups))
     cad_held = {}
     for g in ug:
-        ci = full[logo["held_out_choice"][g]][0]
+        ci, ko, _o = ic_held[g]
         train = [x for x in ug if x != g] or [g]
-        cad_held[g] = min(CADENCE_METHODS, key=lambda m: cad_loss(ci, train, m))
-    cad_ins = min(CADENCE_METHODS, key=lambda m: cad_loss(full[logo["in_sample_choice"]][0], ug, m))
+        cad_held[g] = min(CADENCE_METHODS, key=lambda m: cad_loss(ci, ko, train, m))
+    cad_ins = min(CADENCE_METHODS, key=lambda m: cad_loss(ci_in, ko_in, ug, m))
     # cross-validated: per recording, the detections of its held-out choices (IC constants, cadence method and
     # spatial constants each chosen without the recording's group)
     cv_dets, cv_off, cv_scale = [], [], []
     for i, r in enumerate(recs):
-        ci, o = full[logo["held_out_choice"][r.group]]
+        ci, ko, o = ic_held[r.group]
         v, k, spm = sl_held.get(r.group, ship_sp)
-        cv_dets.append(with_sl(r, ci, v, cad_held[r.group], spm))
+        cv_dets.append(with_sl(r, ci, ko, v, cad_held[r.group], spm))
         cv_off.append(o)
         cv_scale.append(k / shipped.sl_correction)
-    cii, oi = full[logo["in_sample_choice"]]
+    cii, oi = ci_in, o_in
     vi, ki, spi = sl_ins or ship_sp
-    ins_dets = [with_sl(r, cii, vi, cad_ins, spi) for r in recs]
+    ins_dets = [with_sl(r, cii, ko_in, vi, cad_ins, spi) for r in recs]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
-    by_group = {g: {**IC_CANDIDATES[full[c][0]], "ic_offset_s": full[c][1], "cadence_method": cad_held[g]}
-                for g, c in logo["held_out_choice"].items()}
+    by_group = {g: {**IC_CANDIDATES[ci], "ic_fill_offset_s": ko[0], "ic_walk_end_offset_s": ko[1],
+                    "ic_offset_s": o, "cadence_method": cad_held[g]}
+                for g, (ci, ko, o) in ic_held.items()}
     return {
         "shipped_defaults": {**blocks(recs, ship_dets),
                              "ic_detector": _detector_name(shipped),
@@ -811,8 +921,11 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                                                           "speed_method")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
                             "scheme": "IC constants (ic_method and its constants, IC_CANDIDATES, x ic_offset_s): "
-                                      "leave-one-group-out (then cadence_method, median/count, on the cadence MAPE "
-                                      "of the fold's IC choice, same folds) "
+                                      "leave-one-group-out (then, given the fold's detector candidate, the per-kind "
+                                      "offsets ic_fill_offset_s x ic_walk_end_offset_s, GRID_KIND_OFFSETS, jointly "
+                                      "with ic_offset_s on the same training groups; then cadence_method, "
+                                      "median/count/step_mean/per_second, on the cadence MAPE of the fold's IC "
+                                      "choice, same folds) "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_turn_per_rad (stride level), then sl_hampel_half_width, "
                                       "bout_average, bout_strides, sl_correction: leave-one-group-out over "
@@ -828,7 +941,8 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
-                      "choice": {**IC_CANDIDATES[cii], "ic_offset_s": oi, "cadence_method": cad_ins,
+                      "choice": {**IC_CANDIDATES[cii], "ic_fill_offset_s": ko_in[0],
+                                 "ic_walk_end_offset_s": ko_in[1], "ic_offset_s": oi, "cadence_method": cad_ins,
                                  "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1],
                                  "sl_turn_per_rad": vi[2], "bout_strides": vi[3], "sl_max_tilt_deg": vi[4],
                                  "speed_method": spi}},
@@ -841,6 +955,15 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         "tilt_gate_check": tilt_gate_check(recs, shipped),
         "ic_misses_by_context": {"shipped_defaults": ic_context(recs, ship_dets),
                                  "cross_validated": ic_context(recs, cv_dets, cv_off)},
+        "ic_timing_by_kind": {"shipped_defaults": ic_timing_by_kind(recs, ship_dets),
+                              "cross_validated": ic_timing_by_kind(recs, cv_dets, cv_off),
+                              "note": "matched contacts by how they were found (estimators/trunk_gait/_icd.IC_KINDS; "
+                                      "peak_before_closing = the threshold peak right before a closing step); "
+                                      "share_of_timing_mae_ms = the kind's sum of |error| / all matched contacts"},
+        "ic_kind_offsets_in_sample": {"marked": "in-sample: the in-sample detector candidate with each "
+                                                "(ic_fill_offset_s, ic_walk_end_offset_s) of GRID_KIND_OFFSETS at its "
+                                                "best ic_offset_s, group-mean loss over all groups",
+                                      "candidates": sorted(kind_table, key=lambda x: x["loss_ms"])},
     }
 
 

@@ -136,7 +136,8 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     t = np.arange(len(acc)) / FS
     last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
     acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
-    base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, cadence_method="count", ic_fill_prominence=0.0,
+    base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0,
+                               cadence_method="count", ic_fill_prominence=0.0,
                                ic_fill_end_steps=0, stride_rule="run")
     plain = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
     filled = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
@@ -299,3 +300,74 @@ def test_the_walk_end_fill_finds_the_closing_step_of_a_walk_inside_a_sequence():
     every, closing = detect_initial_contacts(v, FS, **kw, fill_walk_ends=True)
     assert not near(seq_end / FS, w1[-1]) and near(every / FS, w1[-1])
     assert near(every[closing] / FS, w1[-1]) and len(every) == len(seq_end) + 1
+
+
+def test_fill_labels_how_each_contact_was_found():
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS
+    # T = 50 samples; a missed step at 350 (gap 300-400, weak peak at 352), a weak first step at 52, the walk's
+    # closing step without a peak (by the rhythm at 550 + 50 = 600) and a second closing step at a weak peak (648)
+    kept = np.array([100, 150, 200, 250, 300, 400, 450, 500, 550])
+    cand = np.array([52, 352, 648])
+    prom = np.array([0.5, 0.3, 0.2])
+    out, closing, kinds = fill_missed_steps(kept, cand, prom, max_step=150, end_steps=2, end_rhythm_before=1000,
+                                            start_prominence=0.4, return_kinds=True)
+    assert out.tolist() == [52, 100, 150, 200, 250, 300, 352, 400, 450, 500, 550, 600, 648]
+    got = dict(zip(out.tolist(), (IC_KINDS[k] for k in kinds)))
+    assert got[52] == "start_fill" and got[352] == "gap_fill"
+    assert got[600] == "closing_rhythm" and got[648] == "closing_peak"
+    assert all(got[k] == "peak" for k in kept)
+    assert out[closing].tolist() == [600, 648]
+    # an edge step after the last contact (edge_steps) is labelled as such, the closing step after it by the peak
+    out2, _c, kinds2 = fill_missed_steps(kept, np.array([598, 648]), np.array([0.3, 0.2]), max_step=150,
+                                         edge_steps=1, end_steps=1, return_kinds=True)
+    assert [IC_KINDS[k] for k in kinds2[-2:]] == ["edge_fill", "closing_peak"] and out2[-2:].tolist() == [598, 648]
+    # the detector itself returns the same labels
+    t = np.arange(0, 10, 1 / FS)
+    ic = 1.0 + 0.5 * np.arange(12)
+    v = sum(np.exp(-0.5 * ((t - c) / 0.06) ** 2) for c in ic[:-1])            # the last contact has no peak
+    v = v - v.mean()
+    idx, closing3, kinds3 = detect_initial_contacts(v, FS, smooth_s=0.05, min_step_s=0.25, prominence=0.7,
+                                                    fill_prominence=0.05, fill_end_steps=1, fill_end_rhythm=True,
+                                                    return_kinds=True)
+    assert IC_KINDS[kinds3[-1]] == "closing_rhythm" and closing3[-1] and abs(idx[-1] / FS - ic[-1]) < 0.02
+    assert (kinds3[:-1] == 0).all()
+
+
+def test_kind_offsets_move_the_fill_contacts_and_the_last_peak_before_a_closing_step():
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS, kind_offsets_s
+    k = np.array([IC_KINDS.index(x) for x in ("start_fill", "peak", "peak", "gap_fill", "peak", "peak",
+                                              "closing_rhythm", "peak", "peak", "closing_peak")])
+    np.testing.assert_allclose(kind_offsets_s(k), 0.0)
+    np.testing.assert_allclose(kind_offsets_s(k, fill_offset_s=-0.05),
+                               [-0.05, 0, 0, -0.05, 0, 0, -0.05, 0, 0, -0.05])
+    # the walk-end offset: the threshold peak right before each closing step (indices 5 and 8), nothing else
+    np.testing.assert_allclose(kind_offsets_s(k, walk_end_offset_s=-0.03),
+                               [0, 0, 0, 0, 0, -0.03, 0, 0, -0.03, 0])
+    np.testing.assert_allclose(kind_offsets_s(k, fill_offset_s=-0.05, walk_end_offset_s=-0.03),
+                               [-0.05, 0, 0, -0.05, 0, -0.03, -0.05, 0, -0.03, -0.05])
+    assert kind_offsets_s(np.zeros(0, np.int8), fill_offset_s=-0.05, walk_end_offset_s=-0.03).shape == (0,)
+
+
+def test_pipeline_kind_offsets_shift_only_the_closing_contact_and_the_one_before_it():
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS
+    from tests.estimators.trunk_gait._signals import G
+    step = 0.55
+    acc, gyr, ic, _ = walking_body(20.0, rest_s=4.0, step_s=step)
+    t = np.arange(len(acc)) / FS
+    last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
+    acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
+    base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, ic_fill_prominence=0.02, ic_fill_end_steps=1,
+                               ic_fill_end_rhythm=True, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0)
+    ref = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
+    kinds = np.array([IC_KINDS[k] for k in ref.ic_kind])
+    assert kinds[-1] == "closing_rhythm" and (kinds[:-1] == "peak").all()
+    moved = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
+                               params=dataclasses.replace(base, ic_fill_offset_s=-0.05, ic_walk_end_offset_s=-0.02))
+    d = moved.initial_contacts_s - ref.initial_contacts_s
+    np.testing.assert_allclose(d, np.r_[np.zeros(len(d) - 2), -0.02, -0.05], atol=1e-9)
+    # only the reported heel strikes move: strides, bouts, cadence and stride lengths are those without the offsets
+    np.testing.assert_allclose(moved.strides.start_s, ref.strides.start_s)
+    np.testing.assert_allclose(moved.strides.end_s, ref.strides.end_s)
+    np.testing.assert_allclose(moved.strides.length_m, ref.strides.length_m)
+    np.testing.assert_allclose(moved.bouts.cadence_spm, ref.bouts.cadence_spm)
+    np.testing.assert_allclose(moved.bouts.end_s, ref.bouts.end_s)

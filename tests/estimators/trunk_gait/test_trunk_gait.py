@@ -60,7 +60,7 @@ def test_contacts_sides_and_cadence_on_rotated_synthetic_walk():
     acc, gyr = _to_sensor(acc_b, gyr_b, rot("z", 180.0) @ rot("x", 25.0))
     # the simulated walk stops after a full step, without the closing step of a real walk, which the shipped
     # fill places one step after the last contact (ic_fill_end_rhythm; test_icd_detectors): off here
-    p = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False)
+    p = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0)
     res = analyse_trunk_gait(acc, gyr, FS, params=p)
     m = match_initial_contacts(res.initial_contacts_s, ic, tolerance_s=0.05)
     met = ic_metrics(m)
@@ -228,7 +228,8 @@ def test_chest_placement_and_given_height_are_reported():
 def test_slow_small_steps_are_still_walking():
     # about 0.3 m/s: 1.1 s per step (55 steps/min), upward acceleration only ±0.6 m/s²
     acc_b, gyr_b, ic, left = walking_body(60.0, rest_s=5.0, step_s=1.1, amp=0.6, seed=3)
-    res = analyse_trunk_gait(acc_b, gyr_b, FS, height_m=1.65, params=TrunkGaitParams(ic_offset_s=0.0))
+    p = TrunkGaitParams(ic_offset_s=0.0, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0)
+    res = analyse_trunk_gait(acc_b, gyr_b, FS, height_m=1.65, params=p)
     m = match_initial_contacts(res.initial_contacts_s, ic, tolerance_s=0.1)
     met = ic_metrics(m)
     assert met["sensitivity"] > 0.9 and met["precision"] > 0.95, met
@@ -325,7 +326,8 @@ def test_a_short_walk_with_a_stop_is_a_bout_under_the_consensus_stride_rule():
         yaw[m] = -0.4 * (1.0 if k % 2 == 0 else -1.0) * np.cos(np.pi * (t[m] - c) / 0.6)
     acc = np.column_stack([-0.05 * np.gradient(up, 1 / FS), up + 9.80665, 0 * t]) + rng.normal(0, 0.03, (len(t), 3))
     gyr = np.column_stack([0 * t, yaw, 0 * t]) + rng.normal(0, 0.003, (len(t), 3))
-    base = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_end_steps=0, stride_rule="run")
+    base = TrunkGaitParams(ic_offset_s=0.0, ic_fill_end_rhythm=False, ic_fill_end_steps=0, stride_rule="run",
+                           ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0)
     run = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
     cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=dataclasses.replace(base, stride_rule="consensus"))
     assert len(run.bouts) == 0 and len(run.initial_contacts_s) == 0
