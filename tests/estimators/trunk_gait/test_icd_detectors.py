@@ -129,13 +129,18 @@ def test_turn_prominence_lowers_the_threshold_inside_turns_only():
     assert len(turned) == len(plain) + 1
 
 
-def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
+def _walk_with_a_weak_closing_step(step: float = 0.55):
+    """A 20 s walk (steps of ``step`` s) after 4 s of rest whose closing step lifts the trunk little."""
     from tests.estimators.trunk_gait._signals import G
-    step = 0.55
     acc, gyr, ic, _ = walking_body(20.0, rest_s=4.0, step_s=step)
     t = np.arange(len(acc)) / FS
-    last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
+    last = t >= ic[-1] - step / 2
     acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
+    return acc, gyr, ic
+
+
+def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
+    acc, gyr, ic = _walk_with_a_weak_closing_step()
     base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0,
                                cadence_method="count", ic_fill_prominence=0.0,
                                ic_fill_end_steps=0, stride_rule="run")
@@ -149,7 +154,7 @@ def test_a_filled_closing_step_is_a_contact_but_starts_no_stride():
     assert filled.strides.end_s.max() == pytest.approx(plain.strides.end_s.max())
     assert len(filled.strides) == len(plain.strides)
     np.testing.assert_allclose(filled.bouts.cadence_spm, plain.bouts.cadence_spm)
-    assert filled.bouts.cadence_spm[0] == pytest.approx(60 / step, rel=0.01)
+    assert filled.bouts.cadence_spm[0] == pytest.approx(60 / 0.55, rel=0.01)              # the walk's step time
     # the consensus stride rule (shipped): the closing contact ends the walk's last stride but starts none
     cons = analyse_trunk_gait(acc, gyr, FS, height_m=1.75,
                               params=dataclasses.replace(base, ic_fill_prominence=0.02, ic_fill_end_steps=1,
@@ -350,12 +355,7 @@ def test_kind_offsets_move_the_fill_contacts_and_the_last_peak_before_a_closing_
 
 def test_pipeline_kind_offsets_shift_only_the_closing_contact_and_the_one_before_it():
     from stridelab.estimators.trunk_gait._icd import IC_KINDS
-    from tests.estimators.trunk_gait._signals import G
-    step = 0.55
-    acc, gyr, ic, _ = walking_body(20.0, rest_s=4.0, step_s=step)
-    t = np.arange(len(acc)) / FS
-    last = t >= ic[-1] - step / 2                           # the closing step lifts the trunk little
-    acc[last, 1] = G + 0.12 * (acc[last, 1] - G)
+    acc, gyr, ic = _walk_with_a_weak_closing_step()
     base = dataclasses.replace(TrunkGaitParams(), ic_offset_s=0.0, ic_fill_prominence=0.02, ic_fill_end_steps=1,
                                ic_fill_end_rhythm=True, ic_fill_offset_s=0.0, ic_walk_end_offset_s=0.0)
     ref = analyse_trunk_gait(acc, gyr, FS, height_m=1.75, params=base)
