@@ -1,8 +1,6 @@
 """The real CLI end to end on a simulated study: simulate -> run -> every IMU has an orientation."""
 from __future__ import annotations
 
-import json
-
 import pytest
 
 from tests.pipeline.test_runner import cli
@@ -12,19 +10,15 @@ from stridelab.warehouse.read import connect_snapshot
 
 
 @pytest.mark.slow
-def test_simulate_then_run_gives_orientation_for_every_imu(tmp_path):
-    # one participant: its two visits are two lab sessions and two chest days, run in parallel like a study's (a
-    # second participant took the same paths again at twice the CPU; demo_wh of the dashboard tests has two)
-    r = cli("simulate", tmp_path / "inbox", "--participants", "1", "--hours", "0.1", "--json")
-    assert r.returncode == 0, r.stderr
-    files = json.loads(r.stdout)["files"]
+def test_simulate_then_run_gives_orientation_for_every_imu(cli_study):
+    # one participant (tests/pipeline/conftest.py): its two visits are two lab sessions and two chest days, run in
+    # parallel like a study's (a second participant took the same paths again at twice the CPU; demo_wh of the
+    # dashboard tests has two)
+    files, summary = cli_study["files"], cli_study["summary"]
     visits = load_manifest(DEFAULT_MANIFEST).visits          # the demo study is a programme: each visit = lab + chest day
     assert len(files) >= 2 * visits                # per visit: lab trials + one free-living day
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--json")
-    assert r.returncode == 0, r.stderr
-    summary = json.loads(r.stdout)
     assert summary["ingested"] == len(files) and not summary["quarantined"] and not summary["failed"]
-    con = connect_snapshot(tmp_path / "wh")
+    con = connect_snapshot(cli_study["root"] / "wh")
     assert first(con.execute("SELECT count(*) FROM participants"))[0] == 1
     kinds = dict(con.execute("SELECT kind, count(*) FROM sessions GROUP BY 1").fetchall())
     assert kinds == {"lab": visits, "free_living": visits}

@@ -1,7 +1,6 @@
 """Real clocks (issue 13 point 5): the documented policy, a warning each time, refusal only without a time base."""
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np

@@ -4,7 +4,6 @@ from __future__ import annotations
 import duckdb
 import numpy as np
 import pytest
-from dataclasses import replace
 
 from stridelab.pipeline import runner
 from stridelab.pipeline.formats.mcap_write import write_recording

@@ -17,10 +17,9 @@ import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from stridelab.estimators.recording import ImuData, Recording
+from stridelab.estimators.recording import Recording
 from stridelab.pipeline.formats.mcap_write import write_recording
 from tests.corpus import small_recording
 

@@ -9,7 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-import duckdb
 import pytest
 
 from stridelab.pipeline.formats.mcap_write import write_recording

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from stridelab.pipeline import runner, stages
+from stridelab.pipeline import runner
 from stridelab.pipeline.stages import Stage, StageOutput
 from stridelab.pipeline.stages import calibration as cal_stage
 from stridelab.pipeline.stages import joint_angles as ja_stage
@@ -188,26 +188,13 @@ def test_manual_windows_from_the_manifest_override_detection(warehouse, lab_file
 
 
 @pytest.mark.slow
-def test_cli_simulate_then_run_gives_calibration_and_joint_angles(tmp_path, monkeypatch):
-    """The real CLI: ``stridelab simulate`` then ``stridelab run`` (in a subprocess once the stages are
-    registered; before that in-process with the registry patched, as the lead wires them)."""
-    from tests.pipeline.test_runner import cli
-    r = cli("simulate", tmp_path / "inbox", "--participants", "1", "--hours", "0.05", "--json")
-    assert r.returncode == 0, r.stderr
-    args = ["run", "--inbox", str(tmp_path / "inbox"), "--warehouse", str(tmp_path / "wh"), "--json", "--jobs", "1"]
-    if {"calibration", "joint_angles"} <= {s.name for s in stages.registry()}:
-        r = cli(*args, "--no-reports")
-        assert r.returncode == 0, r.stderr
-    else:
-        from click.testing import CliRunner
-
-        from stridelab.cli import main
-        _patch(monkeypatch, _registry(with_gait=False))
-        res = CliRunner().invoke(main, args + ["--no-reports"])
-        assert res.exit_code == 0, res.output
-    cal = _df(tmp_path / "wh", "SELECT placement, status FROM calibration")
+def test_cli_simulate_then_run_gives_calibration_and_joint_angles(cli_study):
+    """``stridelab simulate`` then ``stridelab run`` (tests/pipeline/conftest.py): calibration of every lower-limb
+    placement and the joint angles of every lab visit's walking trials."""
+    wh = cli_study["root"] / "wh"
+    cal = _df(wh, "SELECT placement, status FROM calibration")
     assert set(cal["placement"]) == LOWER and set(cal["status"]) <= {"pass", "warn", "fail"}
-    ja = _df(tmp_path / "wh", "SELECT joint, side, status, series_path FROM joint_angles")
+    ja = _df(wh, "SELECT joint, side, status, series_path FROM joint_angles")
     # per lab visit of the programme: two walking trials × hip/knee/ankle × left/right
     assert len(ja) == load_manifest(DEFAULT_MANIFEST).visits * 2 * 6
     assert set(ja["status"]) <= {"pass", "warn"}

@@ -2,13 +2,11 @@
 against the simulator's reference events, and the CLI end to end."""
 from __future__ import annotations
 
-import json
-import os
 
 import numpy as np
 import pytest
 
-from stridelab.pipeline import runner, stages
+from stridelab.pipeline import runner
 from stridelab.pipeline.stages import gait as gait_stage
 from stridelab.pipeline.stages import orientation as ori_stage
 from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
@@ -174,29 +172,14 @@ def test_standing_still_gives_no_strides(tmp_path):
 
 
 @pytest.mark.slow
-def test_cli_simulate_then_run_fills_the_gait_tables(tmp_path):
-    from tests.pipeline.test_runner import cli
-    r = cli("simulate", tmp_path / "inbox", "--participants", "1", "--hours", "0.05", "--json")
-    assert r.returncode == 0, r.stderr
-    env = None
-    if "gait" not in {s.name for s in stages.registry()}:
-        # not registered yet: patch the registry in the CLI process and its spawned workers (sitecustomize)
-        site = tmp_path / "site"
-        site.mkdir()
-        (site / "sitecustomize.py").write_text(
-            "import stridelab.pipeline.stages as S\n_base = S.registry\n"
-            "def _reg():\n    from stridelab.pipeline.stages import gait\n    b = _base()\n    return [b[0], gait.STAGE] + b[1:]\n"
-            "S.registry = _reg\n")
-        env = {"PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])}
-    r = cli("run", "--inbox", tmp_path / "inbox", "--warehouse", tmp_path / "wh", "--json", "--no-reports", env=env)
-    assert r.returncode == 0, r.stderr
-    summary = json.loads(r.stdout)
-    assert not summary["failed"], summary["failed"]
-    summ = _df(tmp_path / "wh", "SELECT * FROM gait_summary WHERE side = 'both'")
+def test_cli_simulate_then_run_fills_the_gait_tables(cli_study):
+    """``stridelab simulate`` then ``stridelab run`` (tests/pipeline/conftest.py): the gait tables of every lab visit."""
+    wh = cli_study["root"] / "wh"
+    summ = _df(wh, "SELECT * FROM gait_summary WHERE side = 'both'")
     visits = load_manifest(DEFAULT_MANIFEST).visits          # one lab session per visit of the programme
     assert len(summ) == visits and set(summ["status"]) == {"ok"} and (summ["n_strides"] > 40).all()
-    assert _df(tmp_path / "wh", "SELECT count(*) AS n FROM foot_trajectories")["n"][0] == 4 * visits   # 2 trials x 2 feet
-    assert _df(tmp_path / "wh", "SELECT count(*) AS n FROM accuracy_metrics WHERE stage = 'gait_events'")["n"][0] > 0
+    assert _df(wh, "SELECT count(*) AS n FROM foot_trajectories")["n"][0] == 4 * visits   # 2 trials x 2 feet
+    assert _df(wh, "SELECT count(*) AS n FROM accuracy_metrics WHERE stage = 'gait_events'")["n"][0] > 0
 
 
 def test_distance_sensors_feed_the_duong_suh_height(warehouse):

@@ -9,10 +9,10 @@ from zoneinfo import ZoneInfo
 import numpy as np
 import pytest
 
-from stridelab.estimators.activity import (CLASSES, PRESETS, ActivityParams, chest_height_change_m, classify_day,
+from stridelab.estimators.activity import (PRESETS, ActivityParams, chest_height_change_m, classify_day,
                                  cumulative_svm_sign, daily_summaries, ga_filter_sos, inclination_deg, vertical_acc_g)
 from stridelab.estimators.activity._types import LEVEL
-from tests.conftest import PROJECT_ROOT, shared_data
+from tests.conftest import shared_data
 
 G = 9.80665
 FS = 100.0
