@@ -10,8 +10,9 @@ shipped defaults (chosen on all trials, so in-sample). Motion type per trial is 
 
 ``--loop``: walked distance and final position error of loop walks (foot IMU CSVs).
 
-Each file (``stridelab.pipeline.formats.loop_csv``) goes through ``stridelab.estimators.gait.foot_kinematics`` (ESKF + ZUPT + RTS,
-default parameters, mounting-agnostic). distance_m = Σ horizontal displacement between consecutive mid-stances;
+Each file (``stridelab.pipeline.formats.loop_csv``) goes through ``stridelab.estimators.gait.foot_trajectory`` (the foot
+trajectory the gait stage stores: ESKF + ZUPT + RTS on ``TRAJECTORY_ZUPT``, default parameters, mounting-agnostic), at
+the mid-stances of its own stance runs. distance_m = Σ horizontal displacement between consecutive mid-stances;
 final_position_error_m = |p(last mid-stance) − p(first mid-stance)| (3-D; the walk ends where it started),
 also horizontal (``final_position_error_xy_m``) and as % of distance.
 """
@@ -282,36 +283,54 @@ def pyshoe_benchmark(directory: Path, *, show_progress: bool = True, anchors: bo
     return out
 
 
-def _loop_row(path: Path, rec, configs) -> tuple[dict, np.ndarray]:
+def _mid_stances(zupt: np.ndarray, gyr: np.ndarray) -> np.ndarray:
+    """Mid-stance samples of a stance mask: the sample of least |ω| in each stance run (gaitmap's ``min_vel``, the
+    rule of ``foot_kinematics``)."""
+    d = np.diff(np.concatenate([[0], np.asarray(zupt, bool).astype(np.int8), [0]]))
+    w = np.linalg.norm(np.asarray(gyr, float), axis=1)
+    return np.array([a + int(np.argmin(w[a:b])) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))],
+                    dtype=np.int64)
+
+
+def _loop_row(path: Path, rec, configs, foot_params=None) -> tuple[dict, np.ndarray]:
     """Distance and closure error of one loop recording with the shipped defaults (row) and the final horizontal
-    / 3-D error of every grid point ((C, 2) losses)."""
-    import dataclasses
+    / 3-D error of every grid point ((C, 2) losses).
+
+    The shipped row scores the foot trajectory the gait stage stores (``estimators.gait.foot_trajectory`` with
+    ``foot_params``, default ``FootParams()``: the ESKF on the trajectory's own stance detector
+    ``TRAJECTORY_ZUPT``), at the mid-stances of that trajectory's own stance runs, not the gait events'
+    trajectory (``FootKinematics.trajectory``, ``GAIT_ZUPT``). A grid point is ``eskf_trajectory`` with its
+    ``EskfParams`` (what the stage would store with them), at its own mid-stances."""
     import warnings
 
-    from stridelab.estimators.gait import FootParams, foot_kinematics
+    from stridelab.estimators.gait import FootParams, foot_kinematics, foot_trajectory
+    from stridelab.estimators.trajectory import eskf_trajectory
     from stridelab.estimators.trajectory.evaluation import final_position_error
+    fp = FootParams() if foot_params is None else foot_params
+    fs = rec.sampling_rate_hz
     losses = np.full((len(configs), 2), np.nan)
-    row = {"file": str(path), "sampling_rate_hz": rec.sampling_rate_hz}
+    row = {"file": str(path), "sampling_rate_hz": fs}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=rec.sampling_rate_hz)
-        row["status"] = fk.status
-        mids = fk.mid_stance
-        if fk.status == "no_stance" or len(mids) < 2:
+        fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=fs, params=fp)
+        traj = foot_trajectory(rec.gyr, rec.acc, fk, sampling_rate_hz=fs, params=fp)
+        row["status"] = traj.status
+        mids = _mid_stances(traj.zupt, rec.gyr) if traj.status == "ok" else np.zeros(0, np.int64)
+        if traj.status != "ok" or len(mids) < 2:
             row.update(distance_m=None, final_position_error_m=None, final_position_error_3d_m=None,
                        final_position_error_xy_m=None, n_stances=len(mids))
             return row, losses
-        p = fk.trajectory.pos[mids]
+        p = traj.pos[mids]
         dist = float(np.sum(np.hypot(*np.diff(p[:, :2], axis=0).T)))
         exy, e3 = final_position_error(p)
         row.update(distance_m=dist, final_position_error_m=e3, final_position_error_3d_m=e3,
                    final_position_error_xy_m=exy, error_pct_of_distance=float(100 * e3 / dist) if dist > 0 else None,
                    n_stances=int(len(mids)))
         for c, tp in enumerate(configs):
-            fkc = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=rec.sampling_rate_hz,
-                                  params=dataclasses.replace(FootParams(), trajectory=tp))
-            if fkc.status != "no_stance" and len(fkc.mid_stance) >= 2:
-                losses[c] = final_position_error(fkc.trajectory.pos[fkc.mid_stance])
+            tc = eskf_trajectory(rec.gyr, rec.acc, sampling_rate_hz=fs, params=tp)
+            mc = _mid_stances(tc.zupt, rec.gyr) if tc.status == "ok" else np.zeros(0, np.int64)
+            if len(mc) >= 2:
+                losses[c] = final_position_error(tc.pos[mc])
     return row, losses
 
 
