@@ -68,3 +68,26 @@ def test_workdir_that_cannot_be_created_is_a_one_line_error(tmp_path):
     r = _bench("-n", 1, "--workdir", blocker / "sub", check=False)
     assert r.returncode != 0
     assert r.stderr.strip().splitlines()[-1].startswith(f"Error: --workdir {blocker / 'sub'}: cannot create it")
+
+
+def test_no_lower_back_simulates_the_chest_only_study_and_guards_its_inbox(tmp_path):
+    """``--no-lower-back``: the demo manifest with both of its lower-back IMUs switched off (and nothing else
+    changed); an inbox simulated with the other choice is refused rather than benchmarked as this one."""
+    import dataclasses
+    import click
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    from stridelab.validation.bench import pipeline as bench
+    demo, chest = load_manifest(DEFAULT_MANIFEST), load_manifest(bench._chest_only_manifest(tmp_path))
+    assert demo.lab.lower_back and demo.free_living.lower_back
+    assert not chest.lab.lower_back and not chest.free_living.lower_back
+    back_on = dataclasses.replace(chest, lab=dataclasses.replace(chest.lab, lower_back=True),
+                                  free_living=dataclasses.replace(chest.free_living, lower_back=True))
+    assert back_on == demo
+    inbox = tmp_path / "inbox"
+    inbox.mkdir()
+    (inbox / "P001_free1_day-1.mcap").write_bytes(b"")
+    (inbox / bench._STUDY_FILE).write_text(json.dumps({"participants": 1, "hours": 0.05, "lower_back": True,
+                                                       "files": ["P001_free1_day-1.mcap"]}))
+    assert bench._reuse(inbox, 1, 0.05, lower_back=True) == [inbox / "P001_free1_day-1.mcap"]
+    with pytest.raises(click.ClickException, match="with the lower-back sensor, not without it"):
+        bench._reuse(inbox, 1, 0.05, lower_back=False)

@@ -107,8 +107,9 @@ def _fingerprint(wh: Path) -> dict:
         con.close()
 
 
-def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list[Path]:
-    """Each participant's lab session and one ``days``-day free-living recording (consecutive simulated days)."""
+def _multi_day(directory: Path, participants: int, days: int, jobs: int, manifest=None) -> list[Path]:
+    """Each participant's lab session (``manifest``, default the demo study) and one ``days``-day free-living
+    recording of the chest IMU (consecutive simulated days)."""
     from dataclasses import replace
     import numpy as np
     from stridelab.estimators.recording import ImuData, Recording
@@ -116,8 +117,8 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
     from stridelab.validation.simulate import simulate_to_dir
     from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
     from stridelab.validation.simulator import simulate_chest_day, study_participants
-    files = [f for f in simulate_to_dir(directory, participants=participants, hours=0.01, jobs=jobs, visits=1)
-             if "_free" not in f.name]
+    files = [f for f in simulate_to_dir(directory, manifest=manifest, participants=participants, hours=0.01,
+                                        jobs=jobs, visits=1) if "_free" not in f.name]
     for f in directory.glob("*_free*.mcap"):
         f.unlink()
     m = load_manifest(DEFAULT_MANIFEST).with_free_living_hours(24.0)
@@ -147,9 +148,23 @@ def _multi_day(directory: Path, participants: int, days: int, jobs: int) -> list
 _STUDY_FILE = ".bench-study.json"
 
 
-def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
-    """The recordings of a study simulated earlier into ``inbox`` by this bench with the same size, or None when
-    there is none yet; a folder holding another study (or anything else) is refused."""
+def _chest_only_manifest(tmp: Path) -> Path:
+    """The demo study's manifest without its lower-back IMU (``[lab] lower_back`` and ``[free_living] lower_back``
+    false): the study the pipeline's 60 s night was set on before the trunk-gait stage (docs/operations.md)."""
+    import re
+    from stridelab.studies.manifest import DEFAULT_MANIFEST, load_manifest
+    text, n = re.subn(r"(?m)^lower_back\s*=\s*true\b", "lower_back = false", DEFAULT_MANIFEST.read_text())
+    path = tmp / "chest-only-study.toml"
+    path.write_text(text)
+    m = load_manifest(path)
+    if n == 0 or m.lab.lower_back or m.free_living.lower_back:
+        raise click.ClickException(f"{DEFAULT_MANIFEST}: could not switch its lower-back IMU off for --no-lower-back")
+    return path
+
+
+def _reuse(inbox: Path, participants: int, hours: float, lower_back: bool = True) -> list[Path] | None:
+    """The recordings of a study simulated earlier into ``inbox`` by this bench with the same size and sensors, or
+    None when there is none yet; a folder holding another study (or anything else) is refused."""
     if not inbox.exists() or not any(inbox.iterdir()):
         return None
     meta = inbox / _STUDY_FILE
@@ -160,6 +175,10 @@ def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
     if (m["participants"], m["hours"]) != (participants, hours):
         raise click.ClickException(f"{inbox}: holds {m['participants']} participants x {m['hours']} h, not "
                                    f"{participants} x {hours} h; use another --inbox folder")
+    if m.get("lower_back", True) != lower_back:
+        have, want = (("with" if x else "without") for x in (m.get("lower_back", True), lower_back))
+        raise click.ClickException(f"{inbox}: holds a study {have} the lower-back sensor, not {want} it; "
+                                   "use another --inbox folder")
     files = [inbox / f for f in m["files"]]
     if not all(f.is_file() for f in files):
         raise click.ClickException(f"{inbox}: recordings are missing; delete the folder to simulate again")
@@ -184,12 +203,15 @@ def _reuse(inbox: Path, participants: int, hours: float) -> list[Path] | None:
 @click.option("--inbox", "keep_inbox", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Keep the simulated study in this folder and reuse it on the next run with the same "
                    "--participants/--hours/--days (simulating 20 participant-days takes about 5 min).")
+@click.option("--lower-back/--no-lower-back", default=True, show_default=True,
+              help="Simulate the demo study with its belt-worn lower-back IMU (lab visits and home days), or the "
+                   "chest-only study on which the 60 s night of issues 19 and 45 was set.")
 @click.option("--drop-caches", is_flag=True,
               help="Write back and drop the page cache before every timed run (root only), so the recordings are "
                    "read from disk as in a real night and runs are comparable; JSON key page_cache_dropped.")
 @click.option("--json", "as_json", is_flag=True)
 def command(participants, hours, days, jobs, scaling_participants, engine, compare_engines, workdir,
-            keep_inbox, drop_caches, as_json) -> None:
+            keep_inbox, lower_back, drop_caches, as_json) -> None:
     """End-to-end pipeline on a simulated study: wall time, CPU per participant-day, samples/s, peak memory,
     1→2 worker speed-up.
 
@@ -201,6 +223,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
       stridelab bench pipeline --participants 20 --compare-engines --json
       stridelab bench pipeline --participants 20 --inbox /tmp/study20 --json   # simulate once, rerun on it
       sudo stridelab bench pipeline --participants 20 --inbox /tmp/study20 --drop-caches --json
+      stridelab bench pipeline --participants 20 --no-lower-back --inbox /tmp/study20c --json   # chest only
     """
     from stridelab.validation.bench.ingest import reading_floor
     from stridelab.validation.simulate import simulate_to_dir
@@ -218,18 +241,21 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
         tmp = Path(tmp)
         t0 = time.perf_counter()
         inbox = tmp / "inbox" if keep_inbox is None else Path(keep_inbox)
-        files = _reuse(inbox, participants, hours) if keep_inbox is not None else None
+        files = _reuse(inbox, participants, hours, lower_back) if keep_inbox is not None else None
+        manifest = None if lower_back else _chest_only_manifest(tmp)
         if files is not None:
             sim_s = None
             err_console.print(f"reusing the {len(files)} simulated recordings in {inbox}")
         else:
             if hours <= 48.0:
-                files = simulate_to_dir(inbox, participants=participants, hours=hours, jobs=jobs, visits=1)
+                files = simulate_to_dir(inbox, manifest=manifest, participants=participants, hours=hours, jobs=jobs,
+                                        visits=1)
             else:
-                files = _multi_day(inbox, participants, int(days), jobs)
+                files = _multi_day(inbox, participants, int(days), jobs, manifest)
             sim_s = time.perf_counter() - t0
             if keep_inbox is not None:
                 (inbox / _STUDY_FILE).write_text(json.dumps({"participants": participants, "hours": hours,
+                                                             "lower_back": lower_back,
                                                              "files": sorted(f.name for f in files)}))
             err_console.print(f"simulated {len(files)} recordings of {participants} participants in {sim_s:.0f} s")
         k = min(scaling_participants, participants)
@@ -251,6 +277,7 @@ def command(participants, hours, days, jobs, scaling_participants, engine, compa
         pdays = participants * hours / 24.0
         out = {
             "participants": participants, "recorded_days_per_participant": hours / 24.0, "recordings": len(files),
+            "lower_back": lower_back,
             "imu_samples": n, "simulate_s": sim_s, "run_wall_s": full["wall_s"], "jobs": jobs, "engine": engine,
             "cpu_s": full["cpu_s"], "cpu_s_per_participant_day": full["cpu_s"] / pdays,
             "wall_s_per_recorded_day": full["wall_s"] / pdays,
