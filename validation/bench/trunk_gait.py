@@ -621,6 +621,46 @@ def ic_timing_by_kind(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
     return out
 
 
+def cadence_by_reference_bout(recs: list[Rec], dets: list[Det], params) -> list[dict]:
+    """Mobilise-D per INDIP reference bout: its cadence, the matched bout of ours (start, end, cadence), and the
+    ``params.cadence_method`` cadence of our own contacts inside the reference bout (± 0.15 s; closing steps left out,
+    per-kind offsets removed as in the estimator): where the two differ, the error comes from where our bout begins
+    and ends, not from the contacts or the formula (2026-12-08 cadence diagnosis)."""
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS, kind_offsets_s
+    from stridelab.estimators.trunk_gait._pipeline import bout_cadence
+    from stridelab.estimators.trunk_gait.evaluation import match_bouts
+    closing_k = (IC_KINDS.index("closing_rhythm"), IC_KINDS.index("closing_peak"))
+    rows = []
+    for r, d in zip(recs, dets):
+        if r.dataset != "mobilised":
+            continue
+        ic = np.asarray(d.ic_s, float)
+        if d.ic_kind is not None:
+            k = np.asarray(d.ic_kind)
+            ic = (ic - kind_offsets_s(k, fill_offset_s=params.ic_fill_offset_s,
+                                      walk_end_offset_s=params.ic_walk_end_offset_s))[~np.isin(k, closing_k)]
+        b, rb = d.bouts, r.ref_bouts
+        m = match_bouts(b["start_s"], b["end_s"], rb["start_s"], rb["end_s"])
+        ours = dict(zip(m.ref_idx.tolist(), m.det_idx.tolist()))
+        for j, (st, en) in enumerate(zip(rb["start_s"], rb["end_s"])):
+            inside = ic[(ic >= st - 0.15) & (ic <= en + 0.15)]
+            c_in = bout_cadence(inside, max_step_s=params.stride_max_s / 2.0, method=params.cadence_method)
+            ref_c = float(rb["cadence_spm"][j])
+            row = {"recording": r.name, "reference_s": [round(float(st), 2), round(float(en), 2)],
+                   "reference_cadence_spm": round(ref_c, 1),
+                   "ours_inside_reference_bout_spm": round(c_in, 1) if np.isfinite(c_in) else None,
+                   "ours_inside_error_pct": round(100 * (c_in - ref_c) / ref_c, 1) if np.isfinite(c_in) else None,
+                   "ours_bout_s": None, "ours_bout_cadence_spm": None, "ours_bout_error_pct": None}
+            if j in ours:
+                i = ours[j]
+                c = float(b["cadence_spm"][i])
+                row.update({"ours_bout_s": [round(float(b["start_s"][i]), 2), round(float(b["end_s"][i]), 2)],
+                            "ours_bout_cadence_spm": round(c, 1),
+                            "ours_bout_error_pct": round(100 * (c - ref_c) / ref_c, 1) if np.isfinite(c) else None})
+            rows.append(row)
+    return rows
+
+
 def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
     """Leave-one-group-out: ``loss_fn(group_list, c)`` pooled loss of candidate c on those groups."""
     ug = sorted(set(groups))
@@ -978,6 +1018,9 @@ def tune_and_score(recs: list[Rec], show: bool, candidates: tuple = IC_CANDIDATE
         "tilt_gate_check": tilt_gate_check(recs, shipped),
         "ic_misses_by_context": {"shipped_defaults": ic_context(recs, ship_dets),
                                  "cross_validated": ic_context(recs, cv_dets, cv_off)},
+        "cadence_by_reference_bout": {"shipped_defaults": cadence_by_reference_bout(recs, ship_dets, shipped),
+                                      "note": "Mobilise-D, shipped defaults: per INDIP bout the matched bout of ours "
+                                              "and our contacts' cadence inside the reference bout"},
         "ic_timing_by_kind": {"shipped_defaults": ic_timing_by_kind(recs, ship_dets),
                               "cross_validated": ic_timing_by_kind(recs, cv_dets, cv_off),
                               "note": "matched contacts by how they were found (estimators/trunk_gait/_icd.IC_KINDS; "
