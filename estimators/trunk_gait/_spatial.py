@@ -30,6 +30,15 @@ def vertical_position(v_up: np.ndarray, fs_hz: float, highpass_hz: float) -> np.
     return hp(cumulative_trapezoid(vel, dx=dt, initial=0.0))
 
 
+def _row_nanmedian(w: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(w, axis=1)`` for rows with at least one finite value, by one sort (NaNs sort last): the
+    numpy function takes a masked-array path per call that cost a quarter of the 24 h day's CPU time."""
+    srt = np.sort(w, axis=1)
+    k = np.sum(np.isfinite(w), axis=1)
+    r = np.arange(len(w))
+    return 0.5 * (srt[r, (k - 1) // 2] + srt[r, k // 2])
+
+
 def hampel(x: np.ndarray, half_width: int, n_sigma: float, groups: np.ndarray | None = None) -> np.ndarray:
     """Hampel identifier (Pearson et al. 2016, "Generalized Hampel filters", EURASIP J Adv Signal Process 2016:87,
     doi:10.1186/s13634-016-0383-6): a value further than ``n_sigma`` × 1.4826 × MAD from the median of the
@@ -51,10 +60,10 @@ def hampel(x: np.ndarray, half_width: int, n_sigma: float, groups: np.ndarray | 
     out = x.copy()
     if not ok.any():
         return out
-    med = np.nanmedian(w[ok], axis=1)
+    med = _row_nanmedian(w[ok])
     # scale floor 1 % of the median (deviation): with equal neighbours the MAD is 0 and every other value would
     # count as an outlier
-    mad = np.maximum(np.nanmedian(np.abs(w[ok] - med[:, None]), axis=1), 0.01 * np.abs(med))
+    mad = np.maximum(_row_nanmedian(np.abs(w[ok] - med[:, None])), 0.01 * np.abs(med))
     bad = np.abs(x[ok] - med) > n_sigma * 1.4826 * mad
     out[np.flatnonzero(ok)[bad]] = med[bad]
     return out

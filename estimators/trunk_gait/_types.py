@@ -81,8 +81,9 @@ class TrunkGaitParams:
         acceleration smoothed with σ ``ic_smooth_s`` within ± this (the amplitude-free detector counts the steps,
         the acceleration peak of "peak" times them; 0 = off), s.
       cadence_method: per-bout cadence, "median" (60 / median step time), "count" (steps over walking time,
-        a missed contact counted by the rhythm), "step_mean" (mean of 60 / step time) or "per_second"
-        (mobgap's robust per-second cadence, Hampel-cleaned step times); ``_pipeline.bout_cadence``.
+        a missed contact counted by the rhythm), "step_mean" (mean of 60 / step time), "per_second"
+        (mobgap's robust per-second cadence, Hampel-cleaned step times) or "stride_mean" (mean over the bout's
+        strides of 120 / stride time, the Mobilise-D INDIP reference definition); ``_pipeline.bout_cadence``.
     Side (McCamley et al. 2012: sign of the yaw rate):
       side_lag_s: the yaw rate is read this long after each initial contact (negative = before), s.
       side_lowpass_hz: low-pass cut-off of the yaw rate, Hz.
@@ -147,7 +148,7 @@ class TrunkGaitParams:
     ic_offset_s: float = -0.07
     ic_fill_offset_s: float = -0.07
     ic_walk_end_offset_s: float = -0.04
-    cadence_method: str = "step_mean"
+    cadence_method: str = "stride_mean"
     side_lag_s: float = -0.1
     side_lowpass_hz: float = 2.0
     sl_correction: float = 1.27

@@ -223,5 +223,7 @@ def score(ctx: StageContext, p: TrunkGaitStageParams) -> None:
 # estimator logic changed, not only its defaults, which are in the stamp anyway)
 # version 7: per-kind contact offsets (ic_fill_offset_s, ic_walk_end_offset_s): the stored contact times of closing
 # steps, gap fills and the last step of each walk move
-STAGE = shaped_stage("trunk_gait", "7", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
+# version 8: bout cadence "stride_mean" (mean of 120 / stride time over the bout's strides, the INDIP definition):
+# the stored per-bout cadence changes
+STAGE = shaped_stage("trunk_gait", "8", TrunkGaitStageParams, compute, score=score, placements=TRUNK_PLACEMENTS,
                      tables=TABLES, session_kinds=("lab", "free_living"))

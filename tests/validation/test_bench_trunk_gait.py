@@ -61,3 +61,20 @@ def test_bench_recomputes_bout_values_as_the_estimator_does():
     np.testing.assert_allclose(re.bouts["stride_length_m"], other.bouts["stride_length_m"])
     np.testing.assert_allclose(re.bouts["walking_speed_m_s"], other.bouts["walking_speed_m_s"])
     assert not np.allclose(re.bouts["walking_speed_m_s"], det.bouts["walking_speed_m_s"])
+
+
+def test_ic_score_gives_the_ic_loss_of_the_full_score_at_every_offset():
+    # the IC grid scores contacts alone (ic_score, no bout matching); its loss must equal the full score's
+    import numpy as np
+
+    from stridelab.estimators.trunk_gait import TrunkGaitParams
+    from stridelab.validation.bench.trunk_gait import ic_loss, ic_score, load_voisard, run_ours, score
+    recs = load_voisard(shared_data("voisard_gait"), [], 2, foot_reference=False)
+    dets = [run_ours(r, TrunkGaitParams()) for r in recs]
+    losses = []
+    for o in (-0.2, -0.05, 0.0, 0.1):
+        full, fast = score(recs, dets, offset_s=o), ic_score(recs, dets, offset_s=o)
+        assert {k: full[k] for k in fast} == fast
+        losses.append(ic_loss(fast))
+        assert ic_loss(fast) == ic_loss(full)
+    assert len(set(np.round(losses, 6))) == len(losses)      # the offset moves the loss: the check can fail

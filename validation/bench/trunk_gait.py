@@ -21,7 +21,8 @@ Blocks. ``shipped_defaults``: TrunkGaitParams() as shipped, no re-tuning. ``cros
 chosen without the held-out group: leave-one-group-out over the Voisard subjects plus the Mobilise-D participant as
 one more group (IC constants: the detector ``ic_method`` — "peak" with ``ic_smooth_s``, ``ic_prominence``,
 ``ic_fill_prominence``, ``ic_fill_edge_steps``, ``ic_fill_end_steps``, ``ic_turn_prominence``, or "ionescu" with
-``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``) — and ``ic_offset_s``, then, given the fold's candidate,
+``ic_zc_sigma_s``, ``ic_zc_min_depth`` (``IC_CANDIDATES``; by default only the "peak" ones, ``IC_CANDIDATES_PEAK``:
+the others were never chosen, ``--all-ic-methods`` scores them) — and ``ic_offset_s``, then, given the fold's candidate,
 the per-kind offsets ``ic_fill_offset_s`` x ``ic_walk_end_offset_s`` (``GRID_KIND_OFFSETS``) jointly with
 ``ic_offset_s``, then ``cadence_method``; the block
 ``shipped_defaults`` names the detector that ships under ``ic_detector``, ``ic_grid_in_sample`` scores every
@@ -102,19 +103,23 @@ GRID_FILL_START = (0.0, 0.4)
 # contacts with a 2 s stop dropped by the 4-stride rule); the stride rule only with the fill on
 GRID_WALK_ENDS = (False, True)
 GRID_STRIDE_RULE = ("run", "consensus")
-IC_CANDIDATES = tuple(
-    [{"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
-      "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
-      "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er, "ic_fill_walk_ends": we,
-      "stride_rule": sr}
-     for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
-     for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
-     for we in GRID_WALK_ENDS for sr in GRID_STRIDE_RULE
-     if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er) and (er or not we) and (f[0] > 0 or sr == "run")]
-    + [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
-       for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
+IC_CANDIDATES_PEAK = tuple(
+    {"ic_method": "peak", "ic_smooth_s": s, "ic_prominence": p, "ic_fill_prominence": f[0],
+     "ic_fill_edge_steps": f[1], "ic_fill_end_steps": f[2], "ic_fill_start_prominence": fs,
+     "ic_turn_prominence": t, "ic_subsample": sub, "ic_fill_end_rhythm": er, "ic_fill_walk_ends": we,
+     "stride_rule": sr}
+    for s in GRID_SMOOTH_S for p in GRID_PROMINENCE for f in GRID_FILL for fs in GRID_FILL_START
+    for t in GRID_TURN_PROMINENCE for sub in GRID_SUBSAMPLE for er in GRID_END_RHYTHM
+    for we in GRID_WALK_ENDS for sr in GRID_STRIDE_RULE
+    if (f[0] > 0 or fs == 0.0) and (f[2] > 0 or not er) and (er or not we) and (f[0] > 0 or sr == "run"))
+# the other detectors: never chosen by any fold nor in-sample in the 2026-12-07 runs (peak in 10/10 folds,
+# validation/provenance.toml ic_method), so since 2026-12-08 only scored with ``--all-ic-methods``
+IC_CANDIDATES_OTHER = tuple(
+    [{"ic_method": "ionescu", "ic_zc_sigma_s": g, "ic_zc_min_depth": d, "ic_refine_s": 0.0}
+     for g in GRID_ZC_SIGMA_S for d in GRID_ZC_DEPTH]
     + [{"ic_method": m, "ic_cwt_signal": x, "ic_refine_s": r, "ic_zc_min_depth": d, "ic_smooth_s": 0.11}
        for m, x, r, d in GRID_CWT])
+IC_CANDIDATES = IC_CANDIDATES_PEAK + IC_CANDIDATES_OTHER     # the full grid (``--all-ic-methods``)
 IC_FIELDS = ("ic_method", "ic_smooth_s", "ic_prominence", "ic_local_window_s", "ic_fill_prominence",
              "ic_fill_edge_steps", "ic_fill_end_steps", "ic_turn_prominence", "ic_zc_sigma_s", "ic_zc_min_depth",
              "ic_fill_start_prominence", "ic_fill_end_rhythm", "ic_subsample", "ic_cwt_signal", "ic_refine_s",
@@ -392,6 +397,21 @@ def sl_mae(recs: list[Rec], dets: list[Det], sl_scale: float = 1.0) -> float:
     return spatial_mae(recs, dets, sl_scale, "stride_length_m")
 
 
+def ic_score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0) -> dict:
+    """The contact counts and timing MAE of ``score`` alone (``ic_tp``, ``ic_fp``, ``ic_fn``, ``ic_timing_mae_ms``,
+    rounded as there): what ``ic_loss`` reads, without the bout matching that does not depend on the offset (the
+    IC grid scores every candidate at every offset of GRID_OFFSET_S; 2026-12-08, same losses as before)."""
+    tp = fp = fn = 0
+    errs = []
+    for r, d in zip(recs, dets):
+        a, b, c, e = _ic_counts(r, d.ic_s + offset_s)
+        tp, fp, fn = tp + a, fp + b, fn + c
+        errs.append(e)
+    e = np.concatenate(errs) if errs else np.empty(0)
+    return {"ic_tp": tp, "ic_fp": fp, "ic_fn": fn,
+            "ic_timing_mae_ms": round(float(np.mean(np.abs(e)) * 1000), 4) if len(e) else None}
+
+
 def ic_loss(s: dict) -> float:
     """Timing cost per reference contact, ms: a matched contact costs its timing error, a missed or an extra one
     the matching tolerance (250 ms), i.e. (Σ|e| + 250 (FN + FP)) / (TP + FN)."""
@@ -601,6 +621,46 @@ def ic_timing_by_kind(recs: list[Rec], dets: list[Det], offsets=None) -> dict:
     return out
 
 
+def cadence_by_reference_bout(recs: list[Rec], dets: list[Det], params) -> list[dict]:
+    """Mobilise-D per INDIP reference bout: its cadence, the matched bout of ours (start, end, cadence), and the
+    ``params.cadence_method`` cadence of our own contacts inside the reference bout (± 0.15 s; closing steps left out,
+    per-kind offsets removed as in the estimator): where the two differ, the error comes from where our bout begins
+    and ends, not from the contacts or the formula (2026-12-08 cadence diagnosis)."""
+    from stridelab.estimators.trunk_gait._icd import IC_KINDS, kind_offsets_s
+    from stridelab.estimators.trunk_gait._pipeline import bout_cadence
+    from stridelab.estimators.trunk_gait.evaluation import match_bouts
+    closing_k = (IC_KINDS.index("closing_rhythm"), IC_KINDS.index("closing_peak"))
+    rows = []
+    for r, d in zip(recs, dets):
+        if r.dataset != "mobilised":
+            continue
+        ic = np.asarray(d.ic_s, float)
+        if d.ic_kind is not None:
+            k = np.asarray(d.ic_kind)
+            ic = (ic - kind_offsets_s(k, fill_offset_s=params.ic_fill_offset_s,
+                                      walk_end_offset_s=params.ic_walk_end_offset_s))[~np.isin(k, closing_k)]
+        b, rb = d.bouts, r.ref_bouts
+        m = match_bouts(b["start_s"], b["end_s"], rb["start_s"], rb["end_s"])
+        ours = dict(zip(m.ref_idx.tolist(), m.det_idx.tolist()))
+        for j, (st, en) in enumerate(zip(rb["start_s"], rb["end_s"])):
+            inside = ic[(ic >= st - 0.15) & (ic <= en + 0.15)]
+            c_in = bout_cadence(inside, max_step_s=params.stride_max_s / 2.0, method=params.cadence_method)
+            ref_c = float(rb["cadence_spm"][j])
+            row = {"recording": r.name, "reference_s": [round(float(st), 2), round(float(en), 2)],
+                   "reference_cadence_spm": round(ref_c, 1),
+                   "ours_inside_reference_bout_spm": round(c_in, 1) if np.isfinite(c_in) else None,
+                   "ours_inside_error_pct": round(100 * (c_in - ref_c) / ref_c, 1) if np.isfinite(c_in) else None,
+                   "ours_bout_s": None, "ours_bout_cadence_spm": None, "ours_bout_error_pct": None}
+            if j in ours:
+                i = ours[j]
+                c = float(b["cadence_spm"][i])
+                row.update({"ours_bout_s": [round(float(b["start_s"][i]), 2), round(float(b["end_s"][i]), 2)],
+                            "ours_bout_cadence_spm": round(c, 1),
+                            "ours_bout_error_pct": round(100 * (c - ref_c) / ref_c, 1) if np.isfinite(c) else None})
+            rows.append(row)
+    return rows
+
+
 def _logo(groups: list[str], loss_fn, n_cand: int) -> dict:
     """Leave-one-group-out: ``loss_fn(group_list, c)`` pooled loss of candidate c on those groups."""
     ug = sorted(set(groups))
@@ -782,19 +842,20 @@ def sensor_height_check(recs: list[Rec], shipped) -> dict | None:
                     "height with the same sl_correction"}
 
 
-def tune_and_score(recs: list[Rec], show: bool) -> dict:
-    """Run our estimator for the IC grid, choose constants by LOGO, score shipped / CV / in-sample."""
+def tune_and_score(recs: list[Rec], show: bool, candidates: tuple = IC_CANDIDATES_PEAK) -> dict:
+    """Run our estimator for the IC grid (``candidates``: the "peak" candidates, or ``IC_CANDIDATES`` with the
+    other detectors), choose constants by LOGO, score shipped / CV / in-sample."""
     from stridelab.estimators.trunk_gait import TrunkGaitParams
     shipped = TrunkGaitParams()
     # group-level means of the IC loss: each candidate = (IC detector candidate, offset)
     dets: dict[int, list[Det]] = {}
     # every candidate without the shipped per-kind offsets (chosen in the second stage below, GRID_KIND_OFFSETS)
-    for ci, ic in enumerate(IC_CANDIDATES):
+    for ci, ic in enumerate(candidates):
         dets[ci] = [run_ours(r, dataclasses.replace(shipped, **ic, ic_offset_s=0.0, ic_fill_offset_s=0.0,
                                                     ic_walk_end_offset_s=0.0)) for r in recs]
         if show:
-            _say(f"  grid {ci + 1}/{len(IC_CANDIDATES)}: " + " ".join(f"{k}={v}" for k, v in ic.items()))
-    full = [(ci, o) for ci in range(len(IC_CANDIDATES)) for o in GRID_OFFSET_S]
+            _say(f"  grid {ci + 1}/{len(candidates)}: " + " ".join(f"{k}={v}" for k, v in ic.items()))
+    full = [(ci, o) for ci in range(len(candidates)) for o in GRID_OFFSET_S]
     groups = [r.group for r in recs]
     cache: dict = {}
 
@@ -803,14 +864,14 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         if key not in cache:
             ci, o = full[c]
             idx = [i for i, r in enumerate(recs) if r.group == g]
-            cache[key] = ic_loss(score([recs[i] for i in idx], [dets[ci][i] for i in idx], offset_s=o))
+            cache[key] = ic_loss(ic_score([recs[i] for i in idx], [dets[ci][i] for i in idx], offset_s=o))
         return cache[key]
 
     logo = _logo(groups, lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(full))
     # every IC candidate at its best offset, in-sample (group-mean loss over all groups): how the detectors compare
     ug_all = sorted(set(groups))
     grid_table = []
-    for ci, ic in enumerate(IC_CANDIDATES):
+    for ci, ic in enumerate(candidates):
         cs = [c for c, (cj, _o) in enumerate(full) if cj == ci]
         losses = [float(np.mean([group_loss(g, c) for g in ug_all])) for c in cs]
         c = cs[int(np.argmin(losses))]
@@ -825,7 +886,7 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         if ko == (0.0, 0.0):
             return dets[ci]
         if (ci, ko) not in kdets:
-            kdets[(ci, ko)] = [run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+            kdets[(ci, ko)] = [run_ours(r, dataclasses.replace(shipped, **candidates[ci], ic_offset_s=0.0,
                                                                ic_fill_offset_s=ko[0], ic_walk_end_offset_s=ko[1]))
                                for r in recs]
         return kdets[(ci, ko)]
@@ -836,12 +897,12 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         if (g, ci, ko) not in kcache:
             idx = [i for i, r in enumerate(recs) if r.group == g]
             d = kdet(ci, ko)
-            kcache[(g, ci, ko)] = np.array([ic_loss(score([recs[i] for i in idx], [d[i] for i in idx], offset_s=o))
+            kcache[(g, ci, ko)] = np.array([ic_loss(ic_score([recs[i] for i in idx], [d[i] for i in idx], offset_s=o))
                                             for o in GRID_OFFSET_S])
         return kcache[(g, ci, ko)]
 
     def kind_grid(ci: int) -> tuple:
-        c = IC_CANDIDATES[ci]
+        c = candidates[ci]
         return GRID_KIND_OFFSETS if c["ic_method"] == "peak" and c.get("ic_fill_prominence", 0) > 0 else ((0.0, 0.0),)
 
     def choose_kind(ci: int, train: list[str]) -> tuple[tuple, float, float]:
@@ -875,7 +936,7 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         """The fold's IC candidate (with its per-kind offsets ``ko``) and spatial variant; the speed after the fold's
         cadence method."""
         d = (kdet(ci, ko)[i_of[r.name]] if v[0] == ship_v[0] and v[2] == ship_v[2] else
-             run_ours(r, dataclasses.replace(shipped, **IC_CANDIDATES[ci], ic_offset_s=0.0,
+             run_ours(r, dataclasses.replace(shipped, **candidates[ci], ic_offset_s=0.0,
                                              ic_fill_offset_s=ko[0], ic_walk_end_offset_s=ko[1],
                                              sl_hampel_half_width=v[0], sl_turn_per_rad=v[2])))
         return respatial(_with_cadence(d, cad), v[1], v[3], speed_method, v[4])
@@ -907,7 +968,8 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
     vi, ki, spi = sl_ins or ship_sp
     ins_dets = [with_sl(r, cii, ko_in, vi, cad_ins, spi) for r in recs]
     ins_scale = [ki / shipped.sl_correction] * len(recs)
-    by_group = {g: {**IC_CANDIDATES[ci], "ic_fill_offset_s": ko[0], "ic_walk_end_offset_s": ko[1],
+    grid_name = "IC_CANDIDATES" if len(candidates) == len(IC_CANDIDATES) else "IC_CANDIDATES_PEAK"
+    by_group = {g: {**candidates[ci], "ic_fill_offset_s": ko[0], "ic_walk_end_offset_s": ko[1],
                     "ic_offset_s": o, "cadence_method": cad_held[g]}
                 for g, (ci, ko, o) in ic_held.items()}
     return {
@@ -920,11 +982,12 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                                                           "bout_strides", "sl_max_tilt_deg",
                                                                           "speed_method")}},
         "cross_validated": {**blocks(recs, cv_dets, offsets=cv_off, sl_scales=cv_scale),
-                            "scheme": "IC constants (ic_method and its constants, IC_CANDIDATES, x ic_offset_s): "
+                            "scheme": f"IC constants (ic_method and its constants, {len(candidates)} candidates of "
+                                      f"{grid_name}, x ic_offset_s): "
                                       "leave-one-group-out (then, given the fold's detector candidate, the per-kind "
                                       "offsets ic_fill_offset_s x ic_walk_end_offset_s, GRID_KIND_OFFSETS, jointly "
                                       "with ic_offset_s on the same training groups; then cadence_method, "
-                                      "median/count/step_mean/per_second, on the cadence MAPE of the fold's IC "
+                                      "median/count/step_mean/per_second/stride_mean, on the cadence MAPE of the fold's IC "
                                       "choice, same folds) "
                                       "over the Voisard subjects + the Mobilise-D participant as one more group; "
                                       "sl_turn_per_rad (stride level), then sl_hampel_half_width, "
@@ -941,7 +1004,7 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
                                if len(set(groups)) < 2 else {})},
         "in_sample": {**blocks(recs, ins_dets, offsets=[oi] * len(recs), sl_scales=ins_scale),
                       "marked": "in-sample: constants chosen on all the recordings scored here",
-                      "choice": {**IC_CANDIDATES[cii], "ic_fill_offset_s": ko_in[0],
+                      "choice": {**candidates[cii], "ic_fill_offset_s": ko_in[0],
                                  "ic_walk_end_offset_s": ko_in[1], "ic_offset_s": oi, "cadence_method": cad_ins,
                                  "sl_correction": ki, "sl_hampel_half_width": vi[0], "bout_average": vi[1],
                                  "sl_turn_per_rad": vi[2], "bout_strides": vi[3], "sl_max_tilt_deg": vi[4],
@@ -955,6 +1018,9 @@ def tune_and_score(recs: list[Rec], show: bool) -> dict:
         "tilt_gate_check": tilt_gate_check(recs, shipped),
         "ic_misses_by_context": {"shipped_defaults": ic_context(recs, ship_dets),
                                  "cross_validated": ic_context(recs, cv_dets, cv_off)},
+        "cadence_by_reference_bout": {"shipped_defaults": cadence_by_reference_bout(recs, ship_dets, shipped),
+                                      "note": "Mobilise-D, shipped defaults: per INDIP bout the matched bout of ours "
+                                              "and our contacts' cadence inside the reference bout"},
         "ic_timing_by_kind": {"shipped_defaults": ic_timing_by_kind(recs, ship_dets),
                               "cross_validated": ic_timing_by_kind(recs, cv_dets, cv_off),
                               "note": "matched contacts by how they were found (estimators/trunk_gait/_icd.IC_KINDS; "
@@ -1102,7 +1168,7 @@ def anchor_block(recs: list[Rec], mg: dict, mg_tuned: dict | None = None) -> dic
         if (g, c) not in cache:
             v, p, o = cands[c]
             idx = [i for i, r in enumerate(recs) if r.group == g]
-            cache[(g, c)] = ic_loss(score([recs[i] for i in idx], [mg[v][p][i] for i in idx], offset_s=o))
+            cache[(g, c)] = ic_loss(ic_score([recs[i] for i in idx], [mg[v][p][i] for i in idx], offset_s=o))
         return cache[(g, c)]
     logo = _logo([r.group for r in recs], lambda gs, c: float(np.mean([group_loss(g, c) for g in gs])), len(cands))
     groups = sorted({r.group for r in recs})
@@ -1231,7 +1297,8 @@ def day_speed(recs: list[Rec]) -> dict:
 # ---------------------------------------------------------------------------------------------------- command
 
 def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python: Path, anchor: bool = True,
-                  day: bool = True, limit: int | None = None, show: bool = True) -> dict:
+                  day: bool = True, limit: int | None = None, show: bool = True,
+                  all_ic_methods: bool = False) -> dict:
     failed: list[dict] = []
     recs: list[Rec] = []
     if voisard is not None:
@@ -1244,7 +1311,7 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
         raise UserError("no recording could be read; see the skipped files above")
     if show:
         _say(f"{len(recs)} recordings ({len(failed)} skipped); running the IC grid …")
-    res = tune_and_score(recs, show)
+    res = tune_and_score(recs, show, IC_CANDIDATES if all_ic_methods else IC_CANDIDATES_PEAK)
     res.pop("_ship_dets")
     if anchor:
         mg, reason = run_mobgap(recs, mobgap_python, show)
@@ -1264,7 +1331,8 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
     res["constants"] = [
         {"name": "TrunkGaitParams.ic_method / ic_offset_s / ic_smooth_s / ic_prominence / ic_fill_prominence / "
                  "ic_fill_edge_steps / ic_fill_end_steps / ic_zc_sigma_s / ic_zc_min_depth / cadence_method",
-         "grid": "IC_CANDIDATES x GRID_OFFSET_S of validation/bench/trunk_gait.py",
+         "grid": ("IC_CANDIDATES (--all-ic-methods)" if all_ic_methods else "IC_CANDIDATES_PEAK (default; the other "
+                  "detectors with --all-ic-methods)") + " x GRID_OFFSET_S of validation/bench/trunk_gait.py",
          "chosen_on": "Voisard subjects + Mobilise-D HA-001 (leave-one-group-out for the cross-validated figure)"},
         {"name": "TrunkGaitParams.sl_correction / sl_hampel_half_width / bout_average / bout_strides / "
                  "sl_turn_per_rad / speed_method",
@@ -1293,9 +1361,11 @@ def run_benchmark(voisard: Path | None, mobilised: Path | None, *, mobgap_python
 @click.option("--no-anchor", is_flag=True, help="skip mobgap")
 @click.option("--day/--no-day", default=True, show_default=True, help="measure the 24 h day's CPU seconds")
 @click.option("--limit", type=int, default=None, help="only the first N Voisard trials (development)")
+@click.option("--all-ic-methods", is_flag=True,
+              help="also score the ionescu / shin / hklee detectors in the IC grid (never chosen; slower)")
 @click.option("--json", "as_json", is_flag=True, help="print the result as JSON on stdout")
 def command(voisard: Path | None, mobilised: Path | None, mobgap_python: Path, no_anchor: bool, day: bool,
-            limit: int | None, as_json: bool) -> None:
+            limit: int | None, all_ic_methods: bool, as_json: bool) -> None:
     """Trunk gait (initial contacts, bouts, cadence, stride length, speed) against Voisard and Mobilise-D references,
     with mobgap as the anchor.
 
@@ -1310,7 +1380,7 @@ def command(voisard: Path | None, mobilised: Path | None, mobgap_python: Path, n
         else:
             raise UserError("give --voisard DIR and/or --mobilised DIR (public data, see DESIGN.md 'Real data')")
     res = run_benchmark(voisard, mobilised, mobgap_python=mobgap_python, anchor=not no_anchor, day=day,
-                        limit=limit, show=True)
+                        limit=limit, show=True, all_ic_methods=all_ic_methods)
     if as_json:
         emit_json(res)
     else:

@@ -129,3 +129,19 @@ def test_per_second_cadence_ignores_a_missed_contact_and_step_mean_is_the_mean_s
     two = np.r_[np.arange(0, 6.0, 0.5), 6.0 + np.arange(0, 6.01, 0.75)]
     assert per_second_cadence(two, max_step_s=1.5) == pytest.approx((6 * 120 + 6 * 80) / 12, rel=0.03)
     assert np.isnan(per_second_cadence(ic[:4], max_step_s=1.5))
+
+
+def test_stride_mean_cadence_is_the_mean_of_120_over_stride_time_as_the_indip_reference():
+    # strides IC_i -> IC_{i+2}: steps of 0.5 s then 0.6 s alternate, every stride lasts 1.1 s -> 120 / 1.1
+    ic = np.cumsum(np.r_[0.0, np.tile([0.5, 0.6], 6)])
+    assert bout_cadence(ic, max_step_s=1.5, method="stride_mean") == pytest.approx(120 / 1.1)
+    # a stop of 2 s inside the bout: the strides over it (2.5 s, 2.6 s <= 2 x max_step_s) count, as INDIP's
+    stop = np.r_[ic, ic[-1] + 2.0, ic[-1] + 2.5]
+    st = stop[2:] - stop[:-2]
+    assert bout_cadence(stop, max_step_s=1.5, method="stride_mean") == pytest.approx(np.mean(120 / st))
+    assert bout_cadence(stop, max_step_s=1.5, method="stride_mean") < 120 / 1.1
+    # a stride longer than 2 x max_step_s is a pause, not a stride
+    pause = np.r_[ic, ic[-1] + 4.0, ic[-1] + 4.5, ic[-1] + 5.0]
+    st = pause[2:] - pause[:-2]
+    assert bout_cadence(pause, max_step_s=1.5, method="stride_mean") == pytest.approx(np.mean(120 / st[st <= 3.0]))
+    assert np.isnan(bout_cadence(ic[:2], max_step_s=1.5, method="stride_mean"))

@@ -360,3 +360,15 @@ def test_bout_spatial_leaves_out_strides_over_a_stop_unless_none_is_left():
     sl_all, _ = bout_spatial(length, dur, bout, np.array([120.0, 100.0]), average="mean", strides="all",
                              speed_method="cadence")
     assert sl_all[0] == pytest.approx((3 * 1.2 + 3.0) / 4)
+
+
+def test_hampel_row_median_equals_numpy_nanmedian():
+    # the Hampel filter's median by one sort (NaNs last) must equal np.nanmedian row by row, odd and even counts
+    from stridelab.estimators.trunk_gait._spatial import _row_nanmedian
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=(400, 5))
+    w[rng.random(w.shape) < 0.35] = np.nan
+    w = w[np.isfinite(w).any(axis=1)]
+    np.testing.assert_array_equal(_row_nanmedian(w), np.nanmedian(w, axis=1))
+    assert _row_nanmedian(np.array([[3.0, np.nan, 1.0, 10.0]]))[0] == 3.0
+    assert _row_nanmedian(np.array([[4.0, 1.0, np.nan, np.nan]]))[0] == 2.5
