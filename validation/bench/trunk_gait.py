@@ -336,22 +336,29 @@ def _bout_errs(rec: Rec, det: Det, sl_scale: float = 1.0) -> dict:
     return e
 
 
-def score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0, sl_scale: float = 1.0,
-          whole: bool = False) -> dict:
-    """The six keys (None where no reference) pooled over ``recs``, plus counts."""
-    from stridelab.estimators.trunk_gait.evaluation import summarise_bout_errors
+def _ic_pooled(recs: list[Rec], dets: list[Det], offset_s: float, whole: bool = False) -> tuple:
+    """Contacts matched one-to-one (``_ic_counts``) pooled over ``recs``: TP, FP, FN and the timing errors, s."""
     tp = fp = fn = 0
-    errs, berrs = [], []
-    n_ref_b = n_match_b = 0
+    errs = []
     for r, d in zip(recs, dets):
         a, b, c, e = _ic_counts(r, d.ic_s + offset_s, whole)
         tp, fp, fn = tp + a, fp + b, fn + c
         errs.append(e)
+    return tp, fp, fn, (np.concatenate(errs) if errs else np.empty(0))
+
+
+def score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0, sl_scale: float = 1.0,
+          whole: bool = False) -> dict:
+    """The six keys (None where no reference) pooled over ``recs``, plus counts."""
+    from stridelab.estimators.trunk_gait.evaluation import summarise_bout_errors
+    tp, fp, fn, e = _ic_pooled(recs, dets, offset_s, whole)
+    berrs = []
+    n_ref_b = n_match_b = 0
+    for r, d in zip(recs, dets):
         be = _bout_errs(r, d, sl_scale)
         n_ref_b += be.pop("_n_ref")
         n_match_b += be.pop("_n_matched")
         berrs.append(be)
-    e = np.concatenate(errs) if errs else np.empty(0)
     s = summarise_bout_errors(berrs)
     out = {"ic_sensitivity": tp / (tp + fn) if tp + fn else None, "ic_precision": tp / (tp + fp) if tp + fp else None,
            "ic_timing_mae_ms": float(np.mean(np.abs(e)) * 1000) if len(e) else None,
@@ -401,13 +408,7 @@ def ic_score(recs: list[Rec], dets: list[Det], *, offset_s: float = 0.0) -> dict
     """The contact counts and timing MAE of ``score`` alone (``ic_tp``, ``ic_fp``, ``ic_fn``, ``ic_timing_mae_ms``,
     rounded as there): what ``ic_loss`` reads, without the bout matching that does not depend on the offset (the
     IC grid scores every candidate at every offset of GRID_OFFSET_S; 2026-12-08, same losses as before)."""
-    tp = fp = fn = 0
-    errs = []
-    for r, d in zip(recs, dets):
-        a, b, c, e = _ic_counts(r, d.ic_s + offset_s)
-        tp, fp, fn = tp + a, fp + b, fn + c
-        errs.append(e)
-    e = np.concatenate(errs) if errs else np.empty(0)
+    tp, fp, fn, e = _ic_pooled(recs, dets, offset_s)
     return {"ic_tp": tp, "ic_fp": fp, "ic_fn": fn,
             "ic_timing_mae_ms": round(float(np.mean(np.abs(e)) * 1000), 4) if len(e) else None}
 
