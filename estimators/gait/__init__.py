@@ -10,7 +10,7 @@ from stridelab.estimators.gait._events import (GaitEventDetector, GaitEvents, Ic
 from stridelab.estimators.gait._kinematics import (PARAM_COLUMNS, STRIDE_COLUMNS, FootKinematics, FootParams, SessionGait,
                                          StrideTable, foot_kinematics, foot_params_from_dict, foot_trajectory,
                                          gait_session,
-                                         gait_session_pooled, refine_events)
+                                         gait_session_pooled, mid_stances, refine_events)
 
 __all__ = ["GaitEventDetector", "GaitEvents", "IcTcParams", "detect_ic_tc", "pitch_signal", "refine_toe_off",
            "refine_heel_strike",
@@ -18,4 +18,4 @@ __all__ = ["GaitEventDetector", "GaitEvents", "IcTcParams", "detect_ic_tc", "pit
            "FootParams", "SessionGait", "StrideTable", "foot_kinematics", "foot_trajectory", "gait_session",
            "gait_session_pooled",
            "foot_params_from_dict", "refine_events", "PARAM_COLUMNS",
-           "STRIDE_COLUMNS"]
+           "STRIDE_COLUMNS", "mid_stances"]

@@ -47,7 +47,7 @@ from stridelab.estimators.trajectory import (TRAJECTORY_ZUPT, EskfParams, Trajec
 
 __all__ = ["FootParams", "StrideTable", "FootKinematics", "foot_kinematics", "foot_trajectory", "refine_events",
            "SessionGait",
-           "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS"]
+           "gait_session", "gait_session_pooled", "foot_params_from_dict", "STRIDE_COLUMNS", "mid_stances"]
 
 STRIDE_COLUMNS = ("start", "end", "tc", "ic", "pre_ic")
 PARAM_COLUMNS = ("stride_length_m", "stride_time_s", "stance_time_s", "swing_time_s", "stance_pct", "swing_pct",
@@ -164,6 +164,18 @@ class FootKinematics:
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _mids(runs, w: np.ndarray) -> list[int]:
+    """The sample of least angular rate ``w`` in each stance run (gaitmap's ``min_vel`` mid-stance)."""
+    return [a + int(np.argmin(w[a:b])) for a, b in runs]
+
+
+def mid_stances(stance: np.ndarray, gyr: np.ndarray) -> np.ndarray:
+    """Mid-stance samples of a stance mask: in each run of ``stance`` the sample of least |ω| (``gyr`` (N, 3)
+    rad/s; gaitmap's ``min_vel``), the points strides are cut at (:func:`foot_kinematics`)."""
+    return np.array(_mids(_runs(np.asarray(stance, bool)), np.linalg.norm(np.asarray(gyr, float), axis=1)),
+                    dtype=np.int64)
 
 
 def _rot_T(q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -383,7 +395,7 @@ def refine_events(fk: "FootKinematics", gyr: np.ndarray, params: FootParams, *,
 
 def _anterior_axis(traj: TrajectoryResult, runs, w, fs: float, params: FootParams):
     """K1 over the mid-stances of ``runs``; (u_S, found) with u_S = sensor x when no stride is long enough."""
-    mids = [a + int(np.argmin(w[a:b])) for a, b in runs]
+    mids = _mids(runs, w)
     us = []
     for a, b in zip(mids[:-1], mids[1:]):
         d = traj.pos[b] - traj.pos[a]
@@ -439,7 +451,7 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
                 u, ok = _anterior_axis(traj, _runs(stance), w, fs, params)
     if not ok:
         notes.append("no stride long enough to find the foot's anterior axis; assumed sensor x points to the toes")
-    mids = np.array([a + int(np.argmin(w[a:b])) for a, b in _runs(stance)], dtype=np.int64)
+    mids = np.array(_mids(_runs(stance), w), dtype=np.int64)
     s = pitch_signal(traj.quat, u) if swing_rules else s0
     ev = detect_ic_tc(s, sampling_rate_hz=fs, params=params.events, stance=traj.zupt) if swing_rules else ev0
     if swing_rules:
@@ -451,7 +463,7 @@ def foot_kinematics(gyr: np.ndarray, acc: np.ndarray, *, sampling_rate_hz: float
     # K2, K3
     idx_rows, val_rows = [], []
     heading = None
-    run_end = {a + int(np.argmin(w[a:b])): b for a, b in _runs(stance)}    # mid-stance -> end of its stance
+    run_end = dict(zip(mids.tolist(), (b for _a, b in _runs(stance))))       # mid-stance -> end of its stance
     for a, b in zip(mids[:-1], mids[1:]):
         tcs = ev.tc_idx[(ev.tc_idx > a) & (ev.tc_idx < b)]
         ics = ev.ic_idx[(ev.ic_idx > a) & (ev.ic_idx < b)]

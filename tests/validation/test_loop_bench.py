@@ -50,17 +50,17 @@ def _trajectory_zupt_differs():
 
 
 def test_loop_row_scores_the_stored_trajectory_at_its_own_mid_stances(loop_csv):
-    from stridelab.estimators.gait import foot_kinematics, foot_trajectory
+    from stridelab.estimators.gait import foot_kinematics, foot_trajectory, mid_stances
     from stridelab.estimators.trajectory.evaluation import final_position_error
     from stridelab.pipeline.formats.loop_csv import load_loop_csv
-    from stridelab.validation.bench.trajectory import _loop_row, _mid_stances
+    from stridelab.validation.bench.trajectory import _loop_row
     rec = load_loop_csv(loop_csv)
     fp = _trajectory_zupt_differs()
     row, losses = _loop_row(loop_csv, rec, [], foot_params=fp)
     fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=rec.sampling_rate_hz, params=fp)
     stored = foot_trajectory(rec.gyr, rec.acc, fk, sampling_rate_hz=rec.sampling_rate_hz, params=fp)
     assert not np.array_equal(stored.zupt, fk.trajectory.zupt)          # the case where the two differ
-    mids = _mid_stances(stored.zupt, rec.gyr)
+    mids = mid_stances(stored.zupt, rec.gyr)
     exy, e3 = final_position_error(stored.pos[mids])
     assert row["final_position_error_xy_m"] == exy and row["final_position_error_3d_m"] == e3
     assert row["n_stances"] == len(mids)

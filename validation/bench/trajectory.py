@@ -283,15 +283,6 @@ def pyshoe_benchmark(directory: Path, *, show_progress: bool = True, anchors: bo
     return out
 
 
-def _mid_stances(zupt: np.ndarray, gyr: np.ndarray) -> np.ndarray:
-    """Mid-stance samples of a stance mask: the sample of least |ω| in each stance run (gaitmap's ``min_vel``, the
-    rule of ``foot_kinematics``)."""
-    d = np.diff(np.concatenate([[0], np.asarray(zupt, bool).astype(np.int8), [0]]))
-    w = np.linalg.norm(np.asarray(gyr, float), axis=1)
-    return np.array([a + int(np.argmin(w[a:b])) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))],
-                    dtype=np.int64)
-
-
 def _loop_row(path: Path, rec, configs, foot_params=None) -> tuple[dict, np.ndarray]:
     """Distance and closure error of one loop recording with the shipped defaults (row) and the final horizontal
     / 3-D error of every grid point ((C, 2) losses).
@@ -303,7 +294,7 @@ def _loop_row(path: Path, rec, configs, foot_params=None) -> tuple[dict, np.ndar
     ``EskfParams`` (what the stage would store with them), at its own mid-stances."""
     import warnings
 
-    from stridelab.estimators.gait import FootParams, foot_kinematics, foot_trajectory
+    from stridelab.estimators.gait import FootParams, foot_kinematics, foot_trajectory, mid_stances
     from stridelab.estimators.trajectory import eskf_trajectory
     from stridelab.estimators.trajectory.evaluation import final_position_error
     fp = FootParams() if foot_params is None else foot_params
@@ -315,7 +306,7 @@ def _loop_row(path: Path, rec, configs, foot_params=None) -> tuple[dict, np.ndar
         fk = foot_kinematics(rec.gyr, rec.acc, sampling_rate_hz=fs, params=fp)
         traj = foot_trajectory(rec.gyr, rec.acc, fk, sampling_rate_hz=fs, params=fp)
         row["status"] = traj.status
-        mids = _mid_stances(traj.zupt, rec.gyr) if traj.status == "ok" else np.zeros(0, np.int64)
+        mids = mid_stances(traj.zupt, rec.gyr) if traj.status == "ok" else np.zeros(0, np.int64)
         if traj.status != "ok" or len(mids) < 2:
             row.update(distance_m=None, final_position_error_m=None, final_position_error_3d_m=None,
                        final_position_error_xy_m=None, n_stances=len(mids))
@@ -328,7 +319,7 @@ def _loop_row(path: Path, rec, configs, foot_params=None) -> tuple[dict, np.ndar
                    n_stances=int(len(mids)))
         for c, tp in enumerate(configs):
             tc = eskf_trajectory(rec.gyr, rec.acc, sampling_rate_hz=fs, params=tp)
-            mc = _mid_stances(tc.zupt, rec.gyr) if tc.status == "ok" else np.zeros(0, np.int64)
+            mc = mid_stances(tc.zupt, rec.gyr) if tc.status == "ok" else np.zeros(0, np.int64)
             if len(mc) >= 2:
                 losses[c] = final_position_error(tc.pos[mc])
     return row, losses
